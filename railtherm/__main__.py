@@ -1,0 +1,3 @@
+from railtherm.cli import main
+
+raise SystemExit(main())

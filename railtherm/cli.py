@@ -1,0 +1,88 @@
+"""The ``railtherm`` command line.
+
+``railtherm validate [--config config/config.yaml] [VEHICLE.yaml ...]`` checks the study config
+and every vehicle it lists (or only the vehicle files given, with the study's defaults and
+campaign layouts when the study config exists). It prints ``ok: N vehicles`` and exits 0, or
+prints the one-line error on stderr and exits 1. More subcommands (new-vehicle, simulate,
+audit) plug into :func:`build_parser`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+
+from railtherm import __version__
+from railtherm.config import Study, add_vehicle, load_study, read_yaml, study_context
+from railtherm.errors import RailthermError
+
+
+def _validate(args: argparse.Namespace) -> int:
+    workdir = args.directory
+    config_local = os.path.normpath(os.path.join(workdir, args.config))
+    if args.vehicles and not os.path.isfile(config_local):
+        study = Study(vehicles={}, campaign=None)  # loose vehicle files, no study config
+    else:
+        config = read_yaml(config_local, display=args.config)
+        if not args.vehicles:
+            study = load_study(config, workdir=workdir, config_file=args.config)
+        else:
+            study = study_context(config, workdir=workdir, config_file=args.config)
+    for path in args.vehicles:
+        add_vehicle(study, path, workdir=workdir)
+    count = len(study.vehicles)
+    print(f"ok: {count} vehicle{'' if count == 1 else 's'}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with one subparser per command."""
+    parser = argparse.ArgumentParser(
+        prog="railtherm",
+        description="Thermal parameters of rail vehicles from climatic-wind-tunnel data.",
+    )
+    parser.add_argument("--version", action="version", version=f"railtherm {__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    validate = commands.add_parser(
+        "validate",
+        help="check the study config and vehicle configs against their raw files",
+        description=(
+            "Check the study config and every vehicle it lists (or only the VEHICLE files "
+            "given). Prints 'ok: N vehicles' or one line naming the file, key and value."
+        ),
+    )
+    validate.add_argument(
+        "--config",
+        default="config/config.yaml",
+        help="study config, relative to the working directory (default: %(default)s)",
+    )
+    validate.add_argument(
+        "-d",
+        "--directory",
+        default=".",
+        help="working directory the config's paths are relative to (default: %(default)s)",
+    )
+    validate.add_argument("vehicles", nargs="*", metavar="VEHICLE.yaml", help="vehicle files")
+    validate.set_defaults(run=_validate)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status (0 ok, 1 user mistake, 2 usage)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return args.run(args)
+    except RailthermError as exc:
+        print(exc, file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,127 @@
+"""What the validator needs to know of a raw file: its columns and the time span it covers.
+
+A layout comes either from reading an existing file (:func:`read_layout`, in railtherm.config's
+checks) or, for files the virtual climatic wind tunnel has not written yet, from the campaign
+(:func:`railtherm.synth.planned_layouts`). Both give the same answer for the same file.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import pandas as pd
+
+from railtherm.errors import DataError
+
+
+@dataclass(frozen=True)
+class RawLayout:
+    """Columns and time span of one raw CSV file.
+
+    ``t_first``/``t_last`` are ``pandas.Timestamp`` for ``time_format == "iso"`` and float
+    seconds for ``time_format == "seconds"``.
+    """
+
+    path: str
+    columns: tuple[str, ...]
+    time_column: str
+    time_format: str
+    t_first: pd.Timestamp | float
+    t_last: pd.Timestamp | float
+
+
+_ISO_DATE = r"^\s*\d{4}-\d{2}-\d{2}"
+
+
+def _csv_error(path: str, exc: Exception) -> DataError:
+    return DataError(path, "", None, f"cannot read the file as CSV: {exc}".splitlines()[0])
+
+
+def read_columns(path: str | os.PathLike[str], separator: str = ",") -> tuple[str, ...]:
+    """Column names in the header line of a plain or gzip-compressed CSV file.
+
+    Raises :class:`DataError` naming the file when it cannot be read, is empty, or has a
+    column name twice (a channel map could not tell the two apart).
+    """
+    path = str(path)
+    try:
+        header = pd.read_csv(path, sep=separator, header=None, nrows=1, dtype=str)
+    except pd.errors.EmptyDataError:
+        raise DataError(path, "", None, "the file is empty (no header line)") from None
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise _csv_error(path, exc) from None
+    columns = tuple("" if pd.isna(c) else str(c) for c in header.iloc[0])
+    seen: set[str] = set()
+    for column in columns:
+        if column in seen:
+            raise DataError(path, column, column, "the header names this column twice")
+        seen.add(column)
+    return columns
+
+
+def read_layout(
+    path: str | os.PathLike[str],
+    separator: str = ",",
+    decimal: str = ".",
+    time_column: str | None = None,
+    time_format: str | None = None,
+) -> RawLayout:
+    """Columns and time span of a raw CSV file, reading its header and only its time column.
+
+    ``time_format`` is ``"iso"`` (ISO 8601 timestamps, returned as ``pandas.Timestamp``) or
+    ``"seconds"`` (elapsed seconds, returned as float; ``decimal`` is honoured). Plain and
+    ``.gz`` files are read alike. Raises :class:`DataError` naming the file when it cannot be
+    read, the time column is missing, or a time value cannot be parsed (naming the first bad
+    value and its line).
+    """
+    if time_column is None or time_format is None:
+        raise TypeError("read_layout() needs time_column and time_format")
+    if time_format not in ("iso", "seconds"):
+        raise ValueError(f"time_format must be 'iso' or 'seconds', not {time_format!r}")
+    path = str(path)
+    columns = read_columns(path, separator)
+    if time_column not in columns:
+        raise DataError(path, time_column, None, f"no such column (columns: {', '.join(columns)})")
+    try:
+        raw = pd.read_csv(path, sep=separator, usecols=[time_column], dtype=str)[time_column]
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise _csv_error(path, exc) from None
+    if raw.empty:
+        raise DataError(path, time_column, None, "the file has a header but no data rows")
+    times = _parse_times(path, raw, time_column, time_format, decimal)
+    return RawLayout(
+        path=path,
+        columns=columns,
+        time_column=time_column,
+        time_format=time_format,
+        t_first=times.iloc[0] if time_format == "iso" else float(times.iloc[0]),
+        t_last=times.iloc[-1] if time_format == "iso" else float(times.iloc[-1]),
+    )
+
+
+def _parse_times(
+    path: str, raw: pd.Series, time_column: str, time_format: str, decimal: str
+) -> pd.Series:
+    """Parse a time column; :class:`DataError` naming the first value that does not parse."""
+    text = raw.astype(object).where(raw.notna(), None)
+    if time_format == "iso":
+        expected = "an ISO 8601 timestamp (time format iso)"
+        looks_iso = raw.str.match(_ISO_DATE).fillna(False).astype(bool)
+        try:
+            times = pd.to_datetime(raw.where(looks_iso), format="ISO8601", errors="coerce")
+        except (ValueError, TypeError) as exc:  # e.g. mixed time-zone offsets
+            raise DataError(
+                path, time_column, text.iloc[0], f"timestamps cannot be parsed together: {exc}"
+            ) from None
+    else:
+        expected = "a number of seconds (time format seconds)"
+        numbers = raw.str.strip()
+        if decimal != ".":
+            numbers = numbers.str.replace(decimal, ".", regex=False)
+        times = pd.to_numeric(numbers, errors="coerce").astype(float)
+    bad = times.isna().to_numpy()
+    if bad.any():
+        row = int(bad.argmax())
+        raise DataError(path, time_column, text.iloc[row], f"line {row + 2}: not {expected}")
+    return times
