@@ -1,0 +1,21 @@
+# railtherm: regenerate the rail-vehicle thermal study from the configs in config/.
+# Thin by design: every number is computed by the railtherm package; rules live in workflow/rules.
+from snakemake.utils import min_version, validate
+
+min_version("9.0")
+
+
+configfile: "config/config.yaml"
+
+
+validate(config, "workflow/schemas/config.schema.yaml")
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/synthesize.smk"
+
+
+rule all:
+    input:
+        all_outputs(),
+    default_target: True

@@ -1,0 +1,125 @@
+"""The Snakemake workflow, run for real in temporary directories (one directory per run)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+SMALL = ["Tram2", "Metro3"]
+
+pytestmark = pytest.mark.workflow
+
+
+def make_study(tmp_path: Path, vehicles: list[str] | None = None) -> Path:
+    """A working directory holding a copy of config/, optionally restricted to some vehicles."""
+    study = tmp_path / "study"
+    shutil.copytree(REPO / "config", study / "config")
+    if vehicles is not None:
+        cfg_path = study / "config" / "config.yaml"
+        cfg = yaml.safe_load(cfg_path.read_text())
+        cfg["vehicles"] = [f"config/vehicles/{v}.yaml" for v in vehicles]
+        cfg_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return study
+
+
+def snakemake(study: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "snakemake", "--snakefile", str(REPO / "Snakefile")]
+        + ["--directory", str(study), "--cores", "2", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
+def job_counts(output: str) -> dict[str, int]:
+    """Rule -> job count from the 'Job stats' table Snakemake prints."""
+    table = output.split("Job stats:", 1)[1]
+    return {
+        m.group(1): int(m.group(2))
+        for m in re.finditer(r"^(\w+)\s+(\d+)\s*$", table, re.MULTILINE)
+        if m.group(1) != "total"
+    }
+
+
+def planned_outputs(output: str, rule: str) -> list[str]:
+    """The output files of the jobs of one rule in a dry run's job listing."""
+    return re.findall(rf"^rule {rule}:\n\s+output: (\S+)", output, re.MULTILINE)
+
+
+def outputs(study: Path) -> dict[str, bytes]:
+    files = sorted(
+        p for d in ("resources", "results") for p in (study / d).rglob("*") if p.is_file()
+    )
+    return {str(p.relative_to(study)): p.read_bytes() for p in files}
+
+
+def test_lint_reports_nothing(tmp_path):
+    run = snakemake(make_study(tmp_path), "--lint")
+    assert run.returncode == 0, run.stderr
+    assert "Congratulations, your workflow is in a good condition!" in run.stdout + run.stderr
+
+
+def test_dry_run_plans_the_whole_campaign(tmp_path):
+    study = make_study(tmp_path)
+    run = snakemake(study, "--dry-run")
+    assert run.returncode == 0, run.stderr
+    counts = job_counts(run.stdout + run.stderr)
+    assert counts["ground_truth"] == 1
+    assert counts["synthesize"] >= 13  # at least one raw file per vehicle
+    assert not (study / "resources").exists()
+
+
+def test_run_writes_raw_files_and_truth_deterministically(tmp_path):
+    first = make_study(tmp_path / "a", SMALL)
+    run = snakemake(first)
+    assert run.returncode == 0, run.stderr
+    written = outputs(first)
+    assert "results/campaign/ground_truth.csv" in written
+    for vid in SMALL:
+        assert any(p.startswith(f"resources/campaign/{vid}/") for p in written)
+    assert not any("Metro1" in p for p in written if p.startswith("resources"))
+
+    again = snakemake(first)
+    assert again.returncode == 0, again.stderr
+    assert "Nothing to be done" in again.stdout + again.stderr
+
+    second = make_study(tmp_path / "b", SMALL)
+    assert snakemake(second).returncode == 0
+    assert outputs(second) == written
+
+
+def test_bad_vehicle_config_stops_before_any_job(tmp_path):
+    study = make_study(tmp_path, SMALL)
+    path = study / "config" / "vehicles" / "Metro3.yaml"
+    vehicle = yaml.safe_load(path.read_text())
+    vehicle["mass_kg"] = -1
+    path.write_text(yaml.safe_dump(vehicle, sort_keys=False))
+    run = snakemake(study)
+    assert run.returncode != 0
+    message = run.stdout + run.stderr
+    assert "config/vehicles/Metro3.yaml" in message
+    assert "mass_kg" in message and "-1" in message
+    assert not (study / "resources").exists() and not (study / "results").exists()
+
+
+def test_editing_one_campaign_vehicle_reruns_only_that_vehicle(tmp_path):
+    study = make_study(tmp_path, SMALL)
+    assert snakemake(study).returncode == 0
+    campaign_path = study / "config" / "campaign" / "virtual_cwt.yaml"
+    campaign = yaml.safe_load(campaign_path.read_text())
+    campaign["vehicles"]["Metro3"]["truth"]["C"]["value"] *= 1.1
+    campaign_path.write_text(yaml.safe_dump(campaign, sort_keys=False))
+    run = snakemake(study, "--dry-run")
+    assert run.returncode == 0, run.stderr
+    assert planned_outputs(run.stdout, "synthesize") == [
+        "resources/campaign/Metro3/Metro3_cwt.csv.gz"
+    ]
+    assert job_counts(run.stdout + run.stderr)["ground_truth"] == 1

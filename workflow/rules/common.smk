@@ -1,0 +1,66 @@
+# Shared set-up: load and validate every vehicle before any job starts, and helpers for rules.
+import hashlib
+import re
+from pathlib import Path
+
+from snakemake.exceptions import WorkflowError
+
+import railtherm
+from railtherm import synth
+from railtherm.config import load_study
+from railtherm.errors import RailthermError
+
+RAILTHERM_DIR = Path(railtherm.__file__).parent
+
+try:
+    STUDY = load_study(config, workdir=".")
+    CAMPAIGN = synth.load_campaign(config["campaign"]) if config.get("campaign") else None
+except RailthermError as err:
+    raise WorkflowError(f"invalid configuration: {err}") from None
+
+VEHICLES = list(STUDY.vehicles)
+CAMPAIGN_VEHICLES = list(CAMPAIGN["vehicles"]) if CAMPAIGN else []
+CAMPAIGN_ROOT = "resources/campaign"
+
+
+wildcard_constraints:
+    vehicle="[A-Za-z][A-Za-z0-9_-]*",
+
+
+def code_digest(*modules):
+    """Digest of railtherm source files, passed as a param so that code edits rerun the jobs."""
+    h = hashlib.sha256()
+    for name in modules:
+        h.update((RAILTHERM_DIR / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
+def campaign_file_regex(field):
+    """Wildcard constraint matching only what the campaign declares (never a real-data file)."""
+    if not CAMPAIGN:
+        return "(?!x)x"
+    if field == "vehicle":
+        names = CAMPAIGN_VEHICLES
+    else:
+        names = [
+            name
+            for vid in CAMPAIGN_VEHICLES
+            for name in synth.raw_file_names(synth.vehicle_spec(CAMPAIGN, vid))
+        ]
+    return "|".join(re.escape(name) for name in sorted(set(names)))
+
+
+def raw_files(vehicle):
+    """The raw files of one vehicle, as paths relative to the working directory."""
+    return list(STUDY.vehicles[vehicle].raw_files.values())
+
+
+def all_outputs():
+    """The targets of `rule all`."""
+    targets = [path for vid in VEHICLES for path in raw_files(vid)]
+    if CAMPAIGN:
+        targets += [
+            "results/campaign/ground_truth.csv",
+            "results/campaign/ground_truth_sources.csv",
+        ]
+    return targets
