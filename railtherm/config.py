@@ -201,9 +201,17 @@ def vehicle_schema() -> dict[str, Any]:
     return yaml.safe_load(text.read_text(encoding="utf-8"))
 
 
-def _model_schema() -> dict[str, Any]:
+# Sections of a vehicle file that the study config's ``defaults`` may preset.
+DEFAULTABLE = ("model", "cleaning", "instruments", "kvalue")
+
+
+def _section_schema(section: str) -> dict[str, Any]:
     schema = vehicle_schema()
-    return {**schema["properties"]["model"], "$defs": schema["$defs"]}
+    return {**schema["properties"][section], "$defs": schema["$defs"]}
+
+
+def _model_schema() -> dict[str, Any]:
+    return _section_schema("model")
 
 
 def _key(path: Iterable[Any], prefix: str = "") -> str:
@@ -374,9 +382,10 @@ def load_vehicle(
 ) -> Vehicle:
     """Load, validate and check one vehicle YAML file.
 
-    ``defaults`` is the study config's ``defaults`` section; its ``model`` is deep-merged under
-    the vehicle's own ``model`` (the vehicle wins). ``layouts`` maps normalised raw-file paths
-    (relative to ``workdir``) to planned layouts, used for raw files that do not exist yet.
+    ``defaults`` is the study config's ``defaults`` section; each of its sections (model,
+    cleaning, instruments, kvalue) is deep-merged under the vehicle's own (the vehicle wins).
+    ``layouts`` maps normalised raw-file paths (relative to ``workdir``) to planned layouts,
+    used for raw files that do not exist yet.
     Raises :class:`ConfigError` naming this file, the key path and the value on the first
     problem found.
     """
@@ -393,6 +402,9 @@ def load_vehicle(
             data,
             f"expected a mapping of keys (id, class, ...), got {_TYPE_WORDS.get(_json_type(data))}",
         )
+    for section in DEFAULTABLE[1:]:  # model is merged after validation (see _check_model)
+        if section in (defaults or {}) and isinstance(data.get(section, {}), dict):
+            data[section] = deep_merge(defaults[section], data.get(section) or {})
     validate_schema(file, data, vehicle_schema())
 
     fmt = data["format"]
@@ -702,8 +714,14 @@ def study_context(
     if not isinstance(defaults, Mapping):
         raise ConfigError(config_file, "defaults", defaults, "must be a mapping (key: value)")
     defaults = copy.deepcopy(dict(defaults))
+    for section in DEFAULTABLE:
+        if section in defaults:
+            # validate a copy: schema defaults must not be filled into the study's defaults
+            section_data = copy.deepcopy(defaults[section])
+            validate_schema(
+                config_file, section_data, _section_schema(section), prefix=f"defaults.{section}"
+            )
     if "model" in defaults:
-        validate_schema(config_file, defaults["model"], _model_schema(), prefix="defaults.model")
         _check_model(config_file, defaults["model"], defaults["model"], "defaults.model")
 
     layouts: dict[str, RawLayout] = {}

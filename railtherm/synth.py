@@ -1103,6 +1103,8 @@ def vehicle_config(campaign: dict, vehicle_id: str, raw_dir: str = "../../resour
         "format": {
             "separator": lg["separator"],
             "decimal": lg.get("decimal", "."),
+            # the logger's power meters report the mean over the interval ending at each stamp
+            "power_timing": "mean_preceding",
             "time": {"column": lg["time_column"], "format": lg["time_format"]},
         },
         "channels": channels,

@@ -553,7 +553,10 @@ def test_schema_defaults_are_filled(repo):
         "time": {"column": "time", "format": "iso"},
         "separator": ",",
         "decimal": ".",
+        "power_timing": "instant",
     }
+    assert vehicle.data["cleaning"] == {"max_gap_s": 900}
+    assert vehicle.data["kvalue"]["force"] is False
     assert vehicle.synthetic is False
     assert (
         vehicle.data["channels"] is vehicle.channels or vehicle.data["channels"] == vehicle.channels
@@ -690,3 +693,24 @@ def test_column_order_does_not_matter(tmp_path_factory, order):
     layout = vehicle.layouts["cwt"]
     assert layout.columns == tuple(order)
     assert (layout.t_first, layout.t_last) == (START, START + pd.Timedelta(minutes=9))
+
+
+def test_study_defaults_merge_under_vehicle_sections(repo):
+    """defaults.kvalue / instruments / cleaning preset every vehicle; the vehicle's own key wins."""
+    write_vehicle(mutated(lambda d: d.update(kvalue={"min_duration_h": 2})))
+    config = {
+        "vehicles": [VEHICLE_FILE],
+        "defaults": {"kvalue": {"min_duration_h": 4, "max_drift_T_K": 0.2}},
+    }
+    settings = load_study(config).vehicles["V1"].data["kvalue"]
+    assert settings["min_duration_h"] == 2  # the vehicle wins
+    assert settings["max_drift_T_K"] == 0.2  # from the study's defaults
+    assert settings["min_delta_T_K"] == 15  # schema default
+
+
+def test_bad_study_default_names_config_file(repo):
+    config = {"vehicles": [VEHICLE_FILE], "defaults": {"instruments": {"power_u_rel": -0.1}}}
+    with pytest.raises(ConfigError) as exc:
+        load_study(config)
+    assert "config/config.yaml" in str(exc.value)
+    assert exc.value.key == "defaults.instruments.power_u_rel" and exc.value.value == -0.1
