@@ -89,7 +89,7 @@ def read_layout(
         raise _csv_error(path, exc) from None
     if raw.empty:
         raise DataError(path, time_column, None, "the file has a header but no data rows")
-    times = _parse_times(path, raw, time_column, time_format, decimal)
+    times = parse_times(path, raw, time_column, time_format, decimal)
     return RawLayout(
         path=path,
         columns=columns,
@@ -100,7 +100,7 @@ def read_layout(
     )
 
 
-def _parse_times(
+def parse_times(
     path: str, raw: pd.Series, time_column: str, time_format: str, decimal: str
 ) -> pd.Series:
     """Parse a time column; :class:`DataError` naming the first value that does not parse."""

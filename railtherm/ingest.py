@@ -1,0 +1,681 @@
+"""Cleaning raw climatic-wind-tunnel recordings into tidy, uniformly sampled tables.
+
+A raw file (plain or ``.gz`` CSV) is read by :func:`read_raw`; :func:`tidy` cuts one window
+out of it and returns the tidy table every later stage consumes; :func:`clean_window` does both
+for a window named in the vehicle config, and :func:`write_tidy` writes the table.
+
+Tidy table (columns in this order)
+----------------------------------
+``time``       s since the window start: 0, step, 2 step, ...
+``timestamp``  the raw time label of the grid point (ISO string for ``iso`` files, seconds for
+               ``seconds`` files)
+``T``          weighted mean of the indoor air sensors, degC
+``T_veh``      weighted mean of the interior surface sensors, degC (empty if there are none)
+``T_o``        weighted mean of the outdoor (tunnel) air sensors, degC
+``Q_H``        heater plus fan power, W (eq. 3): ``Q_heater + Q_fan``
+``Q_heater``   heater power, W
+``Q_fan``      fan power, W (0 without fan channels)
+``T_spread``   weighted standard deviation of the indoor sensors, K:
+               ``sqrt(sum w_i (T_i - T)^2 / sum w_i)`` (0 with one sensor)
+``filled``     1 if any value used for this row was interpolated across a gap, else 0
+
+Grid
+----
+``t_n = window start + n step`` for ``n = 0..N`` with ``t_N <= window end``; ``step`` is
+``cleaning.step_s`` or, by default, the raw file's median logger step ``dt_log``.
+
+Temperatures at ``t_n`` are the mean of the samples in the bin ``[t_n - step/2, t_n + step/2]``;
+a sample lying exactly on the boundary of two bins counts half in each (so every sample has
+weight 1 in total and the bin mean is centred on ``t_n`` for any whole number of logger steps
+per step; when step = ``dt_log`` the value is the sample at ``t_n`` itself). Near the ends of the
+data the bin shrinks symmetrically to ``[t_n - h, t_n + h]`` with ``h`` the distance to the
+first/last sample (h = 0: the sample at ``t_n``). A bin without any sample (step finer than the
+logger) takes the linear interpolation at ``t_n``.
+
+Powers: ``Q_H[n]`` is the mean power over ``[t_n, t_n + step)``, the input held over the step
+that follows ``t_n`` (the zero-order hold of eq. 15 used by the simulation). It is the exact
+integral of the power signal the samples describe, by ``format.power_timing``:
+
+* ``mean_preceding``: a sample at ``t_k`` is the mean over ``(t_{k-1}, t_k]`` (the first sample
+  covers ``(t_0 - dt_log, t_0]``); the signal is piecewise constant;
+* ``mean_following``: a sample at ``t_k`` is the mean over ``[t_k, t_{k+1})`` (the last covers
+  ``[t_last, t_last + dt_log)``); piecewise constant;
+* ``instant``: a sample is the power at ``t_k``; the signal is the linear interpolation between
+  samples (so a switch between two samples counts half of the interval on either side, the
+  unbiased guess when the switching time is unknown).
+
+Data after the window end are used when the file has them. Where the power signal ends before
+``t_N + step`` (the last row of a window that reaches the end of the data), the last row's
+power is the mean over the part of ``[t_N, t_N + step)`` that the data cover, and where they
+cover none of it (``instant`` or ``mean_preceding`` with ``t_N`` = the last sample), the power
+just before ``t_N`` (the last sample's value).
+
+Gaps
+----
+Each channel is cleaned on its own BEFORE the sensors are combined, so a missing sensor does not
+shift a mean by its offset. The raw time axis is first completed: an interval of about ``m``
+logger steps between two rows holds ``m - 1`` missing rows, inserted evenly. Missing rows and
+empty cells are then linearly interpolated per channel (values before a channel's first or after
+its last value are held) and the rows they touch are flagged in ``filled``. A gap lasts
+(number of missing samples) x ``dt_log``; a gap longer than ``cleaning.max_gap_s`` that reaches
+into the rows of the window is a :class:`~railtherm.errors.DataError` naming the file, the
+column and the time of the gap. Gaps elsewhere in the file do not matter.
+
+Units: temperature channels in K are converted to degC (minus 273.15), power channels in kW to
+W. Raw-data problems raise :class:`~railtherm.errors.DataError`; a window that does not fit the
+data (outside it, empty, unknown name) raises :class:`~railtherm.errors.ConfigError` naming the
+raw file and the window's key.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import gzip
+import os
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from railtherm.errors import ConfigError, DataError
+from railtherm.rawfile import parse_times, read_columns
+
+__all__ = [
+    "TIDY_COLUMNS",
+    "clean_window",
+    "read_raw",
+    "read_tidy",
+    "tidy",
+    "window_names",
+    "window_spec",
+    "write_tidy",
+]
+
+TIDY_COLUMNS = (
+    "time",
+    "timestamp",
+    "T",
+    "T_veh",
+    "T_o",
+    "Q_H",
+    "Q_heater",
+    "Q_fan",
+    "T_spread",
+    "filled",
+)
+KELVIN = 273.15
+TEMPERATURE_GROUPS = ("indoor_air", "surface", "outdoor_air")
+POWER_GROUPS = ("heater_power", "fan_power")
+RESERVED_WINDOWS = ("kvalue", "record")
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading
+
+
+def read_raw(
+    path: str | os.PathLike[str], fmt: dict[str, Any], label: str | None = None
+) -> pd.DataFrame:
+    """Read a raw CSV file (plain or ``.gz``) into a DataFrame indexed by its time in seconds.
+
+    ``fmt`` is the vehicle's ``format`` section (separator, decimal, time.column, time.format).
+    The index (``t_s``, float) is the time column in seconds: the numbers themselves for
+    ``seconds`` files, seconds since the first row for ``iso`` files. The time column is kept as
+    text (the raw labels); every other column is read as numbers where possible. ``label`` is
+    the file name used in messages (default: ``path``).
+
+    Raises :class:`DataError` naming the file when it cannot be read, the time column is
+    missing, a time does not parse (naming the value and its line), or the time is not strictly
+    increasing (naming the offending time, its data row and line).
+    """
+    file = label or str(path)
+    sep = fmt.get("separator", ",")
+    decimal = fmt.get("decimal", ".")
+    time_column = fmt["time"]["column"]
+    time_format = fmt["time"]["format"]
+    try:
+        columns = read_columns(path, sep)
+    except DataError as exc:
+        raise DataError(file, exc.key, exc.value, exc.reason) from None
+    if time_column not in columns:
+        raise DataError(
+            file, time_column, None, f"time column not found (columns: {', '.join(columns)})"
+        )
+    try:
+        raw = pd.read_csv(path, sep=sep, decimal=decimal, dtype={time_column: str})
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        reason = f"cannot read the file as CSV: {exc}".splitlines()[0]
+        raise DataError(file, "", None, reason) from None
+    if raw.empty:
+        raise DataError(file, time_column, None, "the file has a header but no data rows")
+    labels = raw[time_column]
+    try:
+        times = parse_times(file, labels, time_column, time_format, decimal)
+    except DataError as exc:
+        raise DataError(file, exc.key, exc.value, exc.reason) from None
+    if time_format == "iso":
+        seconds = (times - times.iloc[0]).dt.total_seconds().to_numpy(dtype=float)
+    else:
+        seconds = times.to_numpy(dtype=float)
+    steps = np.diff(seconds)
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        what = "duplicated time" if steps[i - 1] == 0 else "time goes backwards"
+        raise DataError(
+            file,
+            time_column,
+            labels.iloc[i],
+            f"{what}: data row {i + 1} (line {i + 2}) follows {labels.iloc[i - 1]!s} "
+            "(the time column must increase strictly)",
+        )
+    raw.index = pd.Index(seconds, name="t_s")
+    origin = times.iloc[0] if time_format == "iso" else None  # the time at index 0 s
+    raw.attrs = {
+        "file": file,
+        "time_column": time_column,
+        "time_format": time_format,
+        "origin": origin,
+    }
+    return raw
+
+
+# ---------------------------------------------------------------------------------------------
+# Windows
+
+
+def window_names(vehicle_data: dict[str, Any]) -> list[str]:
+    """Names of the windows the vehicle config defines: ``kvalue`` (if any), then the
+    identification windows in config order (``record``, the whole file, is always available)."""
+    windows = vehicle_data["windows"]
+    names = ["kvalue"] if "kvalue" in windows else []
+    return names + [w["name"] for w in windows["identification"]]
+
+
+def window_spec(
+    vehicle_data: dict[str, Any], window_name: str
+) -> tuple[str, dict[str, Any] | None, str]:
+    """``(raw-file name, window or None, config key)`` of a window named in the vehicle config.
+
+    ``kvalue`` is ``windows.kvalue``; ``record`` is the whole file (window ``None``) of the
+    kvalue window, or of the first identification window when there is none; any other name is
+    the identification window of that name. The raw-file name is a key of ``raw_files``.
+    Raises :class:`ConfigError` for an unknown name.
+    """
+    windows = vehicle_data["windows"]
+    ident = windows["identification"]
+
+    def file_of(window: dict[str, Any]) -> str:
+        return window.get("file") or next(iter(vehicle_data["raw_files"]))
+
+    if window_name == "kvalue":
+        if "kvalue" not in windows:
+            raise ConfigError(
+                vehicle_data.get("id", "(vehicle)"), "windows.kvalue", None, "no kvalue window"
+            )
+        return file_of(windows["kvalue"]), windows["kvalue"], "windows.kvalue"
+    if window_name == "record":
+        first = windows.get("kvalue") or ident[0]
+        return file_of(first), None, "record"
+    for i, window in enumerate(ident):
+        if window["name"] == window_name:
+            return file_of(window), window, f"windows.identification[{i}]"
+    raise ConfigError(
+        vehicle_data.get("id", "(vehicle)"),
+        "windows",
+        window_name,
+        f"no such window (known: {', '.join([*window_names(vehicle_data), 'record'])})",
+    )
+
+
+def _window_key(vehicle_data: dict[str, Any], window: dict[str, Any] | None) -> str:
+    if window is None:
+        return "record"
+    windows = vehicle_data.get("windows", {})
+    if windows.get("kvalue") == window:
+        return "windows.kvalue"
+    for i, w in enumerate(windows.get("identification", [])):
+        if w == window:
+            return f"windows.identification[{i}]"
+    return "window"
+
+
+def _bound(file: str, key: str, value: Any, time_format: str, origin: Any) -> float:
+    """A window bound in the raw index's seconds."""
+    if time_format == "seconds":
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(file, key, value, "must be a number of seconds (time format seconds)")
+        return float(value)
+    if not isinstance(value, str):
+        raise ConfigError(file, key, value, "must be an ISO 8601 timestamp (time format iso)")
+    try:
+        stamp = pd.Timestamp(dt.datetime.fromisoformat(value.strip()))
+    except ValueError:
+        raise ConfigError(file, key, value, "not an ISO 8601 timestamp") from None
+    try:
+        return float((stamp - origin).total_seconds())
+    except TypeError:
+        raise ConfigError(
+            file, key, value, "time zone given on one side only (window vs. the file's timestamps)"
+        ) from None
+
+
+# ---------------------------------------------------------------------------------------------
+# Cleaning
+
+
+def _channels(vehicle_data: dict[str, Any], group: str) -> list[dict[str, Any]]:
+    return list(vehicle_data["channels"].get(group) or [])
+
+
+def _numeric(file: str, raw: pd.DataFrame, column: str) -> np.ndarray:
+    """A channel column as float; :class:`DataError` naming the first value that is no number."""
+    series = raw[column]
+    if pd.api.types.is_numeric_dtype(series.dtype):
+        return series.to_numpy(dtype=float, na_value=np.nan)
+    text = series.astype("string")
+    values = pd.to_numeric(text, errors="coerce").to_numpy(dtype=float, na_value=np.nan)
+    blank = (text.isna() | text.str.strip().eq("")).to_numpy(dtype=bool, na_value=True)
+    bad = np.isnan(values) & ~blank
+    if bad.any():
+        i = int(bad.argmax())
+        raise DataError(file, column, str(text.iloc[i]), f"line {i + 2}: not a number")
+    return values
+
+
+def _complete_axis(t: np.ndarray, dt_log: float) -> tuple[np.ndarray, np.ndarray]:
+    """The time axis with missing rows inserted: ``(t_full, positions of the raw rows)``.
+
+    An interval of about m logger steps (m = round(interval / dt_log)) gets m - 1 evenly spaced
+    points."""
+    d = np.diff(t)
+    count = np.maximum(np.rint(d / dt_log), 1).astype(np.int64)
+    first = np.cumsum(count) - count  # position of each raw row (but the last) in t_full
+    owner = np.repeat(np.arange(d.size), count)
+    j = np.arange(int(count.sum())) - np.repeat(first, count)
+    t_full = np.concatenate([t[owner] + d[owner] * j / count[owner], t[-1:]])
+    return t_full, np.concatenate([first, [t_full.size - 1]])
+
+
+class _Labels:
+    """Raw time labels of arbitrary times (seconds on the raw index)."""
+
+    def __init__(self, time_format: str, origin: Any):
+        self.iso = time_format == "iso"
+        self.origin = origin
+
+    def many(self, seconds: np.ndarray) -> np.ndarray:
+        seconds = np.asarray(seconds, dtype=float)
+        if not self.iso:
+            return seconds
+        whole = np.allclose(seconds, np.rint(seconds), rtol=0, atol=1e-6)
+        unit = "s" if whole else "ms"
+        origin = self.origin
+        tz = origin.tzinfo is not None
+        offset = origin.isoformat()[-6:] if tz else ""
+        local = origin.tz_localize(None) if tz else origin
+        step = np.rint(seconds * (1 if whole else 1000)).astype(np.int64)
+        stamps = np.datetime64(local.to_datetime64(), unit) + step.astype(f"timedelta64[{unit}]")
+        text = np.datetime_as_string(stamps, unit=unit)
+        return np.char.add(text.astype(str), offset) if offset else text.astype(str)
+
+    def one(self, seconds: float) -> Any:
+        value = self.many(np.array([seconds]))[0]
+        return str(value) if self.iso else float(value)
+
+
+def _fill_channels(
+    file: str,
+    columns: list[str],
+    values: list[np.ndarray],
+    t_full: np.ndarray,
+    rows: np.ndarray,
+    dt_log: float,
+    max_gap: float,
+    region: tuple[float, float],
+    labels: _Labels,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Interpolate each channel across its gaps on ``t_full``; ``(values, filled)`` with one
+    column per channel. The earliest gap longer than ``max_gap`` that reaches into ``region``
+    is a :class:`DataError` naming its column and time."""
+    tol = 1e-6 * dt_log
+    out = np.empty((t_full.size, len(columns)))
+    filled = np.ones((t_full.size, len(columns)), dtype=bool)
+    worst: tuple[float, int, str] | None = None
+    for c, (column, raw_values) in enumerate(zip(columns, values, strict=True)):
+        full = np.full(t_full.size, np.nan)
+        full[rows] = raw_values
+        ok = ~np.isnan(full)
+        if not ok.any():
+            raise DataError(file, column, None, "the channel has no values at all")
+        tv = t_full[ok]
+        filled[:, c] = ~ok
+        out[:, c] = np.interp(t_full, tv, full[ok])
+        # gaps as (last time with data or the axis start, next time with data or the axis end)
+        lo = np.concatenate([[t_full[0] - dt_log], tv])
+        hi = np.concatenate([tv, [t_full[-1] + dt_log]])
+        length = hi - lo - dt_log
+        long = (length > max_gap + tol) & (lo < region[1]) & (hi > region[0])
+        if long.any():
+            i = int(np.flatnonzero(long)[0])
+            first_missing = t_full[np.searchsorted(t_full, lo[i] + 0.5 * dt_log)]
+            if worst is None or first_missing < worst[0]:
+                after = "the start of the data" if i == 0 else labels.one(lo[i])
+                until = "the end of the data" if i == tv.size else labels.one(hi[i])
+                worst = (
+                    first_missing,
+                    c,
+                    f"gap of {length[i]:g} s without data (after {after}, until {until}) is "
+                    f"longer than cleaning.max_gap_s = {max_gap:g} s",
+                )
+    if worst is not None:
+        raise DataError(file, columns[worst[1]], labels.one(worst[0]), worst[2])
+    return out, filled
+
+
+def _bin_means(
+    t: np.ndarray, values: np.ndarray, flags: np.ndarray, grid: np.ndarray, step: float, tol: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Temperatures on the grid: centred bin means (see the module docstring) and, per grid
+    point, whether any sample used was filled."""
+    half = np.minimum(step / 2.0, np.minimum(grid - t[0], t[-1] - grid))
+    half = np.maximum(half, 0.0)
+    lo = np.searchsorted(t, grid - half - tol, side="left")
+    hi = np.searchsorted(t, grid + half + tol, side="right") - 1
+    offset = values[0]
+    cum = np.vstack([np.zeros((1, values.shape[1])), np.cumsum(values - offset, axis=0)])
+    fcum = np.concatenate([[0], np.cumsum(flags)])
+    empty = lo > hi
+    lo_c = np.minimum(lo, t.size - 1)
+    hi_c = np.maximum(hi, 0)
+    total = cum[hi_c + 1] - cum[lo_c]
+    count = (hi_c - lo_c + 1).astype(float)
+    wide = half > tol
+    on_lo = ~empty & wide & (np.abs(t[lo_c] - (grid - half)) <= tol)
+    on_hi = ~empty & wide & (np.abs(t[hi_c] - (grid + half)) <= tol)
+    total -= 0.5 * (
+        on_lo[:, None] * (values[lo_c] - offset) + on_hi[:, None] * (values[hi_c] - offset)
+    )
+    count -= 0.5 * (on_lo.astype(float) + on_hi.astype(float))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = total / count[:, None] + offset
+    if empty.any():
+        for c in range(values.shape[1]):
+            means[empty, c] = np.interp(grid[empty], t, values[:, c])
+    # flags: the samples of the bin, or the two neighbours an empty bin interpolates between
+    f_lo = np.where(empty, np.maximum(hi, 0), lo_c)
+    f_hi = np.where(empty, np.minimum(lo, t.size - 1), hi_c)
+    used_filled = fcum[f_hi + 1] - fcum[f_lo] > 0
+    return means, used_filled
+
+
+def _power_means(
+    t: np.ndarray,
+    p: np.ndarray,
+    flags: np.ndarray,
+    grid: np.ndarray,
+    step: float,
+    dt_log: float,
+    timing: str,
+    tol: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean power over ``[t_n, t_n + step)`` for each grid point (see the module docstring),
+    with one column per power sum in ``p``; and whether any sample used was filled."""
+    fcum = np.concatenate([[0], np.cumsum(flags)])
+    if timing == "instant":
+        x = t
+        d = np.diff(x)
+        energy = np.vstack(
+            [np.zeros((1, p.shape[1])), np.cumsum(0.5 * (p[:-1] + p[1:]) * d[:, None], axis=0)]
+        )
+
+        def cumulative(s: np.ndarray) -> np.ndarray:
+            k = np.clip(np.searchsorted(x, s, side="right") - 1, 0, x.size - 2)
+            u = (s - x[k])[:, None]
+            slope = (p[k + 1] - p[k]) / d[k][:, None]
+            return energy[k] + p[k] * u + 0.5 * slope * u * u
+
+    else:
+        if timing == "mean_preceding":
+            x = np.concatenate([[t[0] - dt_log], t])
+        else:  # mean_following
+            x = np.concatenate([t, [t[-1] + dt_log]])
+        energy = np.vstack([np.zeros((1, p.shape[1])), np.cumsum(p * np.diff(x)[:, None], axis=0)])
+
+        def cumulative(s: np.ndarray) -> np.ndarray:
+            return np.column_stack([np.interp(s, x, energy[:, c]) for c in range(p.shape[1])])
+
+    a = grid
+    b = np.minimum(grid + step, x[-1])
+    length = b - a
+    short = length <= tol
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = (cumulative(b) - cumulative(a)) / length[:, None]
+    means[short] = p[-1]
+    # flags: every sample whose support overlaps (a, b)
+    if timing == "instant":  # sample k supports (t_{k-1}, t_{k+1})
+        k_lo = np.searchsorted(t, a + tol, side="right") - 1
+        k_hi = np.searchsorted(t, b - tol, side="left")
+    else:  # sample k is the piece (x_k, x_{k+1})
+        k_lo = np.searchsorted(x[1:], a + tol, side="right")
+        k_hi = np.searchsorted(x[:-1], b - tol, side="left") - 1
+    k_lo = np.clip(k_lo, 0, t.size - 1)
+    k_hi = np.clip(k_hi, k_lo, t.size - 1)
+    k_lo[short] = k_hi[short] = t.size - 1
+    used_filled = fcum[k_hi + 1] - fcum[k_lo] > 0
+    return means, used_filled
+
+
+def tidy(
+    raw: pd.DataFrame,
+    vehicle_data: dict[str, Any],
+    window: dict[str, Any] | None,
+    file: str,
+    window_key: str | None = None,
+) -> pd.DataFrame:
+    """The tidy table (module docstring) of one window of a raw file read by :func:`read_raw`.
+
+    ``vehicle_data`` is the validated vehicle config as plain data (``Vehicle.data``);
+    ``window`` is a window of it (``start``/``end`` in the file's time format) or ``None`` for
+    the whole recording; ``file`` names the raw file in messages, ``window_key`` the window
+    (default: found in ``vehicle_data``, e.g. ``windows.kvalue``).
+
+    Raises :class:`DataError` for a missing channel (file, column), a value that is no number,
+    a gap longer than ``cleaning.max_gap_s`` (file, column, time); :class:`ConfigError` for a
+    window outside the data (file, the window's start or end, the data's range) or without any
+    data row.
+    """
+    fmt = vehicle_data["format"]
+    time_column = fmt["time"]["column"]
+    time_format = fmt["time"]["format"]
+    timing = fmt.get("power_timing", "instant")
+    cleaning = vehicle_data.get("cleaning") or {}
+    max_gap = float(cleaning.get("max_gap_s", 900.0))
+    key = window_key or _window_key(vehicle_data, window)
+
+    t = raw.index.to_numpy(dtype=float)
+    if t.size < 2:
+        raise DataError(file, time_column, None, "needs at least two data rows")
+    if not np.all(np.diff(t) > 0):
+        raise DataError(file, time_column, None, "the time index must increase strictly")
+    origin = None
+    if time_format == "iso":  # the time at index 0 s
+        origin = raw.attrs.get("origin")
+        if origin is None:
+            origin = pd.Timestamp(str(raw[time_column].iloc[0]).strip())
+            origin -= pd.Timedelta(seconds=float(t[0]))
+    labels = _Labels(time_format, origin)
+
+    # channels: numbers in SI units (degC, W), in config order
+    groups: dict[str, list[tuple[str, float, np.ndarray]]] = {}
+    for group in (*TEMPERATURE_GROUPS, *POWER_GROUPS):
+        found = []
+        for i, channel in enumerate(_channels(vehicle_data, group)):
+            column = channel["column"]
+            if column not in raw.columns:
+                shown = [c for c in raw.columns if c != time_column]
+                raise DataError(
+                    file,
+                    column,
+                    None,
+                    f"channel channels.{group}[{i}] not found in the file "
+                    f"(columns: {', '.join(map(str, shown))})",
+                )
+            values = _numeric(file, raw, column)
+            unit = channel.get("unit", "degC" if group in TEMPERATURE_GROUPS else "W")
+            if unit == "K":
+                values = values - KELVIN
+            elif unit == "kW":
+                values = values * 1000.0
+            found.append((column, float(channel.get("weight", 1.0)), values))
+        groups[group] = found
+
+    # the window, in the raw index's seconds
+    dt_log = float(np.median(np.diff(t)))
+    step = float(cleaning.get("step_s") or dt_log)
+    tol = 1e-6 * min(dt_log, step)
+    span = f"the data of {file} run from {labels.one(t[0])} to {labels.one(t[-1])}"
+    if window is None:
+        start, end = float(t[0]), float(t[-1])
+    else:
+        start = _bound(file, f"{key}.start", window["start"], time_format, origin)
+        end = _bound(file, f"{key}.end", window["end"], time_format, origin)
+        if start < t[0] - tol or start > t[-1] + tol:
+            raise ConfigError(file, f"{key}.start", window["start"], f"outside the data: {span}")
+        if end > t[-1] + tol or end < t[0] - tol:
+            raise ConfigError(file, f"{key}.end", window["end"], f"outside the data: {span}")
+        if not end > start:
+            raise ConfigError(
+                file, f"{key}.end", window["end"], f"must be after start ({window['start']!r})"
+            )
+        inside = np.count_nonzero((t >= start - tol) & (t <= end + tol))
+        if inside == 0:
+            raise ConfigError(
+                file, key, f"{window['start']} .. {window['end']}", "no data row in the window"
+            )
+    n_steps = int(np.floor((end - start) / step + 1e-9))
+    grid = start + np.arange(n_steps + 1) * step
+
+    # per-channel gap filling on the completed time axis
+    t_full, rows = _complete_axis(t, dt_log)
+    region = (grid[0] - step / 2.0, grid[-1] + step)
+    filled_parts: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for group, found in groups.items():
+        if found:
+            filled_parts[group] = _fill_channels(
+                file,
+                [c for c, _, _ in found],
+                [v for _, _, v in found],
+                t_full,
+                rows,
+                dt_log,
+                max_gap,
+                region,
+                labels,
+            )
+
+    # temperatures: per-channel bin means, then the weighted sensor means
+    temps = [g for g in TEMPERATURE_GROUPS if g in filled_parts]
+    t_values = np.hstack([filled_parts[g][0] for g in temps])
+    t_flags = np.any(np.hstack([filled_parts[g][1] for g in temps]), axis=1)
+    t_means, t_filled = _bin_means(t_full, t_values, t_flags, grid, step, tol)
+    means: dict[str, np.ndarray] = {}
+    spread = np.zeros(grid.size)
+    col = 0
+    for group in TEMPERATURE_GROUPS:
+        found = groups[group]
+        if not found:
+            means[group] = np.full(grid.size, np.nan)
+            continue
+        w = np.array([weight for _, weight, _ in found])
+        x = t_means[:, col : col + len(found)]
+        col += len(found)
+        means[group] = x @ w / w.sum()
+        if group == "indoor_air":
+            dev = x - means[group][:, None]
+            spread = np.sqrt(np.maximum((dev * dev) @ w / w.sum(), 0.0))
+
+    # powers: heater and fan sums, integrated over [t_n, t_n + step)
+    sums = []
+    p_flags = np.zeros(t_full.size, dtype=bool)
+    for group in POWER_GROUPS:
+        if group in filled_parts:
+            values, flags = filled_parts[group]
+            sums.append(values.sum(axis=1))
+            p_flags |= flags.any(axis=1)
+        else:
+            sums.append(np.zeros(t_full.size))
+    q, q_filled = _power_means(
+        t_full, np.column_stack(sums), p_flags, grid, step, dt_log, timing, tol
+    )
+
+    out = pd.DataFrame(
+        {
+            "time": grid - start,
+            "timestamp": labels.many(grid),
+            "T": means["indoor_air"],
+            "T_veh": means["surface"],
+            "T_o": means["outdoor_air"],
+            "Q_H": q[:, 0] + q[:, 1],
+            "Q_heater": q[:, 0],
+            "Q_fan": q[:, 1],
+            "T_spread": spread,
+            "filled": (t_filled | q_filled).astype(np.int64),
+        },
+        columns=list(TIDY_COLUMNS),
+    )
+    out.attrs = {
+        "file": file,
+        "window": key,
+        "step_s": step,
+        "logger_step_s": dt_log,
+        "power_timing": timing,
+    }
+    return out
+
+
+def clean_window(
+    raw_path: str | os.PathLike[str],
+    vehicle_data: dict[str, Any],
+    window_name: str,
+    file_label: str | None = None,
+) -> pd.DataFrame:
+    """Read ``raw_path`` and return the tidy table of the window ``window_name``.
+
+    ``kvalue`` is ``windows.kvalue``, ``record`` the whole file, any other name the
+    identification window of that name (see :func:`window_spec`; ``raw_path`` must be the raw
+    file that window names). ``file_label`` names the file in messages (default: ``raw_path``).
+    """
+    _, window, key = window_spec(vehicle_data, window_name)
+    file = file_label or str(raw_path)
+    raw = read_raw(raw_path, vehicle_data["format"], label=file)
+    return tidy(raw, vehicle_data, window, file, window_key=key)
+
+
+# ---------------------------------------------------------------------------------------------
+# Writing
+
+
+def write_tidy(df: pd.DataFrame, path: str | os.PathLike[str]) -> None:
+    """Write a tidy table as CSV: no index, floats in repr (shortest round-trip) form, NaN as an
+    empty field, ``\\n`` line ends; the same table always gives the same bytes (``.gz``: gzip
+    with mtime 0)."""
+    path = str(path)
+    directory = os.path.dirname(path)
+    if directory:
+        os.makedirs(directory, exist_ok=True)
+    text = df.to_csv(index=False, lineterminator="\n", float_format=None)
+    data = text.encode("utf-8")
+    if path.endswith(".gz"):
+        data = gzip.compress(data, compresslevel=6, mtime=0)
+    with open(path, "wb") as stream:
+        stream.write(data)
+
+
+def read_tidy(path: str | os.PathLike[str]) -> pd.DataFrame:
+    """Read a table written by :func:`write_tidy` (``timestamp`` stays as written: text for ISO
+    labels, numbers for seconds)."""
+    df = pd.read_csv(path)
+    if df["timestamp"].dtype == object or pd.api.types.is_string_dtype(df["timestamp"]):
+        df["timestamp"] = df["timestamp"].astype(str)
+    return df
