@@ -201,6 +201,9 @@ def vehicle_schema() -> dict[str, Any]:
     return yaml.safe_load(text.read_text(encoding="utf-8"))
 
 
+# Tidy-table names the workflow uses itself: the k window and the whole recording.
+RESERVED_WINDOW_NAMES = ("kvalue", "record")
+
 # Sections of a vehicle file that the study config's ``defaults`` may preset.
 DEFAULTABLE = ("model", "cleaning", "instruments", "kvalue")
 
@@ -208,6 +211,14 @@ DEFAULTABLE = ("model", "cleaning", "instruments", "kvalue")
 def _section_schema(section: str) -> dict[str, Any]:
     schema = vehicle_schema()
     return {**schema["properties"][section], "$defs": schema["$defs"]}
+
+
+def section_defaults(section: str) -> dict[str, Any]:
+    """The schema defaults of one vehicle section (e.g. ``kvalue``), as a vehicle without that
+    section gets them: for library callers that have no vehicle file."""
+    data: dict[str, Any] = {}
+    validate_schema("(defaults)", data, _section_schema(section), prefix=section)
+    return data
 
 
 def _model_schema() -> dict[str, Any]:
@@ -562,6 +573,13 @@ def _check_windows(file: str, data: dict[str, Any], layouts: dict[str, RawLayout
     names: dict[str, str] = {}
     for key, window in _windows(data):
         if "name" in window and key.startswith("windows.identification"):
+            if window["name"] in RESERVED_WINDOW_NAMES:
+                raise ConfigError(
+                    file,
+                    f"{key}.name",
+                    window["name"],
+                    f"reserved for the workflow's own tables ({_words(RESERVED_WINDOW_NAMES)})",
+                )
             if window["name"] in names:
                 raise ConfigError(
                     file,

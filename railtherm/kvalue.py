@@ -1,0 +1,494 @@
+"""The standardized static k value (paper section 2.4, eq. 10) with a steady-state verdict and a
+GUM uncertainty budget.
+
+Eq. 10, 0 = Q_H - k A (T - T_o), holds only at rest (dT/dt = 0). Over a steady window of a tidy
+table (columns ``time``, ``T``, ``T_veh``, ``T_o``, ``Q_H``; see :mod:`railtherm.ingest`)::
+
+    k = mean(Q_H) / (A (mean(T) - mean(T_o)))          (eq. 10)        kA = k A
+
+Window means are time means over [t_0, t_N] (t_0 the first, t_N the last grid point):
+temperatures are point values, averaged by the trapezoidal rule; ``Q_H[n]`` is the mean power
+over [t_n, t_n + step) (the zero-order hold of eq. 15), so the rows n = 0..N-1 cover the window
+exactly and the last row (which covers time after the window) is left out. The duration is
+t_N - t_0.
+
+Steady-state verdict: a least-squares straight line is fitted to T, T_o and Q_H over the
+window; the drift of each is its slope times the duration, with a standard uncertainty u(drift)
+from the residuals about the line, widened by their integrated autocorrelation time (a
+thermostat's on/off cycling makes them strongly correlated). A drift fails the window when it
+exceeds its limit by more than 2 u(drift): |drift| - 2 u(drift) > limit, so that a trend which
+cycling cannot tell from the limit is not taken as evidence of drift. The window is *steady*
+when no drift fails (limits ``max_drift_T_K``, ``max_drift_T_o_K``, ``max_drift_Q_H_rel``
+mean(Q_H)), mean(T - T_o) >= ``min_delta_T_K`` and the duration >= ``min_duration_h``.
+Each failed test adds one plain sentence with the numbers to ``reasons``.
+``force: true`` makes a failed window *usable* (``forced``) without making it steady.
+
+Standard uncertainty u(k) (GUM, first-order propagation, independent components, all in
+W/(m^2 K)); k is a product of powers, so each relative uncertainty enters with sensitivity 1:
+
+* ``power``: u_rel(Q_H) = ``power_u_rel``, applied to the total Q_H (the meters are taken as
+  fully correlated: one rig, one calibration reference, and the tidy table carries only the
+  sum; independent channels would give up to sqrt(n) less, so this is the conservative side).
+* ``temperature``: the calibration error of a weighted mean of n sensors is u_T / sqrt(n_eff)
+  with n_eff = (sum w)^2 / sum w^2 (Kish; = n for equal weights); T and T_o independent:
+  u(dT) = u_T sqrt(1/n_indoor + 1/n_outdoor), relative u(dT) / dT.
+* ``surface``: ``surface_u_rel``.
+* ``scatter_delta_T``, ``scatter_Q_H``: the standard error of the window mean of T - T_o and of
+  Q_H from the residuals about the fitted line, sd / sqrt(n_eff), with the effective sample size
+  n_eff = n / tau and tau = 1 + 2 sum rho_j (Geyer's initial positive sequence of the residual
+  autocorrelation, tau >= 1).
+* ``storage``: heat still going into storage biases eq. 10. It is bounded by
+  ``mass_kg`` ``storage_c_J_per_kgK`` |dT_s/dt| (the fitted slope of T_veh if the table has it,
+  since the body stores most; else of T), taken as a rectangular half-width:
+  u = bound / sqrt(3) / (A dT).
+
+u(k) is the root sum of squares of the components.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from railtherm.errors import DataError
+
+__all__ = [
+    "Budget",
+    "KValue",
+    "autocorrelation_time",
+    "effective_count",
+    "sensor_counts",
+    "standard_error_of_mean",
+    "static_k",
+]
+
+SQRT3 = math.sqrt(3.0)
+COMPONENTS = ("power", "temperature", "surface", "scatter_delta_T", "scatter_Q_H", "storage")
+
+
+@dataclass(frozen=True)
+class Budget:
+    """Uncertainty budget of k: standard uncertainties in W/(m^2 K) (``COMPONENTS``; their root
+    sum of squares is u_k) and the figures behind them.
+
+    ``storage_bound_W`` is the bound on the heat still going into storage, mass c |dT_s/dt|
+    (W), ``storage_bound_k`` the same bound expressed in k (W/(m^2 K)), ``storage_rate_K_per_h``
+    the slope used and ``storage_from`` its source column (``T_veh`` or ``T``). ``n_eff_*`` are
+    the effective sample sizes of the scatter terms; ``n_indoor``/``n_outdoor`` the effective
+    sensor counts used for the calibration term.
+    """
+
+    power: float
+    temperature: float
+    surface: float
+    scatter_delta_T: float
+    scatter_Q_H: float
+    storage: float
+    storage_bound_W: float
+    storage_bound_k: float
+    storage_rate_K_per_h: float
+    storage_from: str
+    n_eff_delta_T: float
+    n_eff_Q_H: float
+    n_indoor: float
+    n_outdoor: float
+    power_basis: str = "total"
+
+    def components(self) -> dict[str, float]:
+        """The standard-uncertainty components (W/(m^2 K)), in ``COMPONENTS`` order."""
+        return {name: float(getattr(self, name)) for name in COMPONENTS}
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = self.components()
+        out.update(
+            storage_bound_W=float(self.storage_bound_W),
+            storage_bound_k=float(self.storage_bound_k),
+            storage_rate_K_per_h=float(self.storage_rate_K_per_h),
+            storage_from=self.storage_from,
+            n_eff_delta_T=float(self.n_eff_delta_T),
+            n_eff_Q_H=float(self.n_eff_Q_H),
+            n_indoor=float(self.n_indoor),
+            n_outdoor=float(self.n_outdoor),
+            power_basis=self.power_basis,
+        )
+        return out
+
+
+@dataclass(frozen=True)
+class KValue:
+    """Result of the static k test on one window (eq. 10); SI units, k in W/(m^2 K).
+
+    ``steady`` is the verdict, ``forced`` is true when the config forces a window that failed
+    it, ``usable`` = steady or forced; ``reasons`` lists every failed test (empty if steady).
+    ``window_start``/``window_end`` are the raw time labels of the first and last grid point.
+    """
+
+    k: float
+    u_k: float
+    u_k_rel: float
+    kA: float
+    A: float
+    delta_T: float
+    Q_H_mean: float
+    T_mean: float
+    T_o_mean: float
+    duration_h: float
+    drift_T_K: float
+    drift_T_o_K: float
+    drift_Q_H_rel: float
+    u_drift_T_K: float
+    u_drift_T_o_K: float
+    u_drift_Q_H_rel: float
+    steady: bool
+    forced: bool
+    usable: bool
+    reasons: tuple[str, ...]
+    budget: Budget
+    window_start: Any = None
+    window_end: Any = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """A plain dict for YAML: Python floats/bools/str, keys in a fixed order."""
+        return {
+            "k": float(self.k),
+            "u_k": float(self.u_k),
+            "u_k_rel": float(self.u_k_rel),
+            "kA": float(self.kA),
+            "A": float(self.A),
+            "delta_T": float(self.delta_T),
+            "Q_H_mean": float(self.Q_H_mean),
+            "T_mean": float(self.T_mean),
+            "T_o_mean": float(self.T_o_mean),
+            "duration_h": float(self.duration_h),
+            "drift_T_K": float(self.drift_T_K),
+            "drift_T_o_K": float(self.drift_T_o_K),
+            "drift_Q_H_rel": float(self.drift_Q_H_rel),
+            "u_drift_T_K": float(self.u_drift_T_K),
+            "u_drift_T_o_K": float(self.u_drift_T_o_K),
+            "u_drift_Q_H_rel": float(self.u_drift_Q_H_rel),
+            "steady": bool(self.steady),
+            "forced": bool(self.forced),
+            "usable": bool(self.usable),
+            "reasons": list(self.reasons),
+            "budget": self.budget.to_dict(),
+            "window": {"start": _plain(self.window_start), "end": _plain(self.window_end)},
+        }
+
+
+def _plain(value: Any) -> Any:
+    """A YAML-safe scalar: numpy numbers -> Python numbers, timestamps -> ISO text."""
+    if value is None:
+        return None
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, (int, float, str, bool)):
+        return value
+    if hasattr(value, "isoformat"):
+        return value.isoformat()
+    return str(value)
+
+
+# ---------------------------------------------------------------------------------------------
+# Statistics helpers
+
+
+def effective_count(weights: Sequence[float]) -> float:
+    """Kish's effective number of a weighted mean, (sum w)^2 / sum w^2.
+
+    The weighted mean of n sensors with independent errors of equal u has u / sqrt(n_eff)."""
+    w = np.asarray(weights, dtype=float)
+    if w.size == 0 or np.any(w <= 0):
+        raise ValueError(f"weights must be positive and non-empty, got {list(w)}")
+    return float(w.sum() ** 2 / np.sum(w**2))
+
+
+def sensor_counts(channels: Mapping[str, Sequence[Mapping[str, Any]]]) -> dict[str, float]:
+    """Effective sensor counts for :func:`static_k` from a vehicle's ``channels`` section.
+
+    ``indoor``/``outdoor``: Kish effective numbers of the weighted means (weights default 1);
+    ``surface`` the number of surface sensors; ``power`` the number of power channels (heater
+    plus fan; reported only, see the module docstring on the power term)."""
+
+    def weights(group: str) -> list[float]:
+        return [float(c.get("weight", 1.0)) for c in channels.get(group, [])]
+
+    return {
+        "indoor": effective_count(weights("indoor_air")),
+        "outdoor": effective_count(weights("outdoor_air")),
+        "surface": float(len(channels.get("surface", []))),
+        "power": float(len(channels.get("heater_power", [])) + len(channels.get("fan_power", []))),
+    }
+
+
+def autocorrelation_time(x: Sequence[float]) -> float:
+    """Integrated autocorrelation time tau = 1 + 2 sum_{j>=1} rho_j (in samples) of a series.
+
+    Geyer's initial positive sequence: rho_0 + rho_1, rho_2 + rho_3, ... are summed while
+    positive (so oscillating, e.g. thermostat-cycled, series are truncated at the first
+    non-positive pair). Clamped to >= 1: anti-correlation earns no credit. 1 for a constant or
+    too short series."""
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    if n < 4:
+        return 1.0
+    d = x - x.mean()
+    var = float(d @ d)
+    if var <= 0.0 or not math.isfinite(var):
+        return 1.0
+    size = 1 << (2 * n - 1).bit_length()
+    f = np.fft.rfft(d, size)
+    acov = np.fft.irfft(f * np.conj(f), size)[:n]
+    rho = acov / acov[0]
+    total = 0.0
+    for m in range(0, (n - 1) // 2):
+        pair = rho[2 * m] + rho[2 * m + 1]
+        if pair <= 0.0:
+            break
+        total += pair
+    return max(1.0, 2.0 * total - 1.0)
+
+
+def standard_error_of_mean(x: Sequence[float]) -> tuple[float, float]:
+    """(standard error of the mean, effective sample size) of a series, corrected for its
+    autocorrelation: sd / sqrt(n_eff), n_eff = n / tau (:func:`autocorrelation_time`)."""
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    if n < 2:
+        return 0.0, float(n)
+    n_eff = n / autocorrelation_time(x)
+    return float(np.std(x, ddof=1) / math.sqrt(n_eff)), float(n_eff)
+
+
+def _line(t: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
+    """Least-squares slope of y(t) and the residuals about the fitted line."""
+    tc = t - t.mean()
+    slope = float(tc @ (y - y.mean()) / (tc @ tc))
+    return slope, y - y.mean() - slope * tc
+
+
+def _drift(t: np.ndarray, y: np.ndarray, duration: float) -> tuple[float, float]:
+    """(drift, its standard uncertainty) of y across the window: the least-squares slope times
+    the duration, with the slope's standard error from the residuals widened by their
+    integrated autocorrelation time (thermostat cycling makes the residuals correlated)."""
+    slope, residuals = _line(t, y)
+    tc = t - t.mean()
+    if residuals.size < 3:
+        return slope * duration, 0.0
+    variance = float(residuals @ residuals) / (residuals.size - 2)
+    se_slope = math.sqrt(variance * autocorrelation_time(residuals) / float(tc @ tc))
+    return slope * duration, se_slope * duration
+
+
+def _trapezoid_mean(t: np.ndarray, y: np.ndarray) -> float:
+    return float(np.sum((y[1:] + y[:-1]) * np.diff(t)) / 2.0 / (t[-1] - t[0]))
+
+
+def _zoh_mean(t: np.ndarray, q: np.ndarray) -> float:
+    """Time mean over [t_0, t_N] of a signal held at q[n] over [t_n, t_{n+1})."""
+    return float(np.sum(q[:-1] * np.diff(t)) / (t[-1] - t[0]))
+
+
+# ---------------------------------------------------------------------------------------------
+# The k value
+
+
+def _column(window: pd.DataFrame, name: str, source: str, required: bool = True) -> np.ndarray:
+    if name not in window.columns:
+        if not required:
+            return np.full(len(window), np.nan)
+        raise DataError(source, name, None, "column missing from the tidy k window")
+    values = pd.to_numeric(window[name], errors="coerce").to_numpy(dtype=float)
+    if required and not np.all(np.isfinite(values)):
+        i = int(np.flatnonzero(~np.isfinite(values))[0])
+        raise DataError(
+            source, name, _plain(window[name].iloc[i]), f"not a finite number in row {i}"
+        )
+    return values
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}"
+
+
+def static_k(
+    window: pd.DataFrame,
+    A: float,
+    mass_kg: float,
+    settings: Mapping[str, Any],
+    instruments: Mapping[str, Any],
+    n_sensors: Mapping[str, float],
+    *,
+    source: str = "k window",
+) -> KValue:
+    """The static k value of eq. 10 over a tidy k window, its verdict and u(k).
+
+    ``settings`` is the vehicle's ``kvalue`` section, ``instruments`` its ``instruments``
+    section (both with schema defaults filled), ``n_sensors`` the effective sensor counts
+    ``{"indoor": ..., "outdoor": ...}`` (:func:`sensor_counts`). ``source`` names the table in
+    error messages. Raises :class:`~railtherm.errors.DataError` for a missing or non-finite
+    column, fewer than 3 rows, a non-increasing time, mean(T - T_o) <= 0 or mean(Q_H) <= 0
+    (no k exists then)."""
+    if len(window) < 3:
+        raise DataError(source, "time", len(window), "the k window needs at least 3 rows")
+    t = _column(window, "time", source)
+    if np.any(np.diff(t) <= 0):
+        i = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
+        raise DataError(source, "time", float(t[i]), f"not increasing at row {i}")
+    T = _column(window, "T", source)
+    T_o = _column(window, "T_o", source)
+    Q_H = _column(window, "Q_H", source)
+    T_veh = _column(window, "T_veh", source, required=False)
+    if not A > 0 or not mass_kg > 0:
+        raise ValueError(f"A and mass_kg must be > 0, got A={A}, mass_kg={mass_kg}")
+
+    duration = float(t[-1] - t[0])
+    T_mean = _trapezoid_mean(t, T)
+    T_o_mean = _trapezoid_mean(t, T_o)
+    delta_T = T_mean - T_o_mean
+    Q_mean = _zoh_mean(t, Q_H)
+    if not delta_T > 0:
+        raise DataError(
+            source, "T - T_o", round(delta_T, 6), "the mean T - T_o must be > 0 for eq. 10"
+        )
+    if not Q_mean > 0:
+        raise DataError(source, "Q_H", round(Q_mean, 6), "the mean Q_H must be > 0 for eq. 10")
+    kA = Q_mean / delta_T
+    k = kA / A
+
+    # -- verdict --------------------------------------------------------------------------
+    slope_T, _ = _line(t, T)
+    t_q = t[:-1] + np.diff(t) / 2.0  # Q_H[n] is the mean over [t_n, t_n+1)
+    slope_Q, res_Q = _line(t_q, Q_H[:-1])
+    drift_T, u_drift_T = _drift(t, T, duration)
+    drift_T_o, u_drift_T_o = _drift(t, T_o, duration)
+    drift_Q, u_drift_Q = _drift(t_q, Q_H[:-1], duration)
+    drift_Q_rel, u_drift_Q_rel = drift_Q / Q_mean, u_drift_Q / Q_mean
+    duration_h = duration / 3600.0
+
+    lim = {key: float(settings[key]) for key in _LIMITS}
+    reasons = []
+    # A drift fails the window when it exceeds its limit by more than twice its own standard
+    # uncertainty: a trend that cycling or noise cannot tell from the limit is no evidence.
+    if abs(drift_T) - 2 * u_drift_T > lim["max_drift_T_K"]:
+        reasons.append(
+            f"T drifts by {drift_T:+.2f} +- {u_drift_T:.2f} K across the window "
+            f"(limit {_fmt(lim['max_drift_T_K'])} K)"
+        )
+    if abs(drift_T_o) - 2 * u_drift_T_o > lim["max_drift_T_o_K"]:
+        reasons.append(
+            f"T_o drifts by {drift_T_o:+.2f} +- {u_drift_T_o:.2f} K across the window "
+            f"(limit {_fmt(lim['max_drift_T_o_K'])} K)"
+        )
+    if abs(drift_Q_rel) - 2 * u_drift_Q_rel > lim["max_drift_Q_H_rel"]:
+        reasons.append(
+            f"Q_H drifts by {100 * drift_Q_rel:+.1f} +- {100 * u_drift_Q_rel:.1f} % of its mean "
+            f"across the window (limit {_fmt(100 * lim['max_drift_Q_H_rel'])} %)"
+        )
+    if delta_T < lim["min_delta_T_K"]:
+        reasons.append(
+            f"the mean T - T_o is {delta_T:.2f} K (minimum {_fmt(lim['min_delta_T_K'])} K)"
+        )
+    if duration_h < lim["min_duration_h"]:
+        reasons.append(
+            f"the window lasts {duration_h:.2f} h (minimum {_fmt(lim['min_duration_h'])} h)"
+        )
+    steady = not reasons
+    forced = bool(settings.get("force", False)) and not steady
+    usable = steady or forced
+
+    # -- uncertainty budget (W/(m^2 K)) ---------------------------------------------------
+    u_T = float(instruments["temperature_u_K"])
+    n_in, n_out = float(n_sensors["indoor"]), float(n_sensors["outdoor"])
+    if not (n_in > 0 and n_out > 0):
+        raise ValueError(f"sensor counts must be > 0, got {dict(n_sensors)}")
+    u_power = k * float(instruments["power_u_rel"])
+    u_temp = k * u_T * math.sqrt(1.0 / n_in + 1.0 / n_out) / delta_T
+    u_surface = k * float(instruments["surface_u_rel"])
+
+    _, res_dT = _line(t, T - T_o)
+    se_dT, n_eff_dT = standard_error_of_mean(res_dT)
+    se_Q, n_eff_Q = standard_error_of_mean(res_Q)
+    u_scatter_dT = k * se_dT / delta_T
+    u_scatter_Q = k * se_Q / Q_mean
+
+    finite_veh = np.isfinite(T_veh)
+    if np.count_nonzero(finite_veh) >= 2:
+        rate, storage_from = _line(t[finite_veh], T_veh[finite_veh])[0], "T_veh"
+    else:
+        rate, storage_from = slope_T, "T"
+    bound_W = mass_kg * float(settings["storage_c_J_per_kgK"]) * abs(rate)
+    bound_k = bound_W / (A * delta_T)
+    u_storage = bound_k / SQRT3
+
+    budget = Budget(
+        power=u_power,
+        temperature=u_temp,
+        surface=u_surface,
+        scatter_delta_T=u_scatter_dT,
+        scatter_Q_H=u_scatter_Q,
+        storage=u_storage,
+        storage_bound_W=bound_W,
+        storage_bound_k=bound_k,
+        storage_rate_K_per_h=rate * 3600.0,
+        storage_from=storage_from,
+        n_eff_delta_T=n_eff_dT,
+        n_eff_Q_H=n_eff_Q,
+        n_indoor=n_in,
+        n_outdoor=n_out,
+    )
+    u_k = math.sqrt(sum(v * v for v in budget.components().values()))
+
+    stamps = window["timestamp"] if "timestamp" in window.columns else window["time"]
+    return KValue(
+        k=k,
+        u_k=u_k,
+        u_k_rel=u_k / k,
+        kA=kA,
+        A=float(A),
+        delta_T=delta_T,
+        Q_H_mean=Q_mean,
+        T_mean=T_mean,
+        T_o_mean=T_o_mean,
+        duration_h=duration_h,
+        drift_T_K=drift_T,
+        drift_T_o_K=drift_T_o,
+        drift_Q_H_rel=drift_Q_rel,
+        u_drift_T_K=u_drift_T,
+        u_drift_T_o_K=u_drift_T_o,
+        u_drift_Q_H_rel=u_drift_Q_rel,
+        steady=steady,
+        forced=forced,
+        usable=usable,
+        reasons=tuple(reasons),
+        budget=budget,
+        window_start=stamps.iloc[0],
+        window_end=stamps.iloc[-1],
+    )
+
+
+_LIMITS = (
+    "max_drift_T_K",
+    "max_drift_T_o_K",
+    "max_drift_Q_H_rel",
+    "min_delta_T_K",
+    "min_duration_h",
+)
+
+
+def for_vehicle(window: pd.DataFrame, vehicle_data: Mapping[str, Any], source: str) -> KValue:
+    """:func:`static_k` with A, mass, settings, instruments and sensor counts from a vehicle's
+    validated config (``Vehicle.data``)."""
+    return static_k(
+        window,
+        A=float(vehicle_data["surface_m2"]),
+        mass_kg=float(vehicle_data["mass_kg"]),
+        settings=vehicle_data["kvalue"],
+        instruments=vehicle_data["instruments"],
+        n_sensors=sensor_counts(vehicle_data["channels"]),
+        source=source,
+    )
