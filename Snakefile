@@ -13,6 +13,8 @@ validate(config, "workflow/schemas/config.schema.yaml")
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/synthesize.smk"
+include: "workflow/rules/clean.smk"
+include: "workflow/rules/kvalue.smk"
 
 
 rule all:

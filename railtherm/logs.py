@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import sys
 from pathlib import Path
 
 
@@ -16,4 +17,10 @@ def to_file(path: str | Path, level: int = logging.INFO) -> logging.Logger:
     logger.setLevel(level)
     logging.captureWarnings(True)
     logging.getLogger("py.warnings").handlers[:] = [handler]
+
+    def log_uncaught(kind, error, trace):
+        logger.error("stopped: %s", error, exc_info=(kind, error, trace))
+        sys.__excepthook__(kind, error, trace)
+
+    sys.excepthook = log_uncaught
     return logger

@@ -78,6 +78,19 @@ DEVIATION_TYPES = (
     "unlogged_aux",
     "short_hold",
 )
+# What each declared deviation does to the standardized static k test (eq. 10): the physics
+# behind a k estimate that disagrees with the truth. None: no bias expected at the k test.
+DEVIATION_EFFECT_ON_K = {
+    "body_to_outdoor": "heat also leaves through the body to T_o, so Q_H / (A (T - T_o)) "
+    "counts that path too: static k biased up",
+    "poor_mixing": "the indoor sensors may not see the mixed air temperature, so T - T_o and "
+    "hence k may be biased",
+    "unsteady_start": None,
+    "temperature_dependent_k": None,
+    "unlogged_aux": "unlogged auxiliary heat enters the interior but not Q_H: static k biased low",
+    "short_hold": "the hold ends before steady state: heat still goes into storage, so static k "
+    "is biased up and the window drifts",
+}
 LN20 = math.log(20.0)  # 95 % of a first-order step response is reached after ln(20) tau
 
 # --------------------------------------------------------------------------------------------
@@ -1092,7 +1105,7 @@ def vehicle_config(campaign: dict, vehicle_id: str, raw_dir: str = "../../resour
     channels["heater_power"] = heater
     if fan:
         channels["fan_power"] = fan
-    return {
+    config = {
         "id": vehicle_id,
         "class": spec["class"],
         "synthetic": True,
@@ -1110,6 +1123,9 @@ def vehicle_config(campaign: dict, vehicle_id: str, raw_dir: str = "../../resour
         "channels": channels,
         "windows": windows(spec),
     }
+    if 2 * lg["step_s"] > 900:  # two dropped rows would exceed the default max_gap_s
+        config["cleaning"] = {"max_gap_s": 3 * lg["step_s"]}
+    return config
 
 
 # --------------------------------------------------------------------------------------------

@@ -172,7 +172,13 @@ def _normalised(cfg: dict) -> dict:
     """Schema defaults filled (weight 1.0, unit degC, separator ',', decimal '.', [] lists)."""
     out = {k: cfg[k] for k in ("id", "class", "mass_kg", "surface_m2", "volume_m3", "raw_files")}
     f = cfg["format"]
-    out["format"] = (f.get("separator", ","), f.get("decimal", "."), f["time"])
+    out["format"] = (
+        f.get("separator", ","),
+        f.get("decimal", "."),
+        f.get("power_timing", "instant"),
+        f["time"],
+    )
+    out["cleaning"] = cfg.get("cleaning", {})
     ch = {}
     for group in ("indoor_air", "surface", "outdoor_air", "heater_power", "fan_power"):
         items = cfg["channels"].get(group, [])

@@ -303,6 +303,14 @@ BAD_VEHICLES = [
         "name already used by windows.identification[0]",
     ),
     (
+        "window-name-reserved",
+        lambda d: d["windows"]["identification"][0].update(name="record"),
+        None,
+        "windows.identification[0].name",
+        "record",
+        "reserved for the workflow's own tables",
+    ),
+    (
         "window-name-missing",
         lambda d: d["windows"]["identification"][0].pop("name"),
         None,

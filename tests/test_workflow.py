@@ -86,6 +86,13 @@ def test_run_writes_raw_files_and_truth_deterministically(tmp_path):
     for vid in SMALL:
         assert any(p.startswith(f"resources/campaign/{vid}/") for p in written)
     assert not any("Metro1" in p for p in written if p.startswith("resources"))
+    for table in ("step_up", "step_down", "kvalue", "record"):
+        assert f"results/vehicles/Tram2/clean/{table}.csv" in written
+    for vid in SMALL:
+        for suffix in ("yaml", "png", "svg"):
+            assert f"results/vehicles/{vid}/kvalue.{suffix}" in written
+    k_table = written["results/tables/kvalue.csv"].decode().splitlines()
+    assert k_table[0].startswith("vehicle,method,k,u_k") and len(k_table) == 1 + len(SMALL)
 
     again = snakemake(first)
     assert again.returncode == 0, again.stderr

@@ -6,7 +6,7 @@ from pathlib import Path
 from snakemake.exceptions import WorkflowError
 
 import railtherm
-from railtherm import synth
+from railtherm import ingest, synth
 from railtherm.config import load_study
 from railtherm.errors import RailthermError
 
@@ -55,9 +55,38 @@ def raw_files(vehicle):
     return list(STUDY.vehicles[vehicle].raw_files.values())
 
 
+def window_names(vehicle):
+    """Tidy tables of a vehicle: its identification windows, the k window and the record."""
+    windows = STUDY.vehicles[vehicle].windows
+    names = [w["name"] for w in windows["identification"]]
+    if "kvalue" in windows:
+        names += ["kvalue", "record"]
+    return names
+
+
+def window_raw_file(wildcards):
+    """The raw file a tidy table is cut from (see railtherm.ingest.window_spec)."""
+    vehicle = STUDY.vehicles[wildcards.vehicle]
+    key, _, _ = ingest.window_spec(vehicle.data, wildcards.window)
+    return vehicle.raw_files[key]
+
+
+def kvalue_vehicles():
+    """Vehicles with a steady window for the standardized static k test."""
+    return [vid for vid in VEHICLES if "kvalue" in STUDY.vehicles[vid].windows]
+
+
 def all_outputs():
     """The targets of `rule all`."""
     targets = [path for vid in VEHICLES for path in raw_files(vid)]
+    targets += [
+        f"results/vehicles/{vid}/clean/{window}.csv"
+        for vid in VEHICLES
+        for window in window_names(vid)
+    ]
+    targets += [f"results/vehicles/{vid}/kvalue.yaml" for vid in kvalue_vehicles()]
+    if kvalue_vehicles():
+        targets.append("results/tables/kvalue.csv")
     if CAMPAIGN:
         targets += [
             "results/campaign/ground_truth.csv",

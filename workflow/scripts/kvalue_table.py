@@ -1,0 +1,15 @@
+"""Adapter for rule kvalue_table: k and u(k) of every vehicle beside the truth where known."""
+
+import pandas as pd
+import yaml
+
+from railtherm import aggregate, logs
+
+log = logs.to_file(snakemake.log[0])
+results = {
+    vid: yaml.safe_load(open(path, encoding="utf-8"))
+    for vid, path in zip(snakemake.params.vehicles, snakemake.input.results, strict=True)
+}
+truth = pd.read_csv(snakemake.input.truth) if snakemake.input.truth else None
+aggregate.kvalue_table(results, truth).to_csv(snakemake.output[0], index=False)
+log.info("k table of %d vehicles", len(results))
