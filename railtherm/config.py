@@ -205,7 +205,7 @@ def vehicle_schema() -> dict[str, Any]:
 RESERVED_WINDOW_NAMES = ("kvalue", "record")
 
 # Sections of a vehicle file that the study config's ``defaults`` may preset.
-DEFAULTABLE = ("model", "cleaning", "instruments", "kvalue")
+DEFAULTABLE = ("model", "cleaning", "instruments", "kvalue", "check")
 
 
 def _section_schema(section: str) -> dict[str, Any]:

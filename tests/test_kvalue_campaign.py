@@ -1,29 +1,14 @@
 """Issue 3's acceptance on the virtual campaign: synthesise, clean and estimate k for all 13
 vehicles with the library alone, and compare with the declared truth."""
 
-import shutil
-from pathlib import Path
-
 import pytest
 
 from railtherm import aggregate, ingest, kvalue, synth
-from railtherm.config import load_study
-
-REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
-def table(tmp_path_factory):
-    root = tmp_path_factory.mktemp("campaign")
-    shutil.copytree(REPO / "config", root / "config")
-    campaign = synth.load_campaign(root / "config" / "campaign" / "virtual_cwt.yaml")
-    for vid in campaign["vehicles"]:
-        spec = synth.vehicle_spec(campaign, vid)
-        for name in synth.raw_file_names(spec):
-            synth.write_raw_file(spec, name, root / "resources" / "campaign" / vid / name)
-    config = {"campaign": "config/campaign/virtual_cwt.yaml"}
-    config["vehicles"] = [f"config/vehicles/{vid}.yaml" for vid in campaign["vehicles"]]
-    study = load_study(config, workdir=root)
+def table(campaign_study):
+    root, campaign, study = campaign_study
     results = {}
     for vid, vehicle in study.vehicles.items():
         key, _, _ = ingest.window_spec(vehicle.data, "kvalue")
