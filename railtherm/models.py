@@ -1,12 +1,64 @@
-"""Grey-box state-space structures of the paper (section 5.1) and their exact discretisation.
+"""Grey-box state-space structures of the paper (section 5.1), their exact zero-order-hold
+discretisation, fast exact simulation and exact parameter sensitivities.
 
 Inputs are always u = [T_o, Q_H] (degC, W); outputs y = x (C = I, D = 0, eqs. 11-12).
+
+Structures are data (:class:`Structure`, :data:`STRUCTURES`): a name, the parameter and state
+names, and functions giving the continuous (A, B) and their analytic derivatives with respect
+to each parameter. Nothing downstream knows how many states a structure has.
+
+Discrete model (eq. 15 with K = 0), input held over each step (zero-order hold)::
+
+    x[n+1] = Ad x[n] + Bd u[n],   [[Ad, Bd], [0, I]] = expm([[A, B], [0, 0]] dt)
+
+Simulation (:func:`simulate`) propagates the recursion without a Python loop over samples:
+Ad = V diag(lambda) V^-1 (the thermal networks here have real, distinct, stable eigenvalues),
+each modal coordinate z_i = (V^-1 x)_i obeys z_i[n+1] = lambda_i z_i[n] + w_i[n], which is
+one first-order ``scipy.signal.lfilter`` per mode. When Ad is not safely diagonalisable (complex
+or repeated eigenvalues, ill-conditioned V) the complex Schur form Ad = Q T Q^H is used
+instead: T is triangular, so the modes are solved from the last one up, each again by one
+lfilter, the coupling entering as an extra input. Both are exact up to rounding.
+
+Sensitivities (:func:`sensitivities`) differentiate the discrete recursion, not the ODE::
+
+    s_p[n+1] = Ad s_p[n] + dAd_p x[n] + dBd_p u[n],   s_p[0] = 0,
+
+with dAd_p, dBd_p the exact Frechet derivative of the matrix exponential along
+[[dA_p, dB_p], [0, 0]] dt, obtained for all parameters at once from the upper block row of
+expm of the block matrix [[M, E_1, ..., E_P], [0, M, 0..], ..., [0, .., M]] (the block-triangular
+identity that ``scipy.linalg.expm_frechet`` is built on; tests compare the two). The
+sensitivity to the initial state is the free response dx[n]/dx0 = Ad^n, computed modally as
+lambda^n and cut to zero once below 1e-30 (so the computation never walks into subnormal
+floats, which are very slow).
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
 import numpy as np
-from scipy.linalg import expm
+from scipy.linalg import expm, schur
+from scipy.signal import lfilter
+
+__all__ = [
+    "STRUCTURES",
+    "Discretisation",
+    "Structure",
+    "discretize",
+    "discretize_zoh",
+    "first_order",
+    "free_response",
+    "free_response_head",
+    "second_order",
+    "sensitivities",
+    "simulate",
+    "steady_state",
+]
+
+FREE_RESPONSE_CUT = 1e-30  # |lambda|^n below this (relative to 1) is taken as 0
+_MODAL_COND_MAX = 1e8  # cond(V) above this: use the Schur form instead of eigenvectors
 
 
 def first_order(kA: float, C_bar: float) -> tuple[np.ndarray, np.ndarray]:
@@ -28,6 +80,103 @@ def second_order(kA: float, C: float, K_veh: float, C_veh: float) -> tuple[np.nd
     return A, B
 
 
+def _first_order_derivatives(kA: float, C_bar: float) -> dict:
+    """d(A, B)/d(kA, C_bar) of eq. 13."""
+    return {
+        "kA": (np.array([[-1.0 / C_bar]]), np.array([[1.0 / C_bar, 0.0]])),
+        "C_bar": (
+            np.array([[kA / C_bar**2]]),
+            np.array([[-kA / C_bar**2, -1.0 / C_bar**2]]),
+        ),
+    }
+
+
+def _second_order_derivatives(kA: float, C: float, K_veh: float, C_veh: float) -> dict:
+    """d(A, B)/d(kA, C, K_veh, C_veh) of eq. 14."""
+    z = np.zeros((2, 2))
+    return {
+        "kA": (np.array([[-1.0 / C, 0.0], [0.0, 0.0]]), np.array([[1.0 / C, 0.0], [0.0, 0.0]])),
+        "C": (
+            np.array([[(kA + K_veh) / C**2, -K_veh / C**2], [0.0, 0.0]]),
+            np.array([[-kA / C**2, -1.0 / C**2], [0.0, 0.0]]),
+        ),
+        "K_veh": (
+            np.array([[-1.0 / C, 1.0 / C], [1.0 / C_veh, -1.0 / C_veh]]),
+            z.copy(),
+        ),
+        "C_veh": (
+            np.array([[0.0, 0.0], [-K_veh / C_veh**2, K_veh / C_veh**2]]),
+            z.copy(),
+        ),
+    }
+
+
+@dataclass(frozen=True)
+class Structure:
+    """A grey-box structure dx/dt = A(theta) x + B(theta) u, u = [T_o, Q_H], y = x.
+
+    ``build(**theta) -> (A, B)`` and ``jacobian(**theta) -> {param: (dA, dB)}`` take the
+    parameters by name; ``initial`` holds the paper's start values (section 5.3) and
+    ``bounds`` loose default bounds (SI units) for parameters the caller does not bound.
+    """
+
+    name: str
+    parameters: tuple[str, ...]
+    states: tuple[str, ...]
+    build: Callable[..., tuple[np.ndarray, np.ndarray]] = field(repr=False)
+    jacobian: Callable[..., dict] = field(repr=False)
+    inputs: tuple[str, ...] = ("T_o", "Q_H")
+    initial: Mapping[str, float] = field(default_factory=dict)
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    equations: str = ""
+
+    def _theta(self, theta: Mapping[str, float]) -> dict:
+        missing = [p for p in self.parameters if p not in theta]
+        if missing:
+            raise KeyError(f"structure {self.name!r} needs parameters {missing}")
+        return {p: float(theta[p]) for p in self.parameters}
+
+    def matrices(self, theta: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        """Continuous (A, B) at ``theta`` (a mapping with at least every parameter)."""
+        return self.build(**self._theta(theta))
+
+    def derivatives(self, theta: Mapping[str, float]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Analytic {param: (dA/dparam, dB/dparam)} at ``theta``."""
+        return self.jacobian(**self._theta(theta))
+
+
+STRUCTURES: dict[str, Structure] = {
+    "first_order": Structure(
+        name="first_order",
+        parameters=("kA", "C_bar"),
+        states=("T",),
+        build=first_order,
+        jacobian=_first_order_derivatives,
+        # the paper's start (section 5.3): C_bar = C + C_veh of its second-order start
+        initial={"kA": 1000.0, "C_bar": 120_480.0 + 500_000.0},
+        bounds={"kA": (1.0, 1.0e6), "C_bar": (1.0e4, 1.0e10)},
+        equations="eq. 9, eq. 13",
+    ),
+    "second_order": Structure(
+        name="second_order",
+        parameters=("kA", "C", "K_veh", "C_veh"),
+        states=("T", "T_veh"),
+        build=second_order,
+        jacobian=_second_order_derivatives,
+        # the paper's start (section 5.3; K_veh printed as "20 J/K", a conductance in W/K)
+        initial={"kA": 1000.0, "C": 120_480.0, "K_veh": 20.0, "C_veh": 500_000.0},
+        # C bounded below: C -> 0 is a false optimum (the air node reacting instantly)
+        bounds={
+            "kA": (1.0, 1.0e6),
+            "C": (1.0e4, 1.0e10),
+            "K_veh": (1.0e-2, 1.0e7),
+            "C_veh": (1.0e4, 1.0e10),
+        },
+        equations="eqs. 7-8, eq. 14",
+    ),
+}
+
+
 def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact zero-order-hold discretisation: expm([[A, B], [0, 0]] dt) = [[Ad, Bd], [0, I]]."""
     A = np.atleast_2d(np.asarray(A, dtype=float))
@@ -43,3 +192,250 @@ def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray,
 def steady_state(A: np.ndarray, B: np.ndarray, u: np.ndarray) -> np.ndarray:
     """The equilibrium x* = -A^-1 B u for a constant input u."""
     return -np.linalg.solve(np.atleast_2d(A), np.atleast_2d(B) @ np.asarray(u, dtype=float))
+
+
+@dataclass(frozen=True)
+class Discretisation:
+    """Ad, Bd of eq. 15 (ZOH), their derivatives along ``params``, and a modal form of Ad.
+
+    ``Q``, ``Qinv``, ``T``: Ad = Q T Qinv with T diagonal (eigenvectors) or upper triangular
+    (complex Schur, Qinv = Q^H); ``lam`` the diagonal of T.
+    """
+
+    Ad: np.ndarray
+    Bd: np.ndarray
+    dAd: dict
+    dBd: dict
+    Q: np.ndarray
+    Qinv: np.ndarray
+    T: np.ndarray
+    lam: np.ndarray
+    diagonal: bool
+
+
+def _modal(Ad: np.ndarray):
+    n = Ad.shape[0]
+    if n == 1:
+        one = np.ones((1, 1))
+        return one, one, Ad.copy(), Ad[0].copy(), True
+    lam, V = np.linalg.eig(Ad)
+    gaps = np.abs(lam[:, None] - lam[None, :])
+    np.fill_diagonal(gaps, np.inf)
+    distinct = float(np.min(gaps)) > 1e-9 * max(1.0, float(np.max(np.abs(lam))))
+    if np.all(np.isreal(lam)) and distinct:
+        lam, V = lam.real, V.real
+        order = np.argsort(lam)
+        lam, V = lam[order], V[:, order]
+        try:
+            Vinv = np.linalg.inv(V)
+        except np.linalg.LinAlgError:
+            Vinv = None
+        # 1-norm condition number (cheap; within a factor n of the 2-norm one)
+        if Vinv is not None and np.abs(V).sum(0).max() * np.abs(Vinv).sum(0).max() < (
+            _MODAL_COND_MAX
+        ):
+            return V, Vinv, np.diag(lam), lam, True
+    T, Q = schur(Ad.astype(complex), output="complex")
+    return Q, Q.conj().T, T, np.diag(T).copy(), False
+
+
+def discretize(
+    structure: Structure,
+    theta: Mapping[str, float],
+    dt: float,
+    params: tuple[str, ...] = (),
+) -> Discretisation:
+    """Ad, Bd (exact ZOH) and, for each name in ``params``, the exact dAd, dBd (Frechet
+    derivative of expm along [[dA, dB], [0, 0]] dt; one block expm for all of them)."""
+    A, B = structure.matrices(theta)
+    n, m = B.shape
+    k = n + m
+    M = np.zeros((k, k))
+    M[:n, :n] = A
+    M[:n, n:] = B
+    M *= dt
+    P = len(params)
+    if P:
+        der = structure.derivatives(theta)
+        big = np.zeros((k * (P + 1), k * (P + 1)))
+        for i in range(P + 1):
+            big[i * k : (i + 1) * k, i * k : (i + 1) * k] = M
+        for i, p in enumerate(params):
+            dA, dB = der[p]
+            big[:n, (i + 1) * k : (i + 1) * k + n] = dA * dt
+            big[:n, (i + 1) * k + n : (i + 2) * k] = dB * dt
+        E = expm(big)[:k]
+    else:
+        E = expm(M)
+    if not np.all(np.isfinite(E)):
+        raise FloatingPointError(f"exp(A dt) is not finite for {dict(theta)}")
+    Ad, Bd = E[:n, :n].copy(), E[:n, n:k].copy()
+    dAd = {p: E[:n, (i + 1) * k : (i + 1) * k + n].copy() for i, p in enumerate(params)}
+    dBd = {p: E[:n, (i + 1) * k + n : (i + 2) * k].copy() for i, p in enumerate(params)}
+    Q, Qinv, T, lam, diagonal = _modal(Ad)
+    return Discretisation(Ad, Bd, dAd, dBd, Q, Qinv, T, lam, diagonal)
+
+
+def _propagate(d: Discretisation, w: np.ndarray, z0: np.ndarray) -> np.ndarray:
+    """Modal recursion z[n+1] = T z[n] + w[n], z[0] = z0, for channels stacked in w.
+
+    w: (n_modes, C, N) forcing (w[..., N-1] is unused), z0: (n_modes, C). Returns z like w.
+    """
+    n = w.shape[0]
+    out = [None] * n
+    one = np.array([0.0, 1.0], dtype=w.dtype)
+    for i in range(n - 1, -1, -1):
+        wi = w[i]
+        if not d.diagonal:
+            for j in range(i + 1, n):
+                if d.T[i, j] != 0:
+                    wi = wi + d.T[i, j] * out[j]
+        a = np.array([1.0, -d.lam[i]], dtype=w.dtype)
+        out[i] = lfilter(one, a, wi, axis=-1, zi=z0[i][:, None].astype(w.dtype))[0]
+    return np.stack(out)
+
+
+def _input_array(u: np.ndarray, n_in: int) -> np.ndarray:
+    u = np.asarray(u, dtype=float)
+    if u.ndim != 2 or u.shape[1] != n_in:
+        raise ValueError(f"u must be N x {n_in} (T_o, Q_H), got shape {u.shape}")
+    if not np.all(np.isfinite(u)):
+        raise ValueError("u contains NaN or inf: the simulation needs every input sample")
+    return u
+
+
+def _initial_array(x0, structure: Structure) -> np.ndarray:
+    if isinstance(x0, Mapping):
+        x0 = [x0[s] for s in structure.states]
+    x0 = np.asarray(x0, dtype=float).reshape(-1)
+    if x0.shape != (len(structure.states),) or not np.all(np.isfinite(x0)):
+        raise ValueError(f"x0 must be {len(structure.states)} finite values, got {x0}")
+    return x0
+
+
+def _run_T(d: Discretisation, uT: np.ndarray, x0: np.ndarray) -> np.ndarray:
+    """States as an (n, N) array (state-major) from inputs uT (m, N), x[0] = x0."""
+    dtype = float if d.diagonal else complex
+    w = (d.Qinv @ d.Bd).astype(dtype) @ uT  # (n, N)
+    z0 = (d.Qinv @ x0).astype(dtype)
+    z = _propagate(d, w[:, None, :], z0[:, None])[:, 0, :]
+    x = d.Q @ z if len(z) > 1 else z * d.Q[0, 0]
+    x = x.real.copy() if dtype is complex else x
+    x[:, 0] = x0  # exactly (Q Qinv x0 may differ by rounding)
+    return x
+
+
+def _run(d: Discretisation, u: np.ndarray, x0: np.ndarray) -> np.ndarray:
+    """x (N x n)."""
+    return _run_T(d, np.ascontiguousarray(u.T), x0).T.copy()
+
+
+def simulate(
+    structure: Structure,
+    theta: Mapping[str, float],
+    u: np.ndarray,
+    dt: float,
+    x0,
+) -> np.ndarray:
+    """Exact ZOH simulation (eq. 15, K = 0): x (N x n) with x[0] = x0 and
+    x[n+1] = Ad x[n] + Bd u[n]; u is N x 2 = [T_o, Q_H] (the last row is not used)."""
+    u = _input_array(u, len(structure.inputs))
+    d = discretize(structure, theta, dt)
+    return _run(d, u, _initial_array(x0, structure))
+
+
+def free_response(d: Discretisation, N: int) -> np.ndarray:
+    """Ad^n for n = 0..N-1 as an (N, n, n) array: dx[n]/dx0. Powers of the modes below
+    FREE_RESPONSE_CUT are set to zero (never computed into subnormal floats)."""
+    head = free_response_head(d, N)
+    out = np.zeros((N,) + head.shape[1:])
+    out[: len(head)] = head
+    return out
+
+
+def free_response_head(d: Discretisation, N: int) -> np.ndarray:
+    """The rows of :func:`free_response` up to where every mode has decayed below
+    FREE_RESPONSE_CUT (all later rows are zero)."""
+    n = d.Ad.shape[0]
+    r = float(np.max(np.abs(d.lam))) if n else 0.0
+    if r <= 0.0:
+        n_cut = 1
+    elif r < 1.0:
+        n_cut = min(N, int(math.ceil(math.log(FREE_RESPONSE_CUT) / math.log(r))) * 2 + 2)
+    else:
+        n_cut = N
+    if d.diagonal:
+        steps = np.arange(n_cut)[:, None]
+        lam = d.lam[None, :]
+        with np.errstate(under="ignore"):
+            pw = np.where(
+                np.abs(lam) > 0, np.exp(steps * np.log(np.abs(lam) + (lam == 0))), 0.0
+            ) * np.where(lam < 0, (-1.0) ** steps, 1.0)
+        pw[0] = 1.0
+        pw[np.abs(pw) < FREE_RESPONSE_CUT] = 0.0
+        return np.einsum("ij,nj,jk->nik", d.Q, pw, d.Qinv)
+    w = np.zeros((n, n, n_cut), dtype=complex)
+    z = _propagate(d, w, d.Qinv.astype(complex))  # (modes, columns of x0, N)
+    x = np.einsum("ij,jkn->nik", d.Q, z).real
+    x[np.abs(x) < FREE_RESPONSE_CUT] = 0.0
+    return x
+
+
+def sensitivities(
+    structure: Structure,
+    theta: Mapping[str, float],
+    u: np.ndarray,
+    dt: float,
+    x0,
+    params: tuple[str, ...] | None = None,
+) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+    """x (N x n), {param: dx/dparam (N x n)} and dx/dx0 (N x n x n), all exact for the
+    discrete recursion (see the module docstring)."""
+    params = structure.parameters if params is None else tuple(params)
+    u = _input_array(u, len(structure.inputs))
+    x0 = _initial_array(x0, structure)
+    d = discretize(structure, theta, dt, params)
+    uT = np.ascontiguousarray(u.T)
+    xT = _run_T(d, uT, x0)
+    S = _parameter_sensitivities(d, xT, uT, params)  # (n, P, N)
+    sens = {p: S[:, i, :].T.copy() for i, p in enumerate(params)}
+    return xT.T.copy(), sens, free_response(d, len(u))
+
+
+def _parameter_sensitivities(
+    d: Discretisation, xT: np.ndarray, uT: np.ndarray, params: tuple[str, ...]
+) -> np.ndarray:
+    """(n, P, N): ds[n+1] = Ad ds[n] + dAd x[n] + dBd u[n], ds[0] = 0, one lfilter per mode
+    (all parameters of a mode in one call). xT (n, N) and uT (m, N) are state-major."""
+    n, N = xT.shape
+    P = len(params)
+    if P == 0:
+        return np.zeros((n, 0, N))
+    dtype = float if d.diagonal else complex
+    Qinv = d.Qinv.astype(dtype)
+    # forcing in modal coordinates: w[i, p] = (Qinv dAd_p)[i] x + (Qinv dBd_p)[i] u
+    HA = np.stack([Qinv @ d.dAd[p] for p in params], axis=1).reshape(n * P, n)
+    HB = np.stack([Qinv @ d.dBd[p] for p in params], axis=1).reshape(n * P, -1)
+    w = (HA @ xT + HB @ uT).reshape(n, P, N)
+    s = _propagate(d, w, np.zeros((n, P), dtype=dtype))
+    if n > 1:  # back to states: out[i] = sum_j Q[i, j] s[j]
+        s = (d.Q.astype(dtype) @ s.reshape(n, -1)).reshape(n, P, N)
+    else:
+        s = s * d.Q[0, 0]
+    return s.real.copy() if dtype is complex else s
+
+
+def _sensitivity_modes(d: Discretisation, xT: np.ndarray, uT: np.ndarray, params: tuple[str, ...]):
+    """For a diagonal modal form: yields (i, s_i) with s_i (P, N) the modal sensitivity of
+    mode i (dx/dparam = sum_i Q[:, i] s_i), one mode at a time to keep memory traffic low."""
+    if not d.diagonal:
+        raise ValueError("_sensitivity_modes needs a diagonal modal form")
+    n = xT.shape[0]
+    one = np.array([0.0, 1.0])
+    for i in range(n):
+        HA = np.stack([d.Qinv[i] @ d.dAd[p] for p in params])  # (P, n)
+        HB = np.stack([d.Qinv[i] @ d.dBd[p] for p in params])  # (P, m)
+        w = HA @ xT
+        w += HB @ uT
+        s_i = lfilter(one, np.array([1.0, -d.lam[i]]), w, axis=-1, zi=np.zeros((len(params), 1)))[0]
+        yield i, s_i

@@ -47,3 +47,172 @@ def test_second_order_matrices_follow_eq_14():
     A, B = models.second_order(kA=2.0, C=4.0, K_veh=6.0, C_veh=3.0)
     np.testing.assert_array_equal(A, [[-2.0, 1.5], [2.0, -2.0]])
     np.testing.assert_array_equal(B, [[0.5, 0.25], [0.0, 0.0]])
+
+
+# ---------------------------------------------------------------- structures, simulation
+
+
+TRAM2 = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
+
+
+def _inputs(n: int, dt: float, seed: int = 0) -> np.ndarray:
+    """Q_H steps every 4 h, T_o steps every 12 h, plus a little jitter (deterministic)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt
+    q = 4000.0 * rng.integers(0, 9, size=int(t[-1] // 14_400) + 1)[(t // 14_400).astype(int)]
+    to = rng.uniform(-20, 10, size=int(t[-1] // 43_200) + 1)[(t // 43_200).astype(int)]
+    return np.column_stack([to + 0.05 * rng.standard_normal(n), q])
+
+
+def _loop(structure, theta, u, dt, x0):
+    Ad, Bd = models.discretize_zoh(*structure.matrices(theta), dt)
+    x = np.empty((len(u), len(x0)))
+    x[0] = x0
+    for n in range(len(u) - 1):
+        x[n + 1] = Ad @ x[n] + Bd @ u[n]
+    return x
+
+
+def test_structures_are_data():
+    s1, s2 = models.STRUCTURES["first_order"], models.STRUCTURES["second_order"]
+    assert s1.parameters == ("kA", "C_bar") and s1.states == ("T",)
+    assert s2.parameters == ("kA", "C", "K_veh", "C_veh") and s2.states == ("T", "T_veh")
+    assert s2.inputs == ("T_o", "Q_H")
+    A, B = s2.matrices(TRAM2)
+    np.testing.assert_array_equal(A, models.second_order(**TRAM2)[0])
+    np.testing.assert_array_equal(B, models.second_order(**TRAM2)[1])
+
+
+@pytest.mark.parametrize("name", ["first_order", "second_order"])
+def test_analytic_derivatives_of_A_and_B(name):
+    s = models.STRUCTURES[name]
+    theta = TRAM2 if name == "second_order" else {"kA": 979.2, "C_bar": 2.8e7}
+    for p, (dA, dB) in s.derivatives(theta).items():
+        h = theta[p] * 1e-6
+        Ap, Bp = s.matrices({**theta, p: theta[p] + h})
+        Am, Bm = s.matrices({**theta, p: theta[p] - h})
+        np.testing.assert_allclose(dA, (Ap - Am) / (2 * h), rtol=1e-6, atol=1e-20)
+        np.testing.assert_allclose(dB, (Bp - Bm) / (2 * h), rtol=1e-6, atol=1e-20)
+
+
+@pytest.mark.parametrize("name", ["first_order", "second_order"])
+def test_simulate_equals_plain_loop(name):
+    s = models.STRUCTURES[name]
+    theta = TRAM2 if name == "second_order" else {"kA": 979.2, "C_bar": 2.8e7}
+    u = _inputs(3000, 60.0)
+    x0 = np.array([3.0, -4.0])[: len(s.states)]
+    x = models.simulate(s, theta, u, 60.0, x0)
+    np.testing.assert_allclose(x, _loop(s, theta, u, 60.0, x0), rtol=0, atol=1e-10)
+    assert x.shape == (3000, len(s.states))
+    np.testing.assert_array_equal(x[0], x0)
+
+
+def test_simulate_analytic_first_order_step_response():
+    kA, C_bar, T_o, Q_H, T0, dt = 900.0, 2.0e7, -10.0, 30_000.0, -10.0, 600.0
+    s = models.STRUCTURES["first_order"]
+    u = np.tile([T_o, Q_H], (200, 1))
+    x = models.simulate(s, {"kA": kA, "C_bar": C_bar}, u, dt, [T0])
+    t = np.arange(200) * dt
+    T_inf = T_o + Q_H / kA
+    np.testing.assert_allclose(x[:, 0], T_inf + (T0 - T_inf) * np.exp(-kA * t / C_bar), rtol=1e-12)
+
+
+def _custom(A_fn, name="custom"):
+    """A one-parameter toy structure whose A is given (for the Schur fall-back)."""
+
+    def build(a):
+        A = A_fn(a)
+        return A, np.column_stack([np.ones(len(A)), np.arange(1, len(A) + 1) * 1e-3])
+
+    def jac(a):
+        h = 1e-7
+        return {"a": ((A_fn(a + h) - A_fn(a - h)) / (2 * h), np.zeros((len(A_fn(a)), 2)))}
+
+    return models.Structure(name, ("a",), tuple(f"x{i}" for i in range(len(A_fn(1.0)))), build, jac)
+
+
+@pytest.mark.parametrize(
+    "A_fn",
+    [
+        lambda a: np.array([[-a, 1e-3], [-1e-3, -a]]) * 1e-3,  # complex pair
+        lambda a: np.array([[-a, 1.0], [0.0, -a]]) * 1e-3,  # defective (Jordan block)
+    ],
+)
+def test_simulate_falls_back_when_not_diagonalisable(A_fn):
+    s = _custom(A_fn)
+    d = models.discretize(s, {"a": 1.0}, 60.0)
+    assert not d.diagonal
+    u = _inputs(2000, 60.0)
+    x = models.simulate(s, {"a": 1.0}, u, 60.0, [1.0, -2.0])
+    np.testing.assert_allclose(x, _loop(s, {"a": 1.0}, u, 60.0, [1.0, -2.0]), atol=1e-9)
+    F = models.free_response(d, 50)
+    np.testing.assert_allclose(F[7], np.linalg.matrix_power(d.Ad, 7), atol=1e-12)
+
+
+def test_block_expm_derivatives_equal_expm_frechet():
+    from scipy.linalg import expm_frechet
+
+    s, dt = models.STRUCTURES["second_order"], 60.0
+    d = models.discretize(s, TRAM2, dt, s.parameters)
+    A, B = s.matrices(TRAM2)
+    M = np.zeros((4, 4))
+    M[:2, :2], M[:2, 2:] = A, B
+    for p, (dA, dB) in s.derivatives(TRAM2).items():
+        E = np.zeros((4, 4))
+        E[:2, :2], E[:2, 2:] = dA, dB
+        L = expm_frechet(M * dt, E * dt, compute_expm=False)
+        np.testing.assert_allclose(d.dAd[p], L[:2, :2], rtol=1e-10, atol=1e-14 * abs(L).max())
+        np.testing.assert_allclose(d.dBd[p], L[:2, 2:], rtol=1e-10, atol=1e-14 * abs(L).max())
+
+
+@pytest.mark.parametrize("name", ["first_order", "second_order"])
+def test_sensitivities_match_finite_differences(name):
+    s = models.STRUCTURES[name]
+    theta = TRAM2 if name == "second_order" else {"kA": 979.2, "C_bar": 2.8e7}
+    u, dt = _inputs(2000, 60.0, seed=3), 60.0
+    x0 = np.array([2.0, -1.0])[: len(s.states)]
+    x, S, F = models.sensitivities(s, theta, u, dt, x0)
+    np.testing.assert_allclose(x, models.simulate(s, theta, u, dt, x0), atol=1e-12)
+    for p in s.parameters:
+        h = theta[p] * 1e-5
+        fd = (
+            models.simulate(s, {**theta, p: theta[p] + h}, u, dt, x0)
+            - models.simulate(s, {**theta, p: theta[p] - h}, u, dt, x0)
+        ) / (2 * h)
+        scale = np.abs(fd).max()
+        assert scale > 0
+        np.testing.assert_allclose(S[p], fd, rtol=0, atol=1e-5 * scale)
+    for j in range(len(x0)):
+        e = np.zeros(len(x0))
+        e[j] = 1e-3
+        fd = (
+            models.simulate(s, theta, u, dt, x0 + e) - models.simulate(s, theta, u, dt, x0 - e)
+        ) / 2e-3
+        np.testing.assert_allclose(F[:, :, j], fd, rtol=0, atol=1e-8)
+
+
+def test_free_response_is_cut_not_subnormal():
+    """A fast mode decays below 1e-30 within a few steps: the rest is exactly 0 (no subnormals)."""
+    s = models.STRUCTURES["second_order"]
+    d = models.discretize(s, {"kA": 979.2, "C": 1.0e5, "K_veh": 974.0, "C_veh": 1.0e6}, 600.0)
+    head = models.free_response_head(d, 1_000_000)
+    assert len(head) < 100_000
+    F = models.free_response(d, 5000)
+    tiny = np.abs(F[F != 0]).min()
+    assert tiny > 1e-40  # far from the subnormal range (< 2.2e-308)
+    np.testing.assert_allclose(F[3], np.linalg.matrix_power(d.Ad, 3), rtol=1e-12)
+
+
+def test_sensitivities_on_the_schur_path_match_finite_differences():
+    s = _custom(lambda a: np.array([[-a, 1e-3], [-1e-3, -a]]) * 1e-3)
+    u, dt, x0 = _inputs(1500, 60.0, seed=4), 60.0, np.array([1.0, -2.0])
+    x, S, F = models.sensitivities(s, {"a": 1.0}, u, dt, x0)
+    h = 1e-4
+    fd = (
+        models.simulate(s, {"a": 1.0 + h}, u, dt, x0)
+        - models.simulate(s, {"a": 1.0 - h}, u, dt, x0)
+    ) / (2 * h)
+    np.testing.assert_allclose(S["a"], fd, rtol=0, atol=1e-5 * np.abs(fd).max())
+    np.testing.assert_allclose(
+        F[5], np.linalg.matrix_power(models.discretize(s, {"a": 1.0}, dt).Ad, 5)
+    )

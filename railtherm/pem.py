@@ -1,0 +1,895 @@
+"""Simulation-error prediction error method (paper section 5.3, eqs. 15-18 with K = 0).
+
+The model (a :class:`railtherm.models.Structure`) is simulated exactly (zero-order hold,
+eq. 15) from each experiment's initial state, and the criterion J(theta) = e^T e (eq. 17) over
+the compared outputs (eq. 18; outputs in K, equal weights for every output and sample; rows
+where the measurement is NaN are skipped) is minimised by ``scipy.optimize.least_squares``
+(trust-region reflective, ``method="trf"``) in log parameters, with bounds, fixed
+parameters and the exact analytic Jacobian (discrete sensitivities, chain rule to log).
+
+* Two-stage (the paper, section 5.2): ``fixed={"kA": k A}`` from the static k stage; joint:
+  kA free too.
+* Several experiments share one parameter set; each has its own initial state, either
+  measured (``x0="measured"``: the experiment's ``x0`` or the first row of ``y``; a state
+  with no measurement there is estimated) or estimated (``x0="estimated"``: extra unknowns).
+* Start (``start``): ``"initial"`` starts from ``initial`` (default: the paper's values);
+  ``"auto"`` also computes an equation-error least-squares start (:func:`equation_error_start`,
+  needs every state measured) or, failing that, evaluates the cost on a small log grid around
+  the initial values on a block-averaged copy of the data, and starts from the candidate
+  with the lowest simulation-error cost (``FitResult.start_used`` says which).
+* Covariance in log parameters: ``"iid"``: s^2 (J^T J)^-1, s^2 = SSR / (m - p);
+  ``"hac"``: Newey-West sandwich (J^T J)^-1 S (J^T J)^-1 with a Bartlett kernel per
+  experiment and output (block), the bandwidth from the block's lag-1 residual
+  autocorrelation (Andrews' AR(1) plug-in rule). 95 % intervals exp(log theta +- 1.96 sd).
+* Identifiability flags (:class:`Flag`): wide interval (hi / lo > 10), parameter at a bound,
+  |correlation| > 0.95, ill-conditioned Jacobian (cond > 1e8), non-convergence.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from railtherm import models
+from railtherm.models import Structure
+
+__all__ = [
+    "Experiment",
+    "FitResult",
+    "Flag",
+    "equation_error_start",
+    "fit",
+    "experiment_from_table",
+]
+
+Z95 = 1.959963984540054
+WIDE_RATIO = 10.0
+CORR_MAX = 0.95
+COND_MAX = 1e8
+_LSMR_ABOVE = 300_000  # Jacobian entries above which the trust-region step uses LSMR
+_NULL_REL = 1e-13  # singular values below this (relative) span unidentifiable directions
+
+
+@dataclass
+class Experiment:
+    """One record: ``u`` N x 2 = [T_o, Q_H] (u[n] held over [t_n, t_n + dt), eq. 15), ``y``
+    N x n_states in the structure's state order (NaN = not measured / not used), ``x0`` the
+    measured initial state (NaN entries are estimated) or None (the first row of ``y``)."""
+
+    name: str
+    dt: float
+    u: np.ndarray
+    y: np.ndarray
+    x0: np.ndarray | None = None
+
+    def __post_init__(self):
+        self.u = np.asarray(self.u, dtype=float)
+        self.y = np.asarray(self.y, dtype=float)
+        if self.y.ndim == 1:
+            self.y = self.y[:, None]
+        if self.x0 is not None:
+            self.x0 = np.asarray(self.x0, dtype=float).reshape(-1)
+        if self.u.ndim != 2 or self.u.shape[1] != 2 or len(self.u) != len(self.y):
+            raise ValueError(
+                f"experiment {self.name!r}: u must be N x 2 and y N x n, got {self.u.shape}, "
+                f"{self.y.shape}"
+            )
+        if not (self.dt > 0):
+            raise ValueError(f"experiment {self.name!r}: dt must be > 0, got {self.dt}")
+
+
+def experiment_from_table(table, name: str, states=("T", "T_veh"), T_o_hold: str = "mean"):
+    """An :class:`Experiment` from a tidy table (railtherm.ingest.read_tidy).
+
+    Q_H[n] is already the mean power over [t_n, t_n + step). T_o is a point sample: with
+    ``T_o_hold="mean"`` (default) the input over the step is (T_o[n] + T_o[n+1]) / 2 (the
+    trapezoidal mean; the last row keeps T_o[N-1]), with ``"zoh"`` T_o[n] is held.
+    """
+    t = table["time"].to_numpy(float)
+    dt = float(np.median(np.diff(t)))
+    To = table["T_o"].to_numpy(float)
+    if T_o_hold == "mean":
+        To = np.concatenate([(To[:-1] + To[1:]) / 2.0, To[-1:]])
+    elif T_o_hold != "zoh":
+        raise ValueError(f"T_o_hold must be 'mean' or 'zoh', got {T_o_hold!r}")
+    u = np.column_stack([To, table["Q_H"].to_numpy(float)])
+    y = np.column_stack(
+        [
+            table[s].to_numpy(float) if s in table.columns else np.full(len(t), np.nan)
+            for s in states
+        ]
+    )
+    return Experiment(name=name, dt=dt, u=u, y=y, x0=y[0].copy())
+
+
+@dataclass(frozen=True)
+class Flag:
+    """An identifiability warning: a machine ``code``, the parameters concerned, a sentence."""
+
+    code: str
+    parameters: tuple[str, ...]
+    message: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"code": self.code, "parameters": list(self.parameters), "message": self.message}
+
+
+@dataclass
+class FitResult:
+    """The estimate. ``theta`` holds every parameter (fixed ones too); ``free`` the estimated
+    ones, in the order of ``correlation``; ``sd_log`` the standard deviation of log(theta);
+    ``ci95`` {param: (lo, hi)}; ``cost`` = e^T e (eq. 17, K^2); per-experiment lists
+    (experiment order): ``x0``, ``simulated`` (N x n_states), ``residuals`` (y - simulated,
+    N x n_states, NaN where not compared), ``dt``."""
+
+    structure: str
+    theta: dict[str, float]
+    free: tuple[str, ...]
+    fixed: dict[str, float]
+    ci95: dict[str, tuple[float, float]]
+    sd_log: dict[str, float]
+    correlation: np.ndarray
+    cond: float
+    flags: list[Flag]
+    cost: float
+    n_obs: int
+    n_unknowns: int
+    nfev: int
+    njev: int
+    success: bool
+    message: str
+    start_used: str
+    start_costs: dict[str, float]
+    covariance: str
+    outputs: tuple[str, ...]
+    names: list[str]
+    x0: list[np.ndarray]
+    x0_estimated: list[tuple[str, ...]]
+    simulated: list[np.ndarray] = field(repr=False)
+    residuals: list[np.ndarray] = field(repr=False)
+    dt: list[float] = field(default_factory=list)
+    states: tuple[str, ...] = ()
+    bandwidths: list[int] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats, lists and strings in a stable order (YAML-ready)."""
+
+        def f(v):
+            return float(v)
+
+        params = {}
+        for p, v in self.theta.items():
+            entry: dict[str, Any] = {"value": f(v), "estimated": p in self.free}
+            if p in self.free:
+                lo, hi = self.ci95[p]
+                entry["ci95"] = [f(lo), f(hi)]
+                entry["sd_log"] = f(self.sd_log[p])
+            params[p] = entry
+        return {
+            "structure": self.structure,
+            "parameters": params,
+            "free": list(self.free),
+            "correlation": [[f(c) for c in row] for row in np.asarray(self.correlation)],
+            "jacobian_condition": f(self.cond),
+            "flags": [fl.to_dict() for fl in self.flags],
+            "cost": f(self.cost),
+            "n_obs": int(self.n_obs),
+            "n_unknowns": int(self.n_unknowns),
+            "nfev": int(self.nfev),
+            "njev": int(self.njev),
+            "success": bool(self.success),
+            "message": str(self.message),
+            "start_used": self.start_used,
+            "start_costs": {k: f(v) for k, v in self.start_costs.items()},
+            "covariance": self.covariance,
+            "outputs": list(self.outputs),
+            "experiments": [
+                {
+                    "name": name,
+                    "dt": f(dt),
+                    "x0": {s: f(v) for s, v in zip(self.states, x0, strict=True)},
+                    "x0_estimated": list(est),
+                }
+                for name, dt, x0, est in zip(
+                    self.names, self.dt, self.x0, self.x0_estimated, strict=True
+                )
+            ],
+            "hac_bandwidths": [int(b) for b in self.bandwidths],
+        }
+
+
+# ----------------------------------------------------------------------------------------------
+# the problem
+
+
+class _Problem:
+    """Residuals and Jacobian of eq. 18 in the unknowns v = [log theta_free, x0 unknowns]."""
+
+    def __init__(self, structure, experiments, fixed, free, out_idx, x0_mode):
+        self.s = structure
+        self.exps = list(experiments)
+        self.fixed = dict(fixed)
+        self.free = tuple(free)
+        self.P = len(self.free)
+        self.out_idx = tuple(out_idx)
+        n = len(structure.states)
+        self.n = n
+        self.x0_base, self.x0_free, self.x0_guess = [], [], []
+        self.rows = []  # per experiment, per output: index array of compared samples or None
+        for e in self.exps:
+            if e.y.shape[1] != n:
+                raise ValueError(
+                    f"experiment {e.name!r}: y has {e.y.shape[1]} columns, structure "
+                    f"{structure.name!r} has states {structure.states}"
+                )
+            first = e.y[0] if e.x0 is None else e.x0
+            if len(first) != n:
+                raise ValueError(f"experiment {e.name!r}: x0 needs {n} values, got {first}")
+            base = np.array(first, dtype=float)
+            free_states = (
+                list(range(n))
+                if x0_mode == "estimated"
+                else list(np.flatnonzero(~np.isfinite(base)))
+            )
+            guess = base.copy()
+            fallback = e.y[0][np.isfinite(e.y[0])]
+            fill = float(fallback.mean()) if fallback.size else float(e.u[0, 0])
+            guess[~np.isfinite(guess)] = fill
+            base[free_states] = 0.0
+            self.x0_base.append(base)
+            self.x0_free.append(free_states)
+            self.x0_guess.append(guess[free_states])
+            rows = []
+            for i in self.out_idx:
+                ok = np.isfinite(e.y[:, i])
+                rows.append(None if ok.all() else np.flatnonzero(ok))
+            self.rows.append(rows)
+        self.n_x0 = sum(len(f) for f in self.x0_free)
+        self.m = sum(
+            (len(e.y) if r is None else len(r))
+            for e, rr in zip(self.exps, self.rows, strict=True)
+            for r in rr
+        )
+        self._key = None
+        self._jac_key = None
+        self.uT = [np.ascontiguousarray(e.u.T) for e in self.exps]
+        self.yT = [np.ascontiguousarray(e.y.T) for e in self.exps]
+
+    def theta(self, v) -> dict:
+        th = dict(self.fixed)
+        th.update({p: float(np.exp(v[i])) for i, p in enumerate(self.free)})
+        return th
+
+    def x0s(self, v):
+        out, k = [], self.P
+        for base, fr in zip(self.x0_base, self.x0_free, strict=True):
+            x0 = base.copy()
+            x0[fr] = v[k : k + len(fr)]
+            k += len(fr)
+            out.append(x0)
+        return out
+
+    def _evaluate(self, v, derivatives: bool):
+        key = (v.tobytes(), derivatives)
+        if self._key is not None and (
+            self._key == key or (self._key[0] == key[0] and not derivatives)
+        ):
+            return self._cache
+        with np.errstate(over="ignore", invalid="ignore"):
+            th = self.theta(v)
+        params = self.free if derivatives else ()
+        cache: dict[float, Any] = {}
+        sims = []
+        try:
+            if not all(math.isfinite(x) and x > 0 for x in th.values()):
+                raise FloatingPointError
+            # extreme trial points may overflow: their residuals are then not finite, and
+            # least_squares shrinks its step
+            with np.errstate(over="ignore", invalid="ignore"):
+                for e, uT, x0 in zip(self.exps, self.uT, self.x0s(v), strict=True):
+                    if e.dt not in cache:
+                        cache[e.dt] = models.discretize(self.s, th, e.dt, params)
+                    d = cache[e.dt]
+                    sims.append((d, models._run_T(d, uT, x0)))
+        except (FloatingPointError, np.linalg.LinAlgError, ValueError, OverflowError):
+            sims = None  # parameters so extreme that the model cannot be evaluated
+        self._key, self._cache = key, (th, sims)
+        return self._cache
+
+    def residuals(self, v) -> np.ndarray:
+        """Simulated minus measured (the negative of eq. 18's e), compared samples only."""
+        _, sims = self._evaluate(v, derivatives=True)
+        if sims is None:
+            return np.full(self.m, np.inf)  # least_squares shrinks its trust region
+        out = np.empty(self.m)
+        row = 0
+        for yT, (_, xT), rows in zip(self.yT, sims, self.rows, strict=True):
+            for i, r in zip(self.out_idx, rows, strict=True):
+                if r is None:
+                    N_i = xT.shape[1]
+                    np.subtract(xT[i], yT[i], out=out[row : row + N_i])
+                else:
+                    N_i = len(r)
+                    out[row : row + N_i] = xT[i, r] - yT[i, r]
+                row += N_i
+        return out
+
+    def cost_only(self, v) -> float:
+        _, sims = self._evaluate(v, derivatives=False)
+        if sims is None:
+            return math.inf
+        total = 0.0
+        for yT, (_, xT), rows in zip(self.yT, sims, self.rows, strict=True):
+            for i, r in zip(self.out_idx, rows, strict=True):
+                diff = xT[i] - yT[i] if r is None else xT[i, r] - yT[i, r]
+                total += float(diff @ diff)
+        return total if np.isfinite(total) else math.inf
+
+    def jacobian(self, v) -> np.ndarray:
+        key = v.tobytes()
+        if self._jac_key == key:
+            return self._jac
+        th, sims = self._evaluate(v, derivatives=True)
+        JT = np.zeros((self.P + self.n_x0, self.m))  # built transposed: contiguous rows
+        scale = np.array([th[p] for p in self.free])[:, None]
+        row, col = 0, self.P
+        for e, uT, (d, xT), rows, fr in zip(
+            self.exps, self.uT, sims, self.rows, self.x0_free, strict=True
+        ):
+            F = models.free_response_head(d, len(e.u)) if fr else None
+            starts, r0 = [], row
+            for r in rows:
+                starts.append(r0)
+                r0 += len(e.u) if r is None else len(r)
+            if not self.P:
+                pass
+            elif d.diagonal:  # mode by mode, accumulated straight into J
+                for j, s_j in models._sensitivity_modes(d, xT, uT, self.free):
+                    for i, r, st in zip(self.out_idx, rows, starts, strict=True):
+                        coef = d.Q[i, j] * scale
+                        if r is None:
+                            JT[: self.P, st : st + s_j.shape[1]] += coef * s_j
+                        else:
+                            JT[: self.P, st : st + len(r)] += coef * s_j[:, r]
+            else:
+                S = models._parameter_sensitivities(d, xT, uT, self.free)  # (n, P, N)
+                for i, r, st in zip(self.out_idx, rows, starts, strict=True):
+                    block = S[i] * scale
+                    JT[: self.P, st : st + (block.shape[1] if r is None else len(r))] = (
+                        block if r is None else block[:, r]
+                    )
+            for i, r in zip(self.out_idx, rows, strict=True):
+                N_i = len(e.u) if r is None else len(r)
+                if fr:
+                    head = F[:, i, :][:, fr].T  # (len(fr), n_cut)
+                    if r is None:
+                        JT[col : col + len(fr), row : row + head.shape[1]] = head
+                    else:
+                        keep = r[r < head.shape[1]]
+                        JT[col : col + len(fr), row : row + len(keep)] = head[:, keep]
+                row += N_i
+            col += len(fr)
+        self._jac_key, self._jac = key, JT.T
+        return self._jac
+
+
+# ----------------------------------------------------------------------------------------------
+# starts
+
+
+def equation_error_start(
+    structure: Structure,
+    experiments: Sequence[Experiment],
+    fixed: Mapping[str, float],
+    initial: Mapping[str, float],
+    log_bounds: tuple[np.ndarray, np.ndarray],
+    free: tuple[str, ...],
+) -> dict[str, float] | None:
+    """Equation-error least-squares start (needs every state measured).
+
+    Regress the continuous model on the data, dx/dt ~ (x[n+1] - x[n]) / dt, with the states
+    at the step's midpoint (x[n] + x[n+1]) / 2 and the held input u[n] (consistent with the
+    zero-order hold): first the unconstrained [A B] row by row (ordinary least squares through
+    the sufficient statistics), then the structure's parameters closest to it in the metric of
+    the regression (each row weighted by its residual variance). Returns None when a state is
+    not measured or the regression is degenerate."""
+    n = len(structure.states)
+    k = n + 2
+    Szz, Szd, ss_dd, count = np.zeros((k, k)), np.zeros((k, n)), np.zeros(n), 0
+    for e in experiments:
+        yT = np.ascontiguousarray(e.y[:, :n].T)
+        fin = np.isfinite(yT).all(axis=0)
+        ok = fin[1:] & fin[:-1]
+        n_ok = int(ok.sum())
+        if n_ok == 0:
+            continue
+        D = (yT[:, 1:] - yT[:, :-1]) / e.dt  # (n, N-1): dx/dt over each step
+        Z = np.vstack([(yT[:, 1:] + yT[:, :-1]) / 2.0, e.u[:-1].T])  # (k, N-1)
+        if n_ok < len(ok):
+            D, Z = D[:, ok], Z[:, ok]
+        Szz += Z @ Z.T
+        Szd += Z @ D.T
+        ss_dd += np.einsum("ij,ij->i", D, D)
+        count += n_ok
+    if count < 3 * k:
+        return None
+    s, U = np.linalg.eigh(Szz)
+    keep = s > s.max() * 1e-12
+    if not keep.any():
+        return None
+    sq = np.sqrt(s[keep])
+    Ur = U[:, keep]
+    phi_hat = np.linalg.pinv(Szz) @ Szd  # (k, n): the unconstrained [A B]^T
+    target = (Ur.T @ Szd) / sq[:, None]  # (r, n)
+    # residual sum of squares of each row's OLS fit, for the row weights
+    ss_res = (
+        ss_dd
+        + np.einsum("ki,kl,li->i", phi_hat, Szz, phi_hat)
+        - 2 * np.einsum("ki,ki->i", phi_hat, Szd)
+    )
+    scale_dd = np.sqrt(ss_dd / count)
+    sigma = np.sqrt(np.maximum(ss_res, 0.0) / count) + 1e-12 * scale_dd + 1e-300
+
+    W = sq[:, None] * Ur.T  # (r, k): the regression metric
+    inv_sigma = 1.0 / sigma
+    target_w = target * inv_sigma
+    names = structure.parameters
+
+    def theta_of(w):
+        th = dict(fixed)
+        for i, p in enumerate(free):
+            th[p] = math.exp(w[i])
+        return th
+
+    def fun(w):
+        th = theta_of(w)
+        A, B = structure.build(**{p: th[p] for p in names})
+        return (W @ np.concatenate((A, B), axis=1).T * inv_sigma - target_w).ravel()
+
+    def jac(w):
+        th = theta_of(w)
+        der = structure.jacobian(**{p: th[p] for p in names})
+        dphi = np.stack([np.concatenate(der[p], axis=1).T * th[p] for p in free])  # (P, k, n)
+        return ((W @ dphi) * inv_sigma).reshape(len(free), -1).T
+
+    lo, hi = log_bounds
+    w0 = np.clip([math.log(initial[p]) for p in free], lo, hi)
+    try:
+        sol = least_squares(fun, w0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    if not np.all(np.isfinite(sol.x)):
+        return None
+    return {p: float(np.exp(sol.x[i])) for i, p in enumerate(free)}
+
+
+def _block_average(e: Experiment, factor: int) -> Experiment:
+    """A coarser copy for cheap cost ranking: inputs averaged over blocks of ``factor``
+    samples, outputs sampled at the block starts."""
+    N = (len(e.u) // factor) * factor
+    u = e.u[:N].reshape(-1, factor, 2).mean(axis=1)
+    return Experiment(name=e.name, dt=e.dt * factor, u=u, y=e.y[:N:factor], x0=e.x0)
+
+
+# ----------------------------------------------------------------------------------------------
+# covariance
+
+
+def _bartlett_hac(g: np.ndarray, L: int) -> np.ndarray:
+    """sum_{|l| <= L} (1 - |l| / (L + 1)) Gamma_l for the score series g (T x p), computed as
+    (1 / (L + 1)) sum_t G_t G_t^T with G_t the sum of L + 1 consecutive g (zero-padded):
+    every pair at lag l falls in L + 1 - l windows, which is the Bartlett weight exactly."""
+    if L <= 0:
+        return g.T @ g
+    p = g.shape[1]
+    c = np.zeros((len(g) + 2 * L + 1, p))
+    np.cumsum(np.vstack([np.zeros((L, p)), g, np.zeros((L, p))]), axis=0, out=c[1:])
+    G = c[L + 1 :] - c[: -(L + 1)]
+    return (G.T @ G) / (L + 1)
+
+
+def _andrews_bandwidth(e: np.ndarray) -> int:
+    """Andrews (1991) AR(1) plug-in bandwidth for the Bartlett kernel."""
+    T = len(e)
+    if T < 3:
+        return 0
+    e = e - e.mean()
+    den = float(e @ e)
+    if den <= 0:
+        return 0
+    rho = float(e[1:] @ e[:-1]) / den
+    rho = min(max(rho, -0.999), 0.999)
+    alpha = 4 * rho**2 / ((1 - rho) ** 2 * (1 + rho) ** 2)
+    L = int(math.ceil(1.1447 * (alpha * T) ** (1.0 / 3.0)))
+    return max(0, min(L, T // 2))
+
+
+# ----------------------------------------------------------------------------------------------
+# fit
+
+
+def fit(
+    structure: Structure,
+    experiments: Sequence[Experiment],
+    *,
+    fixed: Mapping[str, float] | None = None,
+    initial: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    outputs: Sequence[str] | None = None,
+    x0: str = "measured",
+    covariance: str = "hac",
+    start: str = "auto",
+    max_nfev: int | None = None,
+) -> FitResult:
+    """Simulation-error PEM (eqs. 17-18, K = 0) of ``structure`` to ``experiments`` jointly.
+
+    fixed: {param: value} held (two-stage: {"kA": k A}); initial: start values of free
+    parameters (default: the paper's, ``structure.initial``); bounds: {param: (lo, hi)} in SI
+    units (default ``structure.bounds``); outputs: state names compared (default: every state
+    with a measurement); x0: "measured" | "estimated"; covariance: "hac" | "iid";
+    start: "initial" | "auto".
+    """
+    fixed = {p: float(v) for p, v in (fixed or {}).items()}
+    unknown = [p for p in fixed if p not in structure.parameters]
+    if unknown:
+        raise ValueError(f"fixed parameters {unknown} not in {structure.parameters}")
+    if x0 not in ("measured", "estimated"):
+        raise ValueError(f"x0 must be 'measured' or 'estimated', got {x0!r}")
+    if covariance not in ("hac", "iid"):
+        raise ValueError(f"covariance must be 'hac' or 'iid', got {covariance!r}")
+    if start not in ("initial", "auto"):
+        raise ValueError(f"start must be 'initial' or 'auto', got {start!r}")
+    experiments = list(experiments)
+    if not experiments:
+        raise ValueError("fit needs at least one experiment")
+    free = tuple(p for p in structure.parameters if p not in fixed)
+    init = dict(structure.initial)
+    init.update({p: float(v) for p, v in (initial or {}).items() if p in structure.parameters})
+    bnds = dict(structure.bounds)
+    bnds.update({p: (float(b[0]), float(b[1])) for p, b in (bounds or {}).items()})
+    lb = np.array([math.log(bnds[p][0]) if bnds[p][0] > 0 else -np.inf for p in free])
+    ub = np.array([math.log(bnds[p][1]) if np.isfinite(bnds[p][1]) else np.inf for p in free])
+    n = len(structure.states)
+    if outputs is None:
+        outputs = tuple(
+            s
+            for i, s in enumerate(structure.states)
+            if any(np.isfinite(e.y[:, i]).any() for e in experiments if e.y.shape[1] == n)
+        )
+    outputs = tuple(outputs)
+    bad = [s for s in outputs if s not in structure.states]
+    if bad or not outputs:
+        raise ValueError(f"outputs {outputs} must be states of {structure.name}")
+    out_idx = [structure.states.index(s) for s in outputs]
+    prob = _Problem(structure, experiments, fixed, free, out_idx, x0)
+    if prob.m <= len(free) + prob.n_x0:
+        raise ValueError(f"{prob.m} compared samples cannot determine the unknowns")
+
+    with _single_threaded_blas():
+        return _fit(
+            structure,
+            experiments,
+            prob,
+            free,
+            fixed,
+            init,
+            lb,
+            ub,
+            start,
+            covariance,
+            outputs,
+            bnds,
+            max_nfev,
+        )
+
+
+def _fit(
+    structure,
+    experiments,
+    prob,
+    free,
+    fixed,
+    init,
+    lb,
+    ub,
+    start,
+    covariance,
+    outputs,
+    bnds,
+    max_nfev,
+):
+    def pack(theta_free: Mapping[str, float]) -> np.ndarray:
+        w = np.array([math.log(theta_free[p]) for p in free])
+        span = ub - lb
+        margin = np.where(np.isfinite(span), 1e-6 * span, 0.0)
+        w = np.clip(w, lb + margin, ub - margin)
+        return np.concatenate([w, *prob.x0_guess]) if prob.n_x0 else w
+
+    candidates = {"initial": pack(init)}
+    if start == "auto" and free:
+        ee = equation_error_start(structure, experiments, fixed, init, (lb, ub), free)
+        if ee is not None:
+            candidates["equation_error"] = pack(ee)
+        else:
+            candidates.update(
+                _grid_candidates(structure, experiments, fixed, free, init, pack, prob)
+            )
+    costs = {name: prob.cost_only(v) for name, v in candidates.items()}
+    start_used = min(costs, key=lambda k: costs[k] if np.isfinite(costs[k]) else np.inf)
+    v0 = candidates[start_used]
+    if not math.isfinite(costs[start_used]):
+        raise ValueError(
+            f"the model cannot be simulated from any start ({', '.join(costs)}): check the "
+            "initial values, bounds and inputs"
+        )
+
+    if prob.P + prob.n_x0 == 0:  # every parameter and initial state given: evaluate only
+        r = prob.residuals(v0)
+        sol = SimpleNamespace(
+            x=v0,
+            fun=r,
+            success=True,
+            status=1,
+            nfev=1,
+            njev=0,
+            active_mask=np.zeros(0, int),
+            message="nothing to estimate: every parameter and initial state is given",
+        )
+        J = np.zeros((prob.m, 0))
+        return _result(structure, prob, sol, v0, r, J, covariance, start_used, costs, outputs, bnds)
+    lo = np.concatenate([lb, np.full(prob.n_x0, -np.inf)])
+    hi = np.concatenate([ub, np.full(prob.n_x0, np.inf)])
+    # The trust-region reflective method is markedly cheaper per iteration, and needs fewer
+    # iterations, without bounds. Run it unbounded first; an optimum strictly inside the
+    # bounds is a local optimum of the bounded problem too. Otherwise (the search left the
+    # box or failed) run the bounded problem from the same start.
+    # Trust-region subproblem: exact (SVD of J) for small problems; LSMR for large ones, where
+    # the SVD of the tall Jacobian dominates the cost (same optimum, see docs).
+    tr = {"tr_solver": "lsmr"} if prob.m * (prob.P + prob.n_x0) > _LSMR_ABOVE else {}
+    sol = least_squares(
+        prob.residuals,
+        v0,
+        jac=prob.jacobian,
+        method="trf",
+        x_scale=1.0,
+        max_nfev=max_nfev,
+        **tr,
+    )
+    inside = np.all(sol.x[: prob.P] > lb) and np.all(sol.x[: prob.P] < ub)
+    if not (sol.success and inside and np.all(np.isfinite(sol.fun))):
+        first = sol
+        sol = least_squares(
+            prob.residuals,
+            v0,
+            jac=prob.jacobian,
+            bounds=(lo, hi),
+            method="trf",
+            x_scale=1.0,
+            max_nfev=max_nfev,
+            **tr,
+        )
+        sol.nfev += first.nfev
+        sol.njev = (sol.njev or 0) + (first.njev or 0)
+    v = sol.x
+    r = prob.residuals(v)
+    J = prob.jacobian(v)  # cached: least_squares evaluated it at sol.x
+    return _result(structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds)
+
+
+_BLAS = {}
+
+
+def _single_threaded_blas():
+    """BLAS limited to one thread during a fit: the matrices are tiny (4x4 exponentials) or
+    tall and thin, and idle BLAS threads spinning on a loaded 2-core machine cost 10x."""
+    if "controller" not in _BLAS:
+        try:
+            from threadpoolctl import ThreadpoolController
+
+            _BLAS["controller"] = ThreadpoolController()
+        except Exception:  # optional: without it, BLAS keeps its own setting
+            _BLAS["controller"] = None
+    c = _BLAS["controller"]
+    return c.limit(limits=1, user_api="blas") if c is not None else contextlib.nullcontext()
+
+
+def _grid_candidates(structure, experiments, fixed, free, init, pack, prob):
+    """Log grid (factors 1, 10, 100 of the initial values of the free capacities and
+    conductances) ranked on a block-averaged copy; returns the best grid point."""
+    N = max(len(e.u) for e in experiments)
+    factor = max(1, N // 2000)
+    coarse = [_block_average(e, factor) for e in experiments] if factor > 1 else experiments
+    cprob = _Problem(structure, coarse, fixed, free, prob.out_idx, "measured")
+    cprob.x0_base = prob.x0_base  # same initial states as the full problem
+    cprob.x0_free = prob.x0_free
+    best, best_cost = None, np.inf
+    factors = (1.0, 10.0, 100.0)
+    for combo in np.array(np.meshgrid(*[factors] * len(free))).reshape(len(free), -1).T:
+        th = {p: init[p] * f for p, f in zip(free, combo, strict=True)}
+        v = pack(th)
+        c = cprob.cost_only(v)
+        if c < best_cost:
+            best, best_cost = v, c
+    return {} if best is None else {"grid": best}
+
+
+def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds):
+    P, m = prob.P, prob.m
+    p_all = J.shape[1]
+    ssr = float(r @ r)
+    # J = Q R, then the SVD of the small R: singular values and right vectors of J
+    if p_all:
+        R = np.linalg.qr(J, mode="r") if J.shape[0] > J.shape[1] else J
+        _, s, Vt = np.linalg.svd(R, full_matrices=False)
+    else:  # nothing estimated
+        s, Vt = np.zeros(0), np.zeros((0, 0))
+    smax = float(s[0]) if s.size else 0.0
+    null = s <= _NULL_REL * smax if smax > 0 else np.ones_like(s, dtype=bool)
+    # condition of the parameter block only (log-parameter columns)
+    if P and p_all == P:
+        cond = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
+    elif P:
+        sp = np.linalg.svd(np.linalg.qr(J[:, :P], mode="r"), compute_uv=False)
+        cond = float(sp[0] / sp[-1]) if sp[-1] > 0 else math.inf
+    else:
+        cond = 1.0
+    with np.errstate(divide="ignore"):
+        inv_s = np.where(null, 0.0, 1.0 / np.where(null, 1.0, s))
+    bread = (Vt.T * inv_s**2) @ Vt  # (J^T J)^+
+    bandwidths = []
+    if covariance == "iid":
+        s2 = ssr / max(m - p_all, 1)
+        cov = s2 * bread
+    else:
+        meat = np.zeros((p_all, p_all))
+        row = 0
+        for e, rows in zip(prob.exps, prob.rows, strict=True):
+            for rr in rows:
+                N_i = len(e.u) if rr is None else len(rr)
+                ri, Ji = r[row : row + N_i], J[row : row + N_i]
+                if rr is None:
+                    g, res_full = Ji * ri[:, None], ri
+                else:
+                    g = np.zeros((len(e.u), p_all))
+                    g[rr] = Ji * ri[:, None]
+                    res_full = np.zeros(len(e.u))
+                    res_full[rr] = ri
+                L = _andrews_bandwidth(res_full)
+                bandwidths.append(L)
+                meat += _bartlett_hac(g, L)
+                row += N_i
+        cov = bread @ meat @ bread
+    var = np.diag(cov)[:P].copy()
+    # directions the data do not determine: infinite variance for the parameters on them
+    if null.any():
+        load = np.abs(Vt[null][:, :P]).max(axis=0)
+        var[load > 1e-8] = np.inf
+    sd = np.sqrt(np.maximum(var, 0.0))
+    th = prob.theta(v)
+    free = prob.free
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = np.sqrt(np.maximum(np.diag(cov)[:P], 0.0))
+        corr = cov[:P, :P] / np.outer(d, d)
+    corr[~np.isfinite(corr)] = np.nan
+    for i in range(P):
+        if np.isfinite(sd[i]) and sd[i] > 0:
+            corr[i, i] = 1.0
+        if not np.isfinite(sd[i]):
+            corr[i, :] = np.nan
+            corr[:, i] = np.nan
+    ci = {}
+    sd_log = {}
+    for i, p in enumerate(free):
+        lv = math.log(th[p])
+        with np.errstate(over="ignore"):
+            ci[p] = (float(np.exp(lv - Z95 * sd[i])), float(np.exp(lv + Z95 * sd[i])))
+        sd_log[p] = float(sd[i])
+    flags = _flags(structure, prob, sol, v, th, free, ci, corr, cond, bnds)
+    sims = prob._evaluate(v, derivatives=True)[1]
+    x0s = prob.x0s(v)
+    simulated, residuals = [], []
+    for e, (_, xT) in zip(prob.exps, sims, strict=True):
+        x = xT.T.copy()
+        simulated.append(x)
+        res = np.full_like(x, np.nan)
+        for i in prob.out_idx:
+            res[:, i] = e.y[:, i] - x[:, i]
+        residuals.append(res)
+    return FitResult(
+        structure=structure.name,
+        theta={p: float(th[p]) for p in structure.parameters},
+        free=free,
+        fixed=dict(prob.fixed),
+        ci95=ci,
+        sd_log=sd_log,
+        correlation=corr,
+        cond=cond,
+        flags=flags,
+        cost=ssr,
+        n_obs=m,
+        n_unknowns=p_all,
+        nfev=int(sol.nfev),
+        njev=int(sol.njev or 0),
+        success=bool(sol.success),
+        message=str(sol.message),
+        start_used=start_used,
+        start_costs=costs,
+        covariance=covariance,
+        outputs=tuple(outputs),
+        names=[e.name for e in prob.exps],
+        x0=x0s,
+        x0_estimated=[tuple(structure.states[j] for j in fr) for fr in prob.x0_free],
+        simulated=simulated,
+        residuals=residuals,
+        dt=[float(e.dt) for e in prob.exps],
+        states=tuple(structure.states),
+        bandwidths=bandwidths,
+    )
+
+
+def _flags(structure, prob, sol, v, th, free, ci, corr, cond, bnds) -> list[Flag]:
+    flags = []
+    for p in free:
+        lo, hi = ci[p]
+        ratio = hi / lo if lo > 0 else math.inf
+        if not ratio <= WIDE_RATIO:
+            flags.append(
+                Flag(
+                    "wide_interval",
+                    (p,),
+                    f"the 95 % interval of {p} spans more than a decade "
+                    f"({lo:.3g} to {hi:.3g}): the data hardly determine it",
+                )
+            )
+    for i, p in enumerate(free):
+        lo_b, hi_b = bnds[p]
+        at_lo = lo_b > 0 and abs(v[i] - math.log(lo_b)) < 1e-4
+        at_hi = np.isfinite(hi_b) and abs(math.log(hi_b) - v[i]) < 1e-4
+        if at_lo or at_hi or (sol.active_mask[i] != 0):
+            which = "lower" if (at_lo or sol.active_mask[i] < 0) else "upper"
+            flags.append(
+                Flag(
+                    "at_bound",
+                    (p,),
+                    f"{p} = {th[p]:.4g} sits at its {which} bound "
+                    f"({bnds[p][0]:.3g}, {bnds[p][1]:.3g}): the optimum may lie beyond it",
+                )
+            )
+    for i in range(len(free)):
+        for j in range(i + 1, len(free)):
+            c = corr[i, j]
+            if np.isfinite(c) and abs(c) > CORR_MAX:
+                flags.append(
+                    Flag(
+                        "high_correlation",
+                        (free[i], free[j]),
+                        f"{free[i]} and {free[j]} are correlated ({c:+.3f}): the data "
+                        "determine a combination of them rather than each",
+                    )
+                )
+    if not cond <= COND_MAX:
+        flags.append(
+            Flag(
+                "ill_conditioned",
+                tuple(free),
+                f"the Jacobian is ill-conditioned (condition number {cond:.3g} > {COND_MAX:.0e}): "
+                "some parameter combination barely changes the simulated outputs, so the data "
+                "cannot determine it",
+            )
+        )
+    if not sol.success or sol.status == 0:
+        flags.append(
+            Flag(
+                "not_converged",
+                tuple(free),
+                f"the optimiser did not converge ({sol.message}); the estimate is not an optimum",
+            )
+        )
+    return flags
