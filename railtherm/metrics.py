@@ -1,0 +1,330 @@
+"""Fit measures and residual diagnostics of an identified model, and a plain verdict.
+
+Notation as in the paper (section 6): y(n) is the measured and yhat(n) the simulated indoor air
+temperature T, n = 1..m, and e(n) = y(n) - yhat(n) the (simulation-error) residual.
+
+* :func:`r2` is the paper's coefficient of determination, eqs. 21-23::
+
+      R^2 = 1 - SS_res / SS_tot,   SS_res = sum e(n)^2,   SS_tot = sum (y(n) - mean(y))^2
+
+* :func:`nrmse_fit` is the *NRMSE fit* that MATLAB's ``compare`` and pySIP report,
+  ``1 - ||y - yhat|| / ||y - mean(y)||``. It is **not** R^2: R^2 = 1 - (1 - nrmse_fit)^2, so an
+  NRMSE fit of 0.9 is an R^2 of 0.99. Every output key says which one it is (``"r2"`` and
+  ``"nrmse_fit"``, never ``"fit"`` alone).
+* :func:`rmse`, the root mean square residual in the unit of y (K).
+* :func:`autocorrelation` of the residuals (FFT) and :func:`ljung_box`, a whiteness test.
+  Simulation-error residuals of slow thermal data are almost never white (any small model error
+  leaves a slow, smooth residual), so the Ljung-Box p-value is nearly always ~0 on real data and
+  is reported for information; the *autocorrelation time* tau (``railtherm.kvalue``'s
+  :func:`~railtherm.kvalue.autocorrelation_time`, Geyer's initial positive sequence) says how
+  coloured they are: the residuals carry about m / tau independent samples.
+* :func:`aic` and :func:`bic` from SSR, m, p under a Gaussian likelihood, to compare the first
+  and the second order on the same data (lower is better; only differences matter).
+* :func:`verdict`: "fit acceptable" or "assumptions in doubt", with plain reasons.
+
+Missing values: rows where y or yhat is NaN are skipped by every measure (for the
+autocorrelation the skipped rows count as zero deviations, so lags stay lags in time).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.stats import chi2
+
+from railtherm.kvalue import autocorrelation_time
+
+__all__ = [
+    "ACCEPTABLE",
+    "DEFAULT_THRESHOLDS",
+    "IN_DOUBT",
+    "Whiteness",
+    "aic",
+    "autocorrelation",
+    "bic",
+    "ljung_box",
+    "nrmse_fit",
+    "r2",
+    "r2_from_nrmse_fit",
+    "rmse",
+    "summary",
+    "verdict",
+]
+
+ACCEPTABLE = "fit acceptable"
+IN_DOUBT = "assumptions in doubt"
+
+#: Defaults of :func:`verdict`. ``r2_min``: R^2 (eq. 21) below this puts the assumptions in
+#: doubt. ``min_effective_samples``: residuals whose autocorrelation time leaves fewer than this
+#: many independent samples (m / tau) are *strongly coloured*: the error is a few slow
+#: excursions, i.e. dynamics the model does not have. ``require_white``: also count a rejected
+#: Ljung-Box test (p < ``alpha``) as a reason; off by default, since simulation-error residuals
+#: of thermal data are practically never white.
+DEFAULT_THRESHOLDS: dict[str, Any] = {
+    "r2_min": 0.9,
+    "min_effective_samples": 10.0,
+    "require_white": False,
+    "alpha": 0.05,
+}
+
+
+def _pair(y: Any, yhat: Any) -> tuple[np.ndarray, np.ndarray]:
+    """y and yhat as float 1-D arrays of equal length, rows with a NaN in either removed."""
+    y = np.asarray(y, dtype=float)
+    yhat = np.asarray(yhat, dtype=float)
+    if y.shape != yhat.shape or y.ndim != 1:
+        raise ValueError(
+            f"y and yhat must be 1-D arrays of equal length, got shapes {y.shape}, {yhat.shape}"
+        )
+    keep = ~(np.isnan(y) | np.isnan(yhat))
+    return y[keep], yhat[keep]
+
+
+def _sums(y: Any, yhat: Any) -> tuple[float, float]:
+    """(SS_res, SS_tot) of eqs. 22 and 23 over the rows where both are finite."""
+    y, yhat = _pair(y, yhat)
+    if y.size == 0:
+        return math.nan, math.nan
+    e = y - yhat
+    d = y - y.mean()
+    return float(e @ e), float(d @ d)
+
+
+def r2(y: Any, yhat: Any) -> float:
+    """Coefficient of determination, eq. 21: 1 - SS_res / SS_tot (eqs. 22, 23).
+
+    1 for a perfect fit, 0 when yhat is the mean of y, negative when worse than the mean. NaN
+    when fewer than two rows are usable or y is constant (SS_tot = 0)."""
+    ss_res, ss_tot = _sums(y, yhat)
+    if not ss_tot > 0.0:
+        return math.nan
+    return 1.0 - ss_res / ss_tot
+
+
+def nrmse_fit(y: Any, yhat: Any) -> float:
+    """The NRMSE fit of MATLAB's ``compare`` and pySIP: 1 - ||y - yhat|| / ||y - mean(y)||.
+
+    Not R^2 (eq. 21): :func:`r2` = 1 - (1 - nrmse_fit)^2. NaN as for :func:`r2`."""
+    ss_res, ss_tot = _sums(y, yhat)
+    if not ss_tot > 0.0:
+        return math.nan
+    return 1.0 - math.sqrt(ss_res / ss_tot)
+
+
+def r2_from_nrmse_fit(fit: float) -> float:
+    """R^2 (eq. 21) from an NRMSE fit: 1 - (1 - fit)^2 (for comparing with MATLAB/pySIP)."""
+    return 1.0 - (1.0 - fit) ** 2
+
+
+def rmse(y: Any, yhat: Any) -> float:
+    """Root mean square residual sqrt(SS_res / m), in the unit of y; NaN rows skipped."""
+    y, yhat = _pair(y, yhat)
+    if y.size == 0:
+        return math.nan
+    e = y - yhat
+    return math.sqrt(float(e @ e) / y.size)
+
+
+def _deviations(e: Any) -> tuple[np.ndarray, int]:
+    """Residuals minus their mean with NaN rows set to 0, and the number of finite rows."""
+    e = np.asarray(e, dtype=float)
+    if e.ndim != 1:
+        raise ValueError(f"residuals must be a 1-D array, got shape {e.shape}")
+    finite = ~np.isnan(e)
+    n = int(finite.sum())
+    d = np.zeros_like(e)
+    if n:
+        d[finite] = e[finite] - e[finite].mean()
+    return d, n
+
+
+def autocorrelation(e: Any, max_lag: int | None = None) -> np.ndarray:
+    """Sample autocorrelation rho_0..rho_max_lag of a residual series, by FFT.
+
+    rho_k = sum_n d(n) d(n + k) / sum_n d(n)^2 with d = e - mean(e) (the usual biased estimator,
+    as in Box-Jenkins and Ljung-Box). NaN rows count as zero deviations. max_lag defaults to
+    len(e) - 1 and is clipped to it. rho_0 = 1; all NaN for a constant or empty series."""
+    d, n = _deviations(e)
+    size = d.size
+    max_lag = size - 1 if max_lag is None else min(int(max_lag), size - 1)
+    if max_lag < 0:
+        return np.empty(0)
+    var = float(d @ d)
+    if n == 0 or not var > 0.0:
+        return np.full(max_lag + 1, math.nan)
+    nfft = 1 << (2 * size - 1).bit_length()
+    f = np.fft.rfft(d, nfft)
+    acov = np.fft.irfft(f * np.conj(f), nfft)[: max_lag + 1]
+    return acov / var
+
+
+@dataclass(frozen=True)
+class Whiteness:
+    """Ljung-Box test of residual whiteness, and how coloured the residuals are.
+
+    ``q``: Ljung-Box Q = m (m + 2) sum_{k=1..lags} rho_k^2 / (m - k); ``dof`` = lags -
+    ``fitted``; ``p_value``: P(chi2(dof) >= Q) (small = not white). ``tau``: integrated
+    autocorrelation time (samples; 1 for white noise); ``effective_samples`` = m / tau."""
+
+    q: float
+    p_value: float
+    lags: int
+    dof: int
+    m: int
+    tau: float
+    effective_samples: float
+
+    def white(self, alpha: float = 0.05) -> bool:
+        """True unless the test rejects whiteness at level alpha."""
+        return not self.p_value < alpha
+
+    def to_dict(self) -> dict[str, float | int]:
+        """Plain values for YAML, in a stable order."""
+        return {
+            "ljung_box_q": float(self.q),
+            "ljung_box_p": float(self.p_value),
+            "ljung_box_lags": int(self.lags),
+            "ljung_box_dof": int(self.dof),
+            "m": int(self.m),
+            "autocorrelation_time": float(self.tau),
+            "effective_samples": float(self.effective_samples),
+        }
+
+
+def ljung_box(e: Any, lags: int | None = None, fitted: int = 0) -> Whiteness:
+    """Ljung-Box whiteness test of residuals e (NaN rows skipped, see :func:`autocorrelation`).
+
+    lags defaults to min(20, m // 5) (at least 1); ``fitted`` is subtracted from the degrees of
+    freedom (the ARMA convention; 0 for simulation-error residuals, whose parameters do not
+    whiten them). The p-value is chi2.sf(Q, dof) (scipy.stats.chi2)."""
+    d, m = _deviations(e)
+    if m < 3:
+        raise ValueError(f"the Ljung-Box test needs at least 3 finite residuals, got {m}")
+    if lags is None:
+        lags = max(1, min(20, m // 5))
+    lags = int(lags)
+    if not 1 <= lags < m:
+        raise ValueError(f"lags must lie in 1..{m - 1}, got {lags}")
+    dof = lags - int(fitted)
+    if dof < 1:
+        raise ValueError(f"lags ({lags}) must exceed the fitted parameter count ({fitted})")
+    rho = autocorrelation(e, lags)
+    k = np.arange(1, lags + 1)
+    if np.isnan(rho[0]):  # constant residuals: nothing to test
+        q, p = 0.0, 1.0
+    else:
+        q = float(m * (m + 2) * np.sum(rho[1:] ** 2 / (m - k)))
+        p = float(chi2.sf(q, dof))
+    tau = float(autocorrelation_time(d[~np.isnan(np.asarray(e, dtype=float))]))
+    return Whiteness(q=q, p_value=p, lags=lags, dof=dof, m=m, tau=tau, effective_samples=m / tau)
+
+
+def aic(ssr: float, m: int, p: int) -> float:
+    """Akaike's criterion under a Gaussian likelihood: m ln(SSR / m) + 2 p (constants dropped,
+    so compare only models fitted to the same m rows; lower is better)."""
+    return m * math.log(ssr / m) + 2 * p
+
+
+def bic(ssr: float, m: int, p: int) -> float:
+    """Bayesian (Schwarz) criterion: m ln(SSR / m) + p ln(m); same conventions as :func:`aic`."""
+    return m * math.log(ssr / m) + p * math.log(m)
+
+
+def summary(y: Any, yhat: Any, p: int, lags: int | None = None) -> dict[str, float | int]:
+    """All measures of one output series (y measured, yhat simulated, p estimated parameters
+    including estimated initial states), as plain values in a stable order, for YAML."""
+    yy, yh = _pair(y, yhat)
+    e = yy - yh
+    m = int(yy.size)
+    ssr = float(e @ e)
+    out: dict[str, float | int] = {
+        "m": m,
+        "p": int(p),
+        "r2": r2(yy, yh),
+        "nrmse_fit": nrmse_fit(yy, yh),
+        "rmse": rmse(yy, yh),
+        "ssr": ssr,
+        "aic": aic(ssr, m, p) if m and ssr > 0 else math.nan,
+        "bic": bic(ssr, m, p) if m and ssr > 0 else math.nan,
+    }
+    w = ljung_box(e, lags)
+    for key, value in w.to_dict().items():
+        if key != "m":
+            out[key] = value
+    return out
+
+
+def _message(flag: Any) -> str:
+    """The plain sentence of an identifiability flag: a str, a mapping with 'message', an
+    object with ``.message``, or a (code, message) pair."""
+    if isinstance(flag, str):
+        return flag
+    if isinstance(flag, Mapping):
+        return str(flag.get("message", flag.get("code", flag)))
+    if hasattr(flag, "message"):
+        return str(flag.message)
+    if isinstance(flag, tuple) and len(flag) == 2:
+        return str(flag[1])
+    return str(flag)
+
+
+def _named(value: Any) -> list[tuple[str, Any]]:
+    """A single value as [("", value)], a mapping as its (name, value) items."""
+    if value is None:
+        return []
+    if isinstance(value, Mapping) and not (value and "ljung_box_p" in value):
+        return [(str(k), v) for k, v in value.items()]
+    return [("", value)]
+
+
+def _get(w: Any, attr: str, key: str) -> float:
+    return float(w[key]) if isinstance(w, Mapping) else float(getattr(w, attr))
+
+
+def verdict(
+    r2: float | Mapping[str, float],
+    flags: Iterable[Any] = (),
+    whiteness: Whiteness | Mapping[str, Any] | None = None,
+    thresholds: Mapping[str, Any] | None = None,
+) -> tuple[str, list[str]]:
+    """("fit acceptable" | "assumptions in doubt", reasons): a small pure function.
+
+    r2: R^2 (eq. 21), or a mapping {name: R^2} (e.g. per experiment or per cross-validation
+    fold); a NaN R^2 is a reason. flags: the fit's identifiability flags (sentences, or objects
+    / mappings carrying a ``message``); each one is a reason. whiteness: a :class:`Whiteness`
+    (or its ``to_dict()``), or a mapping {name: Whiteness}. thresholds: overrides of
+    :data:`DEFAULT_THRESHOLDS`. Reasons are plain sentences with the numbers; the label is
+    "fit acceptable" exactly when there are none."""
+    t = {**DEFAULT_THRESHOLDS, **(thresholds or {})}
+    unknown = set(t) - set(DEFAULT_THRESHOLDS)
+    if unknown:
+        raise ValueError(f"unknown verdict thresholds: {sorted(unknown)}")
+    reasons: list[str] = []
+    for name, value in _named(r2):
+        where = f" ({name})" if name else ""
+        value = float(value)
+        if math.isnan(value):
+            reasons.append(f"R^2{where} is undefined (no usable rows or a constant measurement).")
+        elif value < t["r2_min"]:
+            reasons.append(f"R^2{where} = {value:.4f} is below {t['r2_min']:g}.")
+    reasons.extend(_message(f) for f in flags)
+    for name, w in _named(whiteness):
+        where = f" ({name})" if name else ""
+        n_eff = _get(w, "effective_samples", "effective_samples")
+        tau = _get(w, "tau", "autocorrelation_time")
+        if n_eff < t["min_effective_samples"]:
+            reasons.append(
+                f"The residuals{where} are strongly coloured: autocorrelation time {tau:.4g} "
+                f"samples leaves {n_eff:.3g} independent samples (< "
+                f"{t['min_effective_samples']:g}); the model misses a slow dynamic."
+            )
+        p = _get(w, "p_value", "ljung_box_p")
+        if t["require_white"] and p < t["alpha"]:
+            reasons.append(
+                f"The residuals{where} are not white (Ljung-Box p = {p:.3g} < {t['alpha']:g})."
+            )
+    return (IN_DOUBT if reasons else ACCEPTABLE), reasons
