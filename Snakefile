@@ -15,6 +15,7 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/synthesize.smk"
 include: "workflow/rules/clean.smk"
 include: "workflow/rules/kvalue.smk"
+include: "workflow/rules/identify.smk"
 
 
 rule all:

@@ -61,3 +61,45 @@ def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame |
             }
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+PARAMETERS = ("kA", "C_bar", "C", "K_veh", "C_veh")
+# Recovery tolerance of the second-order estimates against the campaign's truth (issue 4).
+RECOVERY_TOLERANCE = {"C": 0.05, "K_veh": 0.10, "C_veh": 0.05}
+
+
+def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) -> pd.DataFrame:
+    """One row per vehicle and model order: verdict, R^2 (eq. 21), NRMSE fit, how k was
+    obtained, every parameter with its 95 % interval, the flags; and, for second-order fits of
+    campaign vehicles, the truth, the relative error and whether the estimate is recovered
+    (within 5 % for C and C_veh, 10 % for K_veh, or the truth inside the 95 % interval)."""
+    truth_by_id = truth.set_index("vehicle") if truth is not None else None
+    rows = []
+    for fit in fits:
+        row: dict[str, Any] = {
+            "vehicle": fit["vehicle"],
+            "order": fit["order"],
+            "verdict": fit["verdict"],
+            "R2": fit["R2"],
+            "nrmse_fit": fit["nrmse_fit"],
+            "k_source": fit["k_source"],
+        }
+        for p in PARAMETERS:
+            entry = fit["parameters"].get(p, {})
+            lo, hi = entry.get("ci95", (None, None))
+            row |= {p: entry.get("value"), f"{p}_lo": lo, f"{p}_hi": hi}
+        row["flags"] = ";".join(sorted({f["code"] for f in fit["flags"]}))
+        known = truth_by_id is not None and fit["vehicle"] in truth_by_id.index
+        if known and fit["order"] == 2:
+            t = truth_by_id.loc[fit["vehicle"]]
+            row["deviations"] = "" if pd.isna(t["deviations"]) else t["deviations"]
+            for p, tol in RECOVERY_TOLERANCE.items():
+                error = row[p] / t[p] - 1.0
+                inside = row[f"{p}_lo"] is not None and row[f"{p}_lo"] <= t[p] <= row[f"{p}_hi"]
+                row |= {
+                    f"{p}_truth": float(t[p]),
+                    f"{p}_rel_error": float(error),
+                    f"{p}_recovered": bool(abs(error) <= tol or inside),
+                }
+        rows.append(row)
+    return pd.DataFrame(rows)

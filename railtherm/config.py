@@ -436,6 +436,7 @@ def load_vehicle(
     _check_windows(file, data, found)
     model = deep_merge((defaults or {}).get("model") or {}, data.get("model") or {})
     _check_model(file, model, data.get("model") or {})
+    data["model"] = model  # data is self-contained: the workflow passes it as params
 
     return Vehicle(
         id=data["id"],

@@ -76,6 +76,23 @@ def kvalue_vehicles():
     return [vid for vid in VEHICLES if "kvalue" in STUDY.vehicles[vid].windows]
 
 
+def identification_windows(vehicle):
+    """Names of a vehicle's identification windows, in config order."""
+    return [w["name"] for w in STUDY.vehicles[vehicle].windows["identification"]]
+
+
+def kvalue_input(vehicle):
+    """The static k result a two-stage fit needs (none without a k window)."""
+    if vehicle in kvalue_vehicles():
+        return f"results/vehicles/{vehicle}/kvalue.yaml"
+    return []
+
+
+def fit_targets():
+    """(vehicle, order) of every configured fit, in config order."""
+    return [(vid, n) for vid in VEHICLES for n in STUDY.vehicles[vid].model["orders"]]
+
+
 def all_outputs():
     """The targets of `rule all`."""
     targets = [path for vid in VEHICLES for path in raw_files(vid)]
@@ -87,6 +104,8 @@ def all_outputs():
     targets += [f"results/vehicles/{vid}/kvalue.yaml" for vid in kvalue_vehicles()]
     if kvalue_vehicles():
         targets.append("results/tables/kvalue.csv")
+    targets += [f"results/vehicles/{vid}/fit_order{n}.yaml" for vid, n in fit_targets()]
+    targets.append("results/tables/identification.csv")
     if CAMPAIGN:
         targets += [
             "results/campaign/ground_truth.csv",

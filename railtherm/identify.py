@@ -1,0 +1,311 @@
+"""One vehicle's identification: tidy windows + the static k stage -> PEM fits (paper section 5).
+
+Stage two of the paper's two-stage approach (section 5.2): with kA = k A fixed from the
+standardized static test (eq. 10), the heat capacities are estimated by simulation-error PEM
+(eqs. 15-20, railtherm.pem): C_bar for the first-order model (eq. 19), C, K_veh and C_veh for
+the second-order model (eq. 20). When the static k is not usable (its window failed the
+steady-state test and was not forced) or the config asks for it (``model.mode: joint``), kA is
+estimated with the capacities; every output says which way k was obtained.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from railtherm import metrics, models, pem
+from railtherm.kvalue import sensor_counts
+
+ORDER_STRUCTURE = {1: "first_order", 2: "second_order"}
+KA_BOUNDS = (1.0, 1.0e5)  # W/K, for joint estimation when the config gives none
+
+
+def _structure(order: int) -> models.Structure:
+    return models.STRUCTURES[ORDER_STRUCTURE[int(order)]]
+
+
+def _outputs(structure: models.Structure, vehicle_data: Mapping[str, Any], tables) -> tuple:
+    """The measured states compared in eq. 17: the config's choice, else every state measured."""
+    chosen = vehicle_data["model"].get("outputs")
+    measured = [
+        s
+        for s in structure.states
+        if all(s in t.columns and t[s].notna().any() for t in tables.values())
+    ]
+    if chosen:
+        return tuple(s for s in chosen if s in structure.states and s in measured)
+    return tuple(measured)
+
+
+def experiments(structure: models.Structure, tables: Mapping[str, pd.DataFrame]) -> list:
+    """pem.Experiment per tidy window (inputs T_o, Q_H; the structure's states as measured,
+    NaN where a state has no sensor; x0 the first row, the measured initial state)."""
+    return [
+        pem.experiment_from_table(table, name, states=structure.states)
+        for name, table in tables.items()
+    ]
+
+
+def _settings(structure, vehicle_data, kvalue: Mapping[str, Any] | None):
+    """fixed, initial, bounds and the provenance of kA from the config and the k stage."""
+    model = vehicle_data["model"]
+    A = float(vehicle_data["surface_m2"])
+    usable = bool(kvalue and kvalue["usable"])
+    mode = model.get("mode", "static")
+    notes = []
+    initial = {p: float(v) for p, v in model.get("initial", {}).items()}
+    bounds = {p: tuple(map(float, b)) for p, b in model.get("bounds", {}).items()}
+    fixed = {}
+    if mode == "static" and usable:
+        fixed["kA"] = float(kvalue["k"]) * A
+        k_source = "static test (eq. 10), forced" if kvalue["forced"] else "static test (eq. 10)"
+    else:
+        if mode == "static":
+            why = "no k window" if kvalue is None else "its window failed the steady-state test"
+            notes.append(f"static k not usable ({why}): kA estimated jointly")
+        k_source = "joint estimation (PEM)"
+        initial.setdefault("kA", float(kvalue["k"]) * A if kvalue else 2.0 * A)
+        bounds.setdefault("kA", KA_BOUNDS)
+    initial = {p: v for p, v in initial.items() if p in structure.parameters and p not in fixed}
+    bounds = {p: b for p, b in bounds.items() if p in structure.parameters and p not in fixed}
+    return fixed, initial, bounds, k_source, notes
+
+
+def identify(
+    tables: Mapping[str, pd.DataFrame],
+    vehicle_data: Mapping[str, Any],
+    kvalue: Mapping[str, Any] | None,
+    order: int,
+) -> tuple[dict[str, Any], pd.DataFrame]:
+    """Fit the model of ``order`` to all identification windows jointly (one parameter set,
+    own initial states); cross-validate when there are two or more windows.
+
+    Returns the estimate (a plain dict for YAML) and the series table (per window: time,
+    measured and simulated states, residuals and inputs).
+    """
+    structure = _structure(order)
+    outputs = _outputs(structure, vehicle_data, tables)
+    fixed, initial, bounds, k_source, notes = _settings(structure, vehicle_data, kvalue)
+    model = vehicle_data["model"]
+    options = {
+        "fixed": fixed,
+        "initial": initial,
+        "bounds": bounds,
+        "outputs": outputs,
+        "x0": model.get("x0", "measured"),
+        "covariance": model.get("covariance", "hac"),
+        "start": model.get("start", "auto"),
+    }
+    exps = experiments(structure, tables)
+    result = pem.fit(structure, exps, **options)
+    fitted = result.to_dict()
+    budget = systematic_budget(structure, exps, options, result, vehicle_data, kvalue)
+    combine_uncertainty(fitted["parameters"], budget)
+    estimate = {
+        "vehicle": vehicle_data["id"],
+        "synthetic": bool(vehicle_data.get("synthetic", False)),
+        "order": int(order),
+        "structure": structure.name,
+        "k_source": k_source,
+        "A": float(vehicle_data["surface_m2"]),
+        "outputs": list(outputs),
+        "windows": list(tables),
+        "notes": notes,
+        "fit": fitted,
+        "systematic": budget,
+        "cross_validation": _cross_validate(structure, exps, options) if len(exps) > 1 else [],
+    }
+    return estimate, _series(structure, exps, result)
+
+
+def _perturbed(exps, column: str, u: float) -> list:
+    """Copies of the experiments with a systematic error of size u: an offset on a measured
+    state (T, T_veh) or on T_o, or a relative scale error on Q_H."""
+    out = []
+    for e in exps:
+        y, inputs = e.y.copy(), e.u.copy()
+        if column == "T_o":
+            inputs[:, 0] += u
+        elif column == "Q_H":
+            inputs[:, 1] *= 1.0 + u
+        else:
+            y[:, column] += u
+        out.append(pem.Experiment(name=e.name, dt=e.dt, u=inputs, y=y, x0=y[0].copy()))
+    return out
+
+
+def systematic_budget(structure, exps, options, result, vehicle_data, kvalue) -> dict[str, Any]:
+    """Type-B uncertainty of the estimates (GUM): each declared systematic error is applied at
+    one standard uncertainty and the fit repeated from the estimate; the shift of log(theta) is
+    that source's contribution (a linearisation of the estimator, as in the GUM's
+    sensitivity-coefficient method). Sources: kA when it is fixed from the static test (u(k) A),
+    the calibration of the mean indoor (T), surface (T_veh) and outdoor (T_o) temperatures
+    (temperature_u_K / sqrt(effective sensor count)), and the power meters' scale
+    (power_u_rel)."""
+    instruments = vehicle_data["instruments"]
+    counts = sensor_counts(vehicle_data["channels"])
+    u_T = float(instruments["temperature_u_K"])
+    sources: dict[str, tuple[float, Any]] = {}
+    if "kA" in options["fixed"] and kvalue:
+        sources["kA"] = (float(kvalue["u_k"]) * float(vehicle_data["surface_m2"]), None)
+    for i, state in enumerate(structure.states):
+        n = counts["indoor"] if state == "T" else counts["surface"]
+        if state in options["outputs"] and n > 0:
+            sources[f"offset_{state}"] = (u_T / np.sqrt(n), i)
+    sources["offset_T_o"] = (u_T / np.sqrt(counts["outdoor"]), "T_o")
+    sources["scale_Q_H"] = (float(instruments["power_u_rel"]), "Q_H")
+
+    warm = {**options, "initial": {p: result.theta[p] for p in result.free}, "start": "initial"}
+    warm["covariance"] = "iid"
+    effects: dict[str, dict[str, float]] = {p: {} for p in result.free}
+    for name, (u, column) in sources.items():
+        if u <= 0:
+            continue
+        try:
+            if name == "kA":
+                fixed = {"kA": result.theta["kA"] + u}
+                refit = pem.fit(structure, exps, **{**warm, "fixed": fixed})
+            else:
+                refit = pem.fit(structure, _perturbed(exps, column, u), **warm)
+            shifts = {p: float(np.log(refit.theta[p] / result.theta[p])) for p in result.free}
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+            shifts = {}
+        for p in result.free:
+            # a refit that fails or leaves the finite range: the estimate does not follow the
+            # data smoothly (not identifiable), so its systematic effect is unbounded
+            effects[p][name] = shifts.get(p, float("inf"))
+            if not np.isfinite(effects[p][name]):
+                effects[p][name] = float("inf")
+    return {
+        "method": "one-at-a-time refits at one standard uncertainty (GUM type B)",
+        "sources": {name: float(u) for name, (u, _) in sources.items()},
+        "effects_log": effects,
+    }
+
+
+def combine_uncertainty(parameters: dict[str, Any], budget: Mapping[str, Any]) -> None:
+    """Replace each estimated parameter's 95 % interval by the combined one: the statistical
+    sd of log(theta) (from the fit) and the systematic effects added in quadrature. The
+    statistical interval is kept as ``ci95_statistical``."""
+    for p, effects in budget["effects_log"].items():
+        entry = parameters[p]
+        sd = float(np.sqrt(entry["sd_log"] ** 2 + sum(e**2 for e in effects.values())))
+        log_value = np.log(entry["value"])
+        entry["ci95_statistical"] = entry["ci95"]
+        entry["sd_log_total"] = sd
+        with np.errstate(over="ignore"):  # a non-identifiable parameter: [0, inf) is honest
+            entry["ci95"] = [
+                float(np.exp(log_value - 1.96 * sd)),
+                float(np.exp(log_value + 1.96 * sd)),
+            ]
+
+
+def _series(structure, exps, result) -> pd.DataFrame:
+    frames = []
+    for exp, sim in zip(exps, result.simulated, strict=True):
+        n = len(exp.u)
+        frame = {"window": [exp.name] * n, "time": np.arange(n) * exp.dt}
+        for i, state in enumerate(structure.states):
+            frame[state] = exp.y[:, i]
+            frame[f"{state}_sim"] = sim[:, i]
+            frame[f"{state}_residual"] = exp.y[:, i] - sim[:, i]
+        frame["T_o"], frame["Q_H"] = exp.u[:, 0], exp.u[:, 1]
+        frames.append(pd.DataFrame(frame))
+    return pd.concat(frames, ignore_index=True)
+
+
+def _cross_validate(structure, exps, options) -> list[dict[str, Any]]:
+    """Fit on each window alone; R^2 (eq. 21) of the simulated T on every other window."""
+    rows = []
+    for train in exps:
+        fitted = pem.fit(structure, [train], **options)
+        for test in exps:
+            if test is train:
+                continue
+            if np.all(np.isfinite(test.x0)):
+                sim = models.simulate(structure, fitted.theta, test.u, test.dt, test.x0)
+            else:  # an unmeasured initial state: estimate only it, theta held
+                held = {**options, "fixed": dict(fitted.theta), "initial": {}, "bounds": {}}
+                sim = pem.fit(structure, [test], **{**held, "x0": "estimated"}).simulated[0]
+            rows.append(
+                {
+                    "train": train.name,
+                    "test": test.name,
+                    "r2_T": float(metrics.r2(test.y[:, 0], sim[:, 0])),
+                    "theta": {p: float(v) for p, v in fitted.theta.items()},
+                }
+            )
+    return rows
+
+
+# Flags that describe the data's information but do not invalidate the fit: the combined
+# intervals already carry them. Every other flag puts the model's assumptions in doubt.
+NOTE_ONLY_FLAGS = ("high_correlation",)
+
+
+def check(
+    estimate: Mapping[str, Any], series: pd.DataFrame, thresholds: Mapping[str, Any]
+) -> dict[str, Any]:
+    """Diagnostics and verdict of one fit (rule check): R^2 (eq. 21), NRMSE fit, RMSE, residual
+    whiteness and AIC/BIC per compared output, overall and per window; cross-validation R^2;
+    the identifiability flags.
+
+    Verdict "assumptions in doubt" when: R^2 of T (or a cross-validation R^2) is below
+    ``r2_min``; a simulated temperature misses its measurement by more than ``max_rmse_K``
+    (then also when its residuals are strongly coloured, fewer than ``min_effective_samples``
+    independent samples: a missing slow dynamic); a flag other than a high correlation; or k
+    not obtained by the two-stage approach. Residuals within the sensors' accuracy are not
+    judged by their colour: constant calibration offsets colour them by nature.
+    """
+    fit = estimate["fit"]
+    p = int(fit["n_unknowns"])
+    measures: dict[str, Any] = {}
+    for state in estimate["outputs"]:
+        overall = metrics.summary(series[state], series[f"{state}_sim"], p)
+        windows = {
+            name: metrics.summary(w[state], w[f"{state}_sim"], p)
+            for name, w in series.groupby("window", sort=False)
+        }
+        measures[state] = {"overall": overall, "windows": windows}
+    r2 = {"T": measures["T"]["overall"]["r2"]}
+    r2 |= {f"{cv['train']} -> {cv['test']}": cv["r2_T"] for cv in estimate["cross_validation"]}
+    severe = [f for f in fit["flags"] if f["code"] not in NOTE_ONLY_FLAGS]
+    _, reasons = metrics.verdict(r2, severe, thresholds={"r2_min": thresholds["r2_min"]})
+    for state, m in measures.items():
+        rmse = m["overall"]["rmse"]
+        if rmse > thresholds["max_rmse_K"]:
+            reasons.append(
+                f"The simulated {state} misses the measurement by RMSE {rmse:.3g} K (more than "
+                f"{thresholds['max_rmse_K']:g} K, twice a sensor's accuracy): the model lacks a "
+                "dynamic or a heat path."
+            )
+            _, coloured = metrics.verdict(
+                1.0,
+                whiteness={f"{state}, {w}": v for w, v in m["windows"].items()},
+                thresholds={"min_effective_samples": thresholds["min_effective_samples"]},
+            )
+            reasons += coloured
+    reasons += estimate["notes"]
+    notes = [f["message"] for f in fit["flags"] if f["code"] in NOTE_ONLY_FLAGS]
+    return {
+        "vehicle": estimate["vehicle"],
+        "synthetic": estimate["synthetic"],
+        "order": estimate["order"],
+        "structure": estimate["structure"],
+        "k_source": estimate["k_source"],
+        "verdict": metrics.IN_DOUBT if reasons else metrics.ACCEPTABLE,
+        "reasons": reasons,
+        "notes": notes,
+        "parameters": fit["parameters"],
+        "R2": measures["T"]["overall"]["r2"],
+        "nrmse_fit": measures["T"]["overall"]["nrmse_fit"],
+        "measures": measures,
+        "cross_validation": estimate["cross_validation"],
+        "flags": fit["flags"],
+        "systematic": estimate["systematic"],
+        "windows": estimate["windows"],
+        "outputs": estimate["outputs"],
+    }

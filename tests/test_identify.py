@@ -1,0 +1,139 @@
+"""railtherm.identify: a vehicle's windows and k stage -> fits, budget, verdict."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from railtherm import identify, models
+from railtherm.config import section_defaults
+
+TRUTH = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
+A = 306.0
+STEP = 120.0
+
+
+def window(hours: float, Q0: float, Q1: float, T_o: float = -10.0) -> pd.DataFrame:
+    """A noise-free tidy window: steady at Q0, then a heating step to Q1 after 2 h."""
+    n = int(hours * 3600 / STEP) + 1
+    t = np.arange(n) * STEP
+    Q = np.where(t < 7200, Q0, Q1)
+    u = np.column_stack([np.full(n, T_o), Q])
+    Ac, Bc = models.second_order(**TRUTH)
+    x0 = models.steady_state(Ac, Bc, np.array([T_o, Q0]))
+    x = models.simulate(models.STRUCTURES["second_order"], TRUTH, u, STEP, x0)
+    return pd.DataFrame({"time": t, "T": x[:, 0], "T_veh": x[:, 1], "T_o": T_o, "Q_H": Q})
+
+
+def vehicle(**model) -> dict:
+    return {
+        "id": "V",
+        "synthetic": True,
+        "surface_m2": A,
+        "channels": {
+            "indoor_air": [{"column": "a"}] * 4,
+            "surface": [{"column": "s"}] * 4,
+            "outdoor_air": [{"column": "o"}] * 2,
+            "heater_power": [{"column": "p", "unit": "W"}],
+        },
+        "instruments": {"temperature_u_K": 0.0, "power_u_rel": 0.0, "surface_u_rel": 0.0},
+        "model": {
+            "orders": [2],
+            "mode": "static",
+            "x0": "measured",
+            "covariance": "iid",
+            "start": "auto",
+            "initial": {"C": 120480, "C_veh": 500000, "K_veh": 20, "C_bar": 620480},
+            "bounds": {"C": [1e4, 1e10], "K_veh": [1e-2, 1e7], "C_veh": [1e4, 1e10]},
+            **model,
+        },
+    }
+
+
+def k_result(usable=True, u_k=0.0):
+    k = TRUTH["kA"] / A
+    return {"k": k, "u_k": u_k, "usable": usable, "forced": False}
+
+
+TABLES = {"up": window(30, 20_000, 29_000), "down": window(30, 29_000, 20_000)}
+
+
+def test_two_stage_fit_recovers_the_truth_and_cross_validates():
+    estimate, series = identify.identify(TABLES, vehicle(), k_result(), 2)
+    params = estimate["fit"]["parameters"]
+    assert params["kA"] == {"value": pytest.approx(TRUTH["kA"]), "estimated": False}
+    for p in ("C", "K_veh", "C_veh"):
+        assert params[p]["value"] == pytest.approx(TRUTH[p], rel=1e-5)
+    assert estimate["k_source"] == "static test (eq. 10)"
+    assert {(cv["train"], cv["test"]) for cv in estimate["cross_validation"]} == {
+        ("up", "down"),
+        ("down", "up"),
+    }
+    assert all(cv["r2_T"] > 0.999999 for cv in estimate["cross_validation"])
+    assert set(series["window"]) == {"up", "down"}
+    assert np.abs(series["T_residual"]).max() < 1e-6
+    result = identify.check(estimate, series, section_defaults("check"))
+    assert result["verdict"] == "fit acceptable" and result["R2"] == pytest.approx(1.0)
+
+
+def test_unusable_static_k_falls_back_to_joint_and_says_so():
+    estimate, series = identify.identify(TABLES, vehicle(), k_result(usable=False), 2)
+    assert estimate["k_source"] == "joint estimation (PEM)"
+    assert estimate["fit"]["parameters"]["kA"]["value"] == pytest.approx(TRUTH["kA"], rel=1e-5)
+    result = identify.check(estimate, series, section_defaults("check"))
+    assert result["verdict"] == "assumptions in doubt"
+    assert any("kA estimated jointly" in r for r in result["reasons"])
+
+
+def test_systematic_uncertainty_widens_the_interval_by_its_budget():
+    exact, _ = identify.identify(TABLES, vehicle(), k_result(u_k=0.0), 2)
+    assert all(
+        e == pytest.approx(0.0, abs=1e-9)
+        for effects in exact["systematic"]["effects_log"].values()
+        for e in effects.values()
+    )
+    data = vehicle()
+    data["instruments"] = {"temperature_u_K": 0.1, "power_u_rel": 0.01, "surface_u_rel": 0.0}
+    uncertain, _ = identify.identify(TABLES, data, k_result(u_k=0.05), 2)
+    assert set(uncertain["systematic"]["sources"]) == {
+        "kA",
+        "offset_T",
+        "offset_T_veh",
+        "offset_T_o",
+        "scale_Q_H",
+    }
+    for p in ("C", "K_veh", "C_veh"):
+        entry = uncertain["fit"]["parameters"][p]
+        lo, hi = entry["ci95"]
+        slo, shi = entry["ci95_statistical"]
+        assert lo < slo and hi > shi  # the combined interval contains the statistical one
+        assert lo < TRUTH[p] < hi
+
+
+def test_power_scale_error_scales_every_parameter_in_joint_mode():
+    """Q_H -> s Q_H is matched exactly by kA, K_veh, C, C_veh -> s times each (eqs. 7-8 are
+    homogeneous in them), so each log-parameter moves by log(s)."""
+    data = vehicle(mode="joint")
+    data["instruments"] = {"temperature_u_K": 0.0, "power_u_rel": 0.01, "surface_u_rel": 0.0}
+    estimate, _ = identify.identify(TABLES, data, None, 2)
+    for p in ("kA", "C", "K_veh", "C_veh"):
+        assert estimate["systematic"]["effects_log"][p]["scale_Q_H"] == pytest.approx(
+            np.log(1.01), rel=1e-3
+        )
+
+
+def test_residuals_beyond_sensor_accuracy_put_the_fit_in_doubt():
+    estimate, series = identify.identify(TABLES, vehicle(), k_result(), 2)
+    noisy = series.copy()
+    noisy["T"] += 0.5 * np.sin(noisy["time"] / 3600.0)  # a dynamic the model lacks
+    noisy["T_residual"] = noisy["T"] - noisy["T_sim"]
+    result = identify.check(estimate, noisy, section_defaults("check"))
+    assert result["verdict"] == "assumptions in doubt"
+    assert any("misses the measurement" in r for r in result["reasons"])
+
+
+def test_without_surface_sensors_the_fit_uses_T_and_still_cross_validates():
+    tables = {name: t.assign(T_veh=np.nan) for name, t in TABLES.items()}
+    estimate, _ = identify.identify(tables, vehicle(), k_result(), 2)
+    assert estimate["outputs"] == ["T"]
+    assert "offset_T_veh" not in estimate["systematic"]["sources"]
+    assert [cv["r2_T"] for cv in estimate["cross_validation"]] == pytest.approx([1.0, 1.0])

@@ -1,0 +1,73 @@
+# Identification of the first- and second-order models by simulation-error PEM (eqs. 15-20).
+
+
+rule identify:
+    input:
+        windows=lambda wildcards: expand(
+            "results/vehicles/{{vehicle}}/clean/{window}.csv",
+            window=identification_windows(wildcards.vehicle),
+        ),
+        kvalue=lambda wildcards: kvalue_input(wildcards.vehicle),
+    output:
+        estimate="results/vehicles/{vehicle}/identify/order{order}.yaml",
+        series="results/vehicles/{vehicle}/identify/order{order}_series.csv",
+    wildcard_constraints:
+        order="[12]",
+    params:
+        vehicle=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data,
+        windows=lambda wildcards: identification_windows(wildcards.vehicle),
+        code=code_digest("identify.py", "pem.py", "models.py"),
+    log:
+        "logs/identify/{vehicle}/order{order}.log",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/identify.py"
+
+
+rule check:
+    input:
+        estimate="results/vehicles/{vehicle}/identify/order{order}.yaml",
+        series="results/vehicles/{vehicle}/identify/order{order}_series.csv",
+    output:
+        "results/vehicles/{vehicle}/fit_order{order}.yaml",
+    wildcard_constraints:
+        order="[12]",
+    params:
+        check=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data["check"],
+        code=code_digest("identify.py", "metrics.py"),
+    log:
+        "logs/check/{vehicle}/order{order}.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/check.py"
+
+
+rule fit_table:
+    input:
+        fits=[f"results/vehicles/{vid}/fit_order{n}.yaml" for vid, n in fit_targets()],
+        truth="results/campaign/ground_truth.csv" if CAMPAIGN else [],
+    output:
+        "results/tables/identification.csv",
+    params:
+        fits=fit_targets(),
+        code=code_digest("aggregate.py"),
+    log:
+        "logs/fit_table.log",
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=5,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/fit_table.py"

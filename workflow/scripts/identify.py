@@ -1,0 +1,27 @@
+"""Adapter for rule identify: PEM fit of one model order to a vehicle's windows."""
+
+import yaml
+
+from railtherm import identify, ingest, logs
+
+log = logs.to_file(snakemake.log[0])
+tables = {
+    name: ingest.read_tidy(path)
+    for name, path in zip(snakemake.params.windows, snakemake.input.windows, strict=True)
+}
+kvalue = None
+if snakemake.input.kvalue:
+    with open(snakemake.input.kvalue, encoding="utf-8") as stream:
+        kvalue = yaml.safe_load(stream)
+estimate, series = identify.identify(
+    tables, snakemake.params.vehicle, kvalue, snakemake.wildcards.order
+)
+with open(snakemake.output.estimate, "w", encoding="utf-8") as stream:
+    yaml.safe_dump(estimate, stream, sort_keys=False)
+ingest.write_tidy(series, snakemake.output.series)
+log.info(
+    "order %s: %s, cost %.6g",
+    snakemake.wildcards.order,
+    estimate["k_source"],
+    estimate["fit"]["cost"],
+)
