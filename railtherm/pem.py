@@ -805,7 +805,7 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
         with np.errstate(over="ignore"):
             ci[p] = (float(np.exp(lv - Z95 * sd[i])), float(np.exp(lv + Z95 * sd[i])))
         sd_log[p] = float(sd[i])
-    flags = _flags(structure, prob, sol, v, th, free, ci, corr, cond, bnds)
+    flags = _flags(sol, v, th, free, ci, corr, cond, bnds)
     sims = prob._evaluate(v, derivatives=True)[1]
     x0s = prob.x0s(v)
     simulated, residuals = [], []
@@ -848,7 +848,7 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
     )
 
 
-def _flags(structure, prob, sol, v, th, free, ci, corr, cond, bnds) -> list[Flag]:
+def _flags(sol, v, th, free, ci, corr, cond, bnds) -> list[Flag]:
     flags = []
     for p in free:
         lo, hi = ci[p]
