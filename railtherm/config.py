@@ -85,14 +85,16 @@ class Vehicle:
 class Study:
     """The validated study: every vehicle (in config order) and the campaign path, if any.
 
-    ``defaults`` is the study config's validated ``defaults`` section; ``layouts`` are the
-    campaign's planned raw-file layouts (empty without a campaign).
+    ``defaults`` is the study config's validated ``defaults`` section; ``campaign_data`` the
+    loaded campaign (railtherm.synth.load_campaign) and ``layouts`` its planned raw-file
+    layouts (None and empty without a campaign).
     """
 
     vehicles: dict[str, Vehicle]
     campaign: str | None
     defaults: dict[str, Any] = field(default_factory=dict)
     layouts: dict[str, RawLayout] = field(default_factory=dict)
+    campaign_data: dict[str, Any] | None = None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -744,6 +746,7 @@ def study_context(
         _check_model(config_file, defaults["model"], defaults["model"], "defaults.model")
 
     layouts: dict[str, RawLayout] = {}
+    campaign_data = None
     campaign = config.get("campaign")
     if campaign is not None:
         if not isinstance(campaign, str) or not campaign:
@@ -753,9 +756,16 @@ def study_context(
             raise ConfigError(config_file, "campaign", campaign, "campaign file not found")
         from railtherm import synth  # lazy: only studies with a campaign need the generator
 
-        planned = synth.planned_layouts(synth.load_campaign(campaign_path))
+        campaign_data = synth.load_campaign(campaign_path)
+        planned = synth.planned_layouts(campaign_data)
         layouts = {os.path.normpath(k): v for k, v in planned.items()}
-    return Study(vehicles={}, campaign=campaign, defaults=defaults, layouts=layouts)
+    return Study(
+        vehicles={},
+        campaign=campaign,
+        defaults=defaults,
+        layouts=layouts,
+        campaign_data=campaign_data,
+    )
 
 
 def add_vehicle(study: Study, path: str | os.PathLike[str], workdir: str = ".") -> Vehicle:

@@ -14,10 +14,10 @@ RAILTHERM_DIR = Path(railtherm.__file__).parent
 
 try:
     STUDY = load_study(config, workdir=".")
-    CAMPAIGN = synth.load_campaign(config["campaign"]) if config.get("campaign") else None
 except RailthermError as err:
     raise WorkflowError(f"invalid configuration: {err}") from None
 
+CAMPAIGN = STUDY.campaign_data
 VEHICLES = list(STUDY.vehicles)
 CAMPAIGN_VEHICLES = list(CAMPAIGN["vehicles"]) if CAMPAIGN else []
 CAMPAIGN_ROOT = "resources/campaign"
