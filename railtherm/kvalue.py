@@ -271,17 +271,17 @@ def _line(t: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
     return slope, y - y.mean() - slope * tc
 
 
-def _drift(t: np.ndarray, y: np.ndarray, duration: float) -> tuple[float, float]:
-    """(drift, its standard uncertainty) of y across the window: the least-squares slope times
-    the duration, with the slope's standard error from the residuals widened by their
-    integrated autocorrelation time (thermostat cycling makes the residuals correlated)."""
+def _drift(t: np.ndarray, y: np.ndarray, duration: float) -> tuple[float, float, np.ndarray]:
+    """(drift, its standard uncertainty, residuals about the line) of y across the window: the
+    least-squares slope times the duration, with the slope's standard error from the residuals
+    widened by their integrated autocorrelation time (thermostat cycling correlates them)."""
     slope, residuals = _line(t, y)
     tc = t - t.mean()
     if residuals.size < 3:
-        return slope * duration, 0.0
+        return slope * duration, 0.0, residuals
     variance = float(residuals @ residuals) / (residuals.size - 2)
     se_slope = math.sqrt(variance * autocorrelation_time(residuals) / float(tc @ tc))
-    return slope * duration, se_slope * duration
+    return slope * duration, se_slope * duration, residuals
 
 
 def _trapezoid_mean(t: np.ndarray, y: np.ndarray) -> float:
@@ -361,12 +361,10 @@ def static_k(
     k = kA / A
 
     # -- verdict --------------------------------------------------------------------------
-    slope_T, _ = _line(t, T)
     t_q = t[:-1] + np.diff(t) / 2.0  # Q_H[n] is the mean over [t_n, t_n+1)
-    slope_Q, res_Q = _line(t_q, Q_H[:-1])
-    drift_T, u_drift_T = _drift(t, T, duration)
-    drift_T_o, u_drift_T_o = _drift(t, T_o, duration)
-    drift_Q, u_drift_Q = _drift(t_q, Q_H[:-1], duration)
+    drift_T, u_drift_T, _ = _drift(t, T, duration)
+    drift_T_o, u_drift_T_o, _ = _drift(t, T_o, duration)
+    drift_Q, u_drift_Q, res_Q = _drift(t_q, Q_H[:-1], duration)
     drift_Q_rel, u_drift_Q_rel = drift_Q / Q_mean, u_drift_Q / Q_mean
     duration_h = duration / 3600.0
 
@@ -420,7 +418,7 @@ def static_k(
     if np.count_nonzero(finite_veh) >= 2:
         rate, storage_from = _line(t[finite_veh], T_veh[finite_veh])[0], "T_veh"
     else:
-        rate, storage_from = slope_T, "T"
+        rate, storage_from = drift_T / duration, "T"
     bound_W = mass_kg * float(settings["storage_c_J_per_kgK"]) * abs(rate)
     bound_k = bound_W / (A * delta_T)
     u_storage = bound_k / SQRT3
