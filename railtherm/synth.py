@@ -947,20 +947,26 @@ def _logged(spec, r, idx, t_s, m, K) -> pd.DataFrame:
             v = v / 1000.0
         data[name] = np.asarray(v, dtype=float)
     df = pd.DataFrame(data)
-    # short dropouts: a few empty cells and a few missing rows (never a file's first/last row)
+    # Short dropouts: a few missing rows and a few empty cells, each an isolated single sample
+    # (never next to another gap of the same channel, never a file's first/last row), so no
+    # channel ever misses more than one logger step.
     cols = list(df.columns)
     dr = spec["dropouts"]
-    for _ in range(dr["empty_cells"]):
-        df.iat[int(rng_drop.integers(1, K - 1)), int(rng_drop.integers(0, len(cols)))] = np.nan
     keep_ends = {0, K - 1}
     step = spec["logger"]["step_s"]
     for f in spec["files"]:
         keep_ends |= {int(f["t0"] // step), int(f["t1"] // step)}
-    drop = set()
+    drop: set[int] = set()
     while len(drop) < dr["missing_rows"]:
         j = int(rng_drop.integers(1, K - 1))
-        if j not in keep_ends:
+        if j not in keep_ends and not drop & {j - 1, j, j + 1}:
             drop.add(j)
+    empty: set[tuple[int, int]] = set()
+    while len(empty) < dr["empty_cells"]:
+        j, c = int(rng_drop.integers(1, K - 1)), int(rng_drop.integers(0, len(cols)))
+        if not drop & {j - 1, j, j + 1} and not empty & {(j - 1, c), (j, c), (j + 1, c)}:
+            empty.add((j, c))
+            df.iat[j, c] = np.nan
     df.insert(0, lg["time_column"], _time_values(spec, t_s))
     df.insert(0, "_t_s", t_s)
     return df.drop(index=sorted(drop)).reset_index(drop=True)
@@ -1107,7 +1113,7 @@ def vehicle_config(campaign: dict, vehicle_id: str, raw_dir: str = "../../resour
     channels["heater_power"] = heater
     if fan:
         channels["fan_power"] = fan
-    config = {
+    return {
         "id": vehicle_id,
         "class": spec["class"],
         "synthetic": True,
@@ -1125,9 +1131,6 @@ def vehicle_config(campaign: dict, vehicle_id: str, raw_dir: str = "../../resour
         "channels": channels,
         "windows": windows(spec),
     }
-    if 2 * lg["step_s"] > 900:  # two dropped rows would exceed the default max_gap_s
-        config["cleaning"] = {"max_gap_s": 3 * lg["step_s"]}
-    return config
 
 
 # --------------------------------------------------------------------------------------------

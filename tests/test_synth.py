@@ -220,6 +220,26 @@ def test_written_file_has_one_header_row_units_and_dropouts(tmp_path):
     assert np.nanmax(np.abs(T_logged - ideal.loc[df.time_s, "T"].to_numpy())) < 1.5
 
 
+def test_dropouts_are_short_no_channel_misses_more_than_one_logger_step(tmp_path):
+    """Even with dense dropouts, every gap is a single sample: missing rows and empty cells
+    never touch another gap of the same channel (the default cleaning.max_gap_s then bridges
+    every dropout of every logger step the campaign allows)."""
+    v = _vehicle(
+        EXISTING, logger={"step_s": 120}, dropouts={"missing_rows": 40, "empty_cells": 120}
+    )
+    c = _campaign(tmp_path, {"V": v})
+    spec = synth.vehicle_spec(c, "V")
+    (name,) = synth.raw_file_names(spec)
+    synth.write_raw_file(spec, name, tmp_path / name)
+    df = _read(tmp_path / name, spec)
+    t = pd.to_datetime(df["time"])
+    seconds = (t - t.iloc[0]).dt.total_seconds().to_numpy()
+    assert df.drop(columns="time").isna().sum().sum() == 120
+    for column in df.columns.drop("time"):
+        valid = seconds[df[column].notna().to_numpy()]
+        assert np.diff(valid).max() <= 2 * 120, column
+
+
 def test_write_is_byte_deterministic_and_seed_dependent(tmp_path):
     v = _vehicle(EXISTING, logger={"step_s": 60, "gzip": True})
     c1 = _campaign(tmp_path, {"V": v}, seed=1, name="a.yaml")
