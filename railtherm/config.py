@@ -60,9 +60,10 @@ class Vehicle:
 
     ``raw_files`` maps each raw-file name to its path normalised relative to the working
     directory; ``layouts`` maps the same names to the :class:`RawLayout` the checks used (read
-    from the file, or planned by the campaign when the file does not exist yet). ``model`` is
-    the study's ``defaults.model`` deep-merged under the vehicle's own ``model`` section.
-    ``data`` is the whole validated YAML with schema defaults filled in.
+    from the file, or planned by the campaign when the file does not exist yet). ``data`` is
+    the whole validated YAML with schema defaults filled in and the study's defaults merged
+    under its sections (``data["model"]`` is ``defaults.model`` deep-merged under the vehicle's
+    own ``model``); ``format``, ``channels``, ``windows`` and ``model`` read from it.
     """
 
     id: str
@@ -73,12 +74,24 @@ class Vehicle:
     surface_m2: float
     volume_m3: float
     raw_files: dict[str, str]
-    format: dict[str, Any]
-    channels: dict[str, list[dict[str, Any]]]
-    windows: dict[str, Any]
-    model: dict[str, Any]
     data: dict[str, Any]
     layouts: dict[str, RawLayout] = field(default_factory=dict)
+
+    @property
+    def format(self) -> dict[str, Any]:
+        return self.data["format"]
+
+    @property
+    def channels(self) -> dict[str, list[dict[str, Any]]]:
+        return self.data["channels"]
+
+    @property
+    def windows(self) -> dict[str, Any]:
+        return self.data["windows"]
+
+    @property
+    def model(self) -> dict[str, Any]:
+        return self.data["model"]
 
 
 @dataclass(frozen=True)
@@ -449,10 +462,6 @@ def load_vehicle(
         surface_m2=float(data["surface_m2"]),
         volume_m3=float(data["volume_m3"]),
         raw_files=raw_files,
-        format=fmt,
-        channels=data["channels"],
-        windows=data["windows"],
-        model=model,
         data=data,
         layouts=found,
     )

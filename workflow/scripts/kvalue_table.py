@@ -1,5 +1,7 @@
 """Adapter for rule kvalue_table: k and u(k) of every vehicle beside the truth where known."""
 
+from pathlib import Path
+
 import pandas as pd
 import yaml
 
@@ -7,7 +9,7 @@ from railtherm import aggregate, logs
 
 log = logs.to_file(snakemake.log[0])
 results = {
-    vid: yaml.safe_load(open(path, encoding="utf-8"))
+    vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
     for vid, path in zip(snakemake.params.vehicles, snakemake.input.results, strict=True)
 }
 truth = pd.read_csv(snakemake.input.truth) if snakemake.input.truth else None
