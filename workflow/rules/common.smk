@@ -55,13 +55,10 @@ def raw_files(vehicle):
     return list(STUDY.vehicles[vehicle].raw_files.values())
 
 
-def window_names(vehicle):
-    """Tidy tables of a vehicle: its identification windows, the k window and the record."""
-    windows = STUDY.vehicles[vehicle].windows
-    names = [w["name"] for w in windows["identification"]]
-    if "kvalue" in windows:
-        names += ["kvalue", "record"]
-    return names
+def tidy_tables(vehicle):
+    """Tidy tables of a vehicle: its windows, plus the whole record for the k-window figure."""
+    names = ingest.window_names(STUDY.vehicles[vehicle].data)
+    return names + ["record"] if "kvalue" in names else names
 
 
 def window_raw_file(wildcards):
@@ -99,7 +96,7 @@ def all_outputs():
     targets += [
         f"results/vehicles/{vid}/clean/{window}.csv"
         for vid in VEHICLES
-        for window in window_names(vid)
+        for window in tidy_tables(vid)
     ]
     targets += [f"results/vehicles/{vid}/kvalue.yaml" for vid in kvalue_vehicles()]
     if kvalue_vehicles():
