@@ -219,22 +219,19 @@ def _modal(Ad: np.ndarray):
         one = np.ones((1, 1))
         return one, one, Ad.copy(), Ad[0].copy(), True
     lam, V = np.linalg.eig(Ad)
-    gaps = np.abs(lam[:, None] - lam[None, :])
-    np.fill_diagonal(gaps, np.inf)
-    distinct = float(np.min(gaps)) > 1e-9 * max(1.0, float(np.max(np.abs(lam))))
-    if np.all(np.isreal(lam)) and distinct:
-        lam, V = lam.real, V.real
+    if lam.dtype.kind == "f":  # numpy returns real eigenvalues when every one is real
         order = np.argsort(lam)
         lam, V = lam[order], V[:, order]
-        try:
-            Vinv = np.linalg.inv(V)
-        except np.linalg.LinAlgError:
-            Vinv = None
-        # 1-norm condition number (cheap; within a factor n of the 2-norm one)
-        if Vinv is not None and np.abs(V).sum(0).max() * np.abs(Vinv).sum(0).max() < (
-            _MODAL_COND_MAX
-        ):
-            return V, Vinv, np.diag(lam), lam, True
+        if float(np.min(np.diff(lam))) > 1e-9 * max(1.0, float(np.abs(lam).max())):  # distinct
+            try:
+                Vinv = np.linalg.inv(V)
+            except np.linalg.LinAlgError:
+                Vinv = None
+            # 1-norm condition number (cheap; within a factor n of the 2-norm one)
+            if Vinv is not None and np.abs(V).sum(0).max() * np.abs(Vinv).sum(0).max() < (
+                _MODAL_COND_MAX
+            ):
+                return V, Vinv, np.diag(lam), lam, True
     T, Q = schur(Ad.astype(complex), output="complex")
     return Q, Q.conj().T, T, np.diag(T).copy(), False
 
@@ -279,20 +276,20 @@ def discretize(
 def _propagate(d: Discretisation, w: np.ndarray, z0: np.ndarray) -> np.ndarray:
     """Modal recursion z[n+1] = T z[n] + w[n], z[0] = z0, for channels stacked in w.
 
-    w: (n_modes, C, N) forcing (w[..., N-1] is unused), z0: (n_modes, C). Returns z like w.
+    w: (n_modes, C, N) forcing (w[..., N-1] is unused), z0: (n_modes, C). Returns z in w's
+    place: w is overwritten (callers pass a temporary; no second array of that size).
     """
     n = w.shape[0]
-    out = [None] * n
     one = np.array([0.0, 1.0], dtype=w.dtype)
     for i in range(n - 1, -1, -1):
         wi = w[i]
         if not d.diagonal:
             for j in range(i + 1, n):
                 if d.T[i, j] != 0:
-                    wi = wi + d.T[i, j] * out[j]
+                    wi = wi + d.T[i, j] * w[j]  # w[j] holds z_j already
         a = np.array([1.0, -d.lam[i]], dtype=w.dtype)
-        out[i] = lfilter(one, a, wi, axis=-1, zi=z0[i][:, None].astype(w.dtype))[0]
-    return np.stack(out)
+        w[i] = lfilter(one, a, wi, axis=-1, zi=z0[i][:, None].astype(w.dtype))[0]
+    return w
 
 
 def _input_array(u: np.ndarray, n_in: int) -> np.ndarray:
@@ -397,45 +394,48 @@ def sensitivities(
     d = discretize(structure, theta, dt, params)
     uT = np.ascontiguousarray(u.T)
     xT = _run_T(d, uT, x0)
-    S = _parameter_sensitivities(d, xT, uT, params)  # (n, P, N)
-    sens = {p: S[:, i, :].T.copy() for i, p in enumerate(params)}
+    S = parameter_sensitivities(d, xT, uT, params)  # (P, n, N)
+    sens = {p: S[i].T.copy() for i, p in enumerate(params)}
     return xT.T.copy(), sens, free_response(d, len(u))
 
 
-def _parameter_sensitivities(
-    d: Discretisation, xT: np.ndarray, uT: np.ndarray, params: tuple[str, ...]
+def parameter_sensitivities(
+    d: Discretisation,
+    xT: np.ndarray,
+    uT: np.ndarray,
+    params: tuple[str, ...],
+    scale: np.ndarray | None = None,
+    outputs: tuple[int, ...] | None = None,
 ) -> np.ndarray:
-    """(n, P, N): ds[n+1] = Ad ds[n] + dAd x[n] + dBd u[n], ds[0] = 0, one lfilter per mode
-    (all parameters of a mode in one call). xT (n, N) and uT (m, N) are state-major."""
+    """(P, n_out, N): scale_p * dx_k/dparam_p for the states k in ``outputs`` (default all),
+    from ds[n+1] = Ad ds[n] + dAd x[n] + dBd u[n], ds[0] = 0 (xT (n, N), uT (m, N) the
+    simulated states and inputs, state-major).
+
+    In modal coordinates every parameter of a mode shares the mode's filter: one lfilter per
+    mode for all parameters. ``scale`` (e.g. the parameters themselves, for derivatives with
+    respect to log parameters) is folded into the forcing, and the return to states is one
+    (P n_out) x (n P) matrix product, so the result is written once, in the layout a
+    Jacobian needs: ``out.reshape(P, -1)`` has the outputs' blocks side by side."""
     n, N = xT.shape
     P = len(params)
+    outputs = tuple(range(n)) if outputs is None else tuple(outputs)
     if P == 0:
-        return np.zeros((n, 0, N))
+        return np.zeros((0, len(outputs), N))
     dtype = float if d.diagonal else complex
     Qinv = d.Qinv.astype(dtype)
     # forcing in modal coordinates: w[i, p] = (Qinv dAd_p)[i] x + (Qinv dBd_p)[i] u
-    HA = np.stack([Qinv @ d.dAd[p] for p in params], axis=1).reshape(n * P, n)
-    HB = np.stack([Qinv @ d.dBd[p] for p in params], axis=1).reshape(n * P, -1)
-    w = (HA @ xT + HB @ uT).reshape(n, P, N)
-    s = _propagate(d, w, np.zeros((n, P), dtype=dtype))
-    if n > 1:  # back to states: out[i] = sum_j Q[i, j] s[j]
-        s = (d.Q.astype(dtype) @ s.reshape(n, -1)).reshape(n, P, N)
-    else:
-        s = s * d.Q[0, 0]
-    return s.real.copy() if dtype is complex else s
-
-
-def _sensitivity_modes(d: Discretisation, xT: np.ndarray, uT: np.ndarray, params: tuple[str, ...]):
-    """For a diagonal modal form: yields (i, s_i) with s_i (P, N) the modal sensitivity of
-    mode i (dx/dparam = sum_i Q[:, i] s_i), one mode at a time to keep memory traffic low."""
-    if not d.diagonal:
-        raise ValueError("_sensitivity_modes needs a diagonal modal form")
-    n = xT.shape[0]
-    one = np.array([0.0, 1.0])
-    for i in range(n):
-        HA = np.stack([d.Qinv[i] @ d.dAd[p] for p in params])  # (P, n)
-        HB = np.stack([d.Qinv[i] @ d.dBd[p] for p in params])  # (P, m)
-        w = HA @ xT
-        w += HB @ uT
-        s_i = lfilter(one, np.array([1.0, -d.lam[i]]), w, axis=-1, zi=np.zeros((len(params), 1)))[0]
-        yield i, s_i
+    HA = np.stack([Qinv @ d.dAd[p] for p in params], axis=1)  # (n, P, n)
+    HB = np.stack([Qinv @ d.dBd[p] for p in params], axis=1)  # (n, P, m)
+    if scale is not None:
+        scale = np.asarray(scale, dtype=float)[None, :, None]
+        HA, HB = HA * scale, HB * scale
+    w = HA.reshape(n * P, n) @ xT
+    w += HB.reshape(n * P, -1) @ uT
+    s = _propagate(d, w.reshape(n, P, N), np.zeros((n, P), dtype=dtype))  # (n, P, N)
+    # back to states: out[p, k] = sum_j Q[outputs[k], j] s[j, p]
+    Qo = d.Q[list(outputs)].astype(dtype)  # (n_out, n)
+    mix = np.einsum("kj,pq->pkjq", Qo, np.eye(P)).reshape(P * len(outputs), n * P)
+    out = mix @ s.reshape(n * P, N)
+    if dtype is complex:
+        out = out.real.copy()
+    return out.reshape(P, len(outputs), N)

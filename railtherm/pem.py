@@ -3,9 +3,12 @@
 The model (a :class:`railtherm.models.Structure`) is simulated exactly (zero-order hold,
 eq. 15) from each experiment's initial state, and the criterion J(theta) = e^T e (eq. 17) over
 the compared outputs (eq. 18; outputs in K, equal weights for every output and sample; rows
-where the measurement is NaN are skipped) is minimised by ``scipy.optimize.least_squares``
-(trust-region reflective, ``method="trf"``) in log parameters, with bounds, fixed
-parameters and the exact analytic Jacobian (discrete sensitivities, chain rule to log).
+where the measurement is NaN are skipped) is minimised in log parameters, with bounds, fixed
+parameters and the exact analytic Jacobian (discrete sensitivities, chain rule to log), by a
+Levenberg-Marquardt on the p x p normal equations (:func:`_levenberg_marquardt`: p is small,
+the data long, and scipy's general solver costs more per fit than the simulations do), with
+``scipy.optimize.least_squares`` (trust-region reflective, bounded) as the fallback whenever
+that fails or leaves the bounds.
 
 * Two-stage (the paper, section 5.2): ``fixed={"kA": k A}`` from the static k stage; joint:
   kA free too.
@@ -299,7 +302,7 @@ class _Problem:
                         cache[e.dt] = models.discretize(self.s, th, e.dt, params)
                     d = cache[e.dt]
                     sims.append((d, models._run_T(d, uT, x0)))
-        except (FloatingPointError, np.linalg.LinAlgError, ValueError, OverflowError):
+        except (ArithmeticError, np.linalg.LinAlgError, ValueError):
             sims = None  # parameters so extreme that the model cannot be evaluated
         self._key, self._cache = key, (th, sims)
         return self._cache
@@ -322,7 +325,16 @@ class _Problem:
                 row += N_i
         return out
 
+    def cost(self, v) -> float:
+        """e^T e (eq. 17) at v, through :meth:`residuals`: the evaluation (with the
+        derivatives of the discretisation) stays cached for a solve that starts at v."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            r = self.residuals(v)
+            c = float(r @ r)
+        return c if math.isfinite(c) else math.inf
+
     def cost_only(self, v) -> float:
+        """e^T e (eq. 17) at v from the simulation alone (no derivatives: cheapest)."""
         _, sims = self._evaluate(v, derivatives=False)
         if sims is None:
             return math.inf
@@ -334,51 +346,208 @@ class _Problem:
         return total if np.isfinite(total) else math.inf
 
     def jacobian(self, v) -> np.ndarray:
+        """d(residuals)/dv (m x unknowns): the exact discrete sensitivities, times theta_p
+        for the log parameters (chain rule), and the free response Ad^n for estimated
+        initial states. Returned as the transpose of a C-ordered (unknowns x m) array."""
         key = v.tobytes()
         if self._jac_key == key:
             return self._jac
         th, sims = self._evaluate(v, derivatives=True)
-        JT = np.zeros((self.P + self.n_x0, self.m))  # built transposed: contiguous rows
-        scale = np.array([th[p] for p in self.free])[:, None]
-        row, col = 0, self.P
-        for e, uT, (d, xT), rows, fr in zip(
-            self.exps, self.uT, sims, self.rows, self.x0_free, strict=True
-        ):
-            F = models.free_response_head(d, len(e.u)) if fr else None
-            starts, r0 = [], row
-            for r in rows:
-                starts.append(r0)
-                r0 += len(e.u) if r is None else len(r)
-            if not self.P:
-                pass
-            elif d.diagonal:  # mode by mode, accumulated straight into J
-                for j, s_j in models._sensitivity_modes(d, xT, uT, self.free):
-                    for i, r, st in zip(self.out_idx, rows, starts, strict=True):
-                        coef = d.Q[i, j] * scale
+        scale = np.array([th[p] for p in self.free])
+        simple = self.n_x0 == 0 and len(self.exps) == 1 and all(r is None for r in self.rows[0])
+        if simple and self.P:  # one record, every sample compared: no copy at all
+            (d, xT), uT = sims[0], self.uT[0]
+            S = models.parameter_sensitivities(d, xT, uT, self.free, scale, self.out_idx)
+            JT = S.reshape(self.P, -1)
+        else:
+            JT = np.zeros((self.P + self.n_x0, self.m))
+            row, col = 0, self.P
+            for e, uT, (d, xT), rows, fr in zip(
+                self.exps, self.uT, sims, self.rows, self.x0_free, strict=True
+            ):
+                S = (
+                    models.parameter_sensitivities(d, xT, uT, self.free, scale, self.out_idx)
+                    if self.P
+                    else None
+                )
+                F = models.free_response_head(d, len(e.u)) if fr else None
+                for k, (i, r) in enumerate(zip(self.out_idx, rows, strict=True)):
+                    N_i = len(e.u) if r is None else len(r)
+                    if S is not None:
+                        JT[: self.P, row : row + N_i] = S[:, k] if r is None else S[:, k, r]
+                    if fr:
+                        head = F[:, i, :][:, fr].T  # (len(fr), n_cut)
                         if r is None:
-                            JT[: self.P, st : st + s_j.shape[1]] += coef * s_j
+                            JT[col : col + len(fr), row : row + head.shape[1]] = head
                         else:
-                            JT[: self.P, st : st + len(r)] += coef * s_j[:, r]
-            else:
-                S = models._parameter_sensitivities(d, xT, uT, self.free)  # (n, P, N)
-                for i, r, st in zip(self.out_idx, rows, starts, strict=True):
-                    block = S[i] * scale
-                    JT[: self.P, st : st + (block.shape[1] if r is None else len(r))] = (
-                        block if r is None else block[:, r]
-                    )
-            for i, r in zip(self.out_idx, rows, strict=True):
-                N_i = len(e.u) if r is None else len(r)
-                if fr:
-                    head = F[:, i, :][:, fr].T  # (len(fr), n_cut)
-                    if r is None:
-                        JT[col : col + len(fr), row : row + head.shape[1]] = head
-                    else:
-                        keep = r[r < head.shape[1]]
-                        JT[col : col + len(fr), row : row + len(keep)] = head[:, keep]
-                row += N_i
-            col += len(fr)
+                            keep = r[r < head.shape[1]]
+                            JT[col : col + len(fr), row : row + len(keep)] = head[:, keep]
+                    row += N_i
+                col += len(fr)
         self._jac_key, self._jac = key, JT.T
         return self._jac
+
+
+# ----------------------------------------------------------------------------------------------
+# the solver
+
+
+def _levenberg_marquardt(residuals, jacobian, v0, max_nfev=None, tol=1e-8, reuse=1e-2):
+    """Levenberg-Marquardt on the p x p normal equations of a tall least-squares problem.
+
+    Minimises 0.5 r(v)^T r(v) for few unknowns p and many residuals m. Each iteration forms
+    H = J^T J and g = J^T r once (O(m p^2)) and solves (H + mu diag(H)) step = -g (Marquardt's
+    scaling); mu follows Nielsen's update (shrunk after a good step, doubled and doubling
+    after a rejected one). It exists because ``scipy.optimize.least_squares`` costs 2-3 ms
+    of its own work per fit at m = 2e4, p = 3 (an SVD or QR of the whole m x p Jacobian every
+    iteration, Fortran-order copies): more than the simulations themselves
+    (docs/performance.md). ``fit`` falls back to least_squares (trf, with bounds) whenever
+    this one fails or leaves the bounds.
+
+    After an accepted step smaller than ``reuse`` in every unknown (1 % in a log parameter),
+    the Jacobian is kept for the next step (a chord step: J changes by O(step), the step's
+    accuracy by O(step^2)); it is recomputed before any conclusion is drawn from it and after
+    a rejected step. Near the optimum this saves one sensitivity computation per fit.
+
+    Stops when the nearly undamped Gauss-Newton step predicts a relative reduction of the
+    cost below ``tol`` (status 2), when an accepted step's actual and predicted relative
+    reductions are both below ``tol`` (status 2, as MINPACK), when the step is below ``tol``
+    relative to |v| (status 3), when the gradient is orthogonal to the residuals to within
+    ``tol`` (status 1), or after ``max_nfev`` residual evaluations (default 100 p; status 0,
+    not converged); every stop but the last with the Jacobian evaluated at the returned v.
+    Returns an object with the fields of least_squares' result that :func:`fit` reads.
+    """
+    v = np.array(v0, dtype=float)
+    p = len(v)
+    max_nfev = 100 * max(p, 1) if max_nfev is None else int(max_nfev)
+    r = residuals(v)
+    nfev, njev = 1, 0
+    cost = 0.5 * float(r @ r)
+    if not math.isfinite(cost):
+        return _solution(v, r, 0, nfev, njev, "the residuals are not finite at the start", False)
+    J, fresh = jacobian(v), True
+    njev += 1
+    mu, nu = 1e-3, 2.0
+    status, message = 0, "the maximum number of function evaluations is exceeded"
+    while nfev < max_nfev:
+        JT = J.T
+        H = _gram(JT)
+        g = JT @ r
+        if not (math.isfinite(H.sum()) and math.isfinite(g.sum())):
+            if fresh:
+                message = "the Jacobian is not finite"
+                break
+            J, fresh = jacobian(v), True
+            njev += 1
+            continue
+        d = H.diagonal().copy()
+        # gradient test: the largest cosine between a column of J and r is
+        # max |g_i| / (|J_i| |r|) (a zero column has g_i = 0)
+        converged = float((g * g / np.maximum(d, 1e-300)).max()) <= tol * tol * 2.0 * cost
+        if converged and fresh:
+            status, message = 1, "the gradient is orthogonal to the residuals (gtol)"
+            break
+        d = np.maximum(d, 1e-12 * float(d.max()) + 1e-300)
+        try:
+            step = np.linalg.solve(H + np.diag(mu * d), -g)
+        except np.linalg.LinAlgError:  # H singular and mu tiny: damp harder
+            mu = max(mu * nu, 1e-12)
+            nu *= 2.0
+            continue
+        predicted = -float(g @ step) - 0.5 * float(step @ H @ step)
+        converged = converged or (0 <= predicted <= tol * cost and mu <= 1e-2)
+        if converged:
+            if fresh:  # the Gauss-Newton step promises a relative reduction below tol
+                status, message = 2, "the predicted relative reduction of the cost is below ftol"
+                break
+            J, fresh = jacobian(v), True  # check with the Jacobian at v itself
+            njev += 1
+            continue
+        trial = v + step
+        r_trial = residuals(trial)
+        nfev += 1
+        with np.errstate(over="ignore", invalid="ignore"):  # a wild trial: rejected below
+            cost_trial = 0.5 * float(r_trial @ r_trial)
+        actual = cost - cost_trial if math.isfinite(cost_trial) else -math.inf
+        small_step = math.sqrt(float(step @ step)) <= tol * (math.sqrt(float(v @ v)) + tol)
+        if predicted > 0 and actual > 0:
+            rho = actual / predicted
+            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            nu = 2.0
+            v, r, cost_old, cost = trial, r_trial, cost, cost_trial
+            stop = small_step or (actual <= tol * cost_old and predicted <= tol * cost_old)
+            if stop or float(np.abs(step).max()) >= reuse:
+                J, fresh = jacobian(v), True
+                njev += 1
+            else:
+                fresh = False
+            if stop:
+                status, message = (
+                    (3, "the step is below xtol")
+                    if small_step
+                    else (2, "the relative reduction of the cost is below ftol")
+                )
+                break
+        elif not fresh:  # the stale Jacobian misled the step: renew it before damping
+            J, fresh = jacobian(v), True
+            njev += 1
+        else:
+            if small_step or 0 <= predicted <= 1e-2 * tol * cost:
+                # no descent left at rounding level: v is the optimum
+                status, message = 3, "the step is below xtol"
+                break
+            mu *= nu
+            nu *= 2.0
+    return _solution(v, r, status, nfev, njev, message, status > 0)
+
+
+def _gram(JT: np.ndarray) -> np.ndarray:
+    """J^T J from JT (p x m, p small): one dot product per entry. For p <= ~10 and m ~ 1e4
+    this is 2-5x faster than ``JT @ JT.T`` (OpenBLAS' gemm/syrk, single-threaded, on a 3 x
+    2e4 by 2e4 x 3 product: 45 us against 115 us), and a fit forms it every iteration."""
+    p, m = JT.shape
+    if m < 2048:  # small: one BLAS call is cheaper than p(p+1)/2 Python-level dots
+        return JT @ JT.T
+    H = np.empty((p, p))
+    for i in range(p):
+        for j in range(i, p):
+            H[i, j] = H[j, i] = JT[i] @ JT[j]
+    return H
+
+
+_EIGH_COND_MAX = 1e5  # cond(J) up to which its SVD is taken from the eigenproblem of J^T J
+
+
+def _svd_tall(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Singular values (descending) and right singular vectors (rows of Vt) of a tall J.
+
+    From the eigendecomposition of J^T J when J is well conditioned (cond <= 1e5, where
+    squaring the condition costs at most ~1e-6 relative accuracy in the smallest singular
+    value), else exactly from the QR factor R of J (J = Q R, SVD of R): the QR of a 2e4 x 3 J
+    costs as much as three simulations of the data, the small eigenproblem nothing."""
+    if J.shape[0] > J.shape[1]:
+        lam, V = np.linalg.eigh(_gram(np.ascontiguousarray(J.T)))
+        lam, V = lam[::-1], V[:, ::-1]
+        if lam[-1] > 0 and lam[0] > 0 and lam[-1] >= lam[0] / _EIGH_COND_MAX**2:
+            return np.sqrt(lam), V.T.copy()
+        R = np.linalg.qr(J, mode="r")
+    else:
+        R = J
+    _, s, Vt = np.linalg.svd(R, full_matrices=False)
+    return s, Vt
+
+
+def _solution(v, r, status, nfev, njev, message, success):
+    return SimpleNamespace(
+        x=v,
+        fun=r,
+        status=status,
+        success=success,
+        nfev=nfev,
+        njev=njev,
+        message=message,
+        active_mask=np.zeros(len(v), int),
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -411,13 +580,20 @@ def equation_error_start(
         n_ok = int(ok.sum())
         if n_ok == 0:
             continue
-        D = (yT[:, 1:] - yT[:, :-1]) / e.dt  # (n, N-1): dx/dt over each step
-        Z = np.vstack([(yT[:, 1:] + yT[:, :-1]) / 2.0, e.u[:-1].T])  # (k, N-1)
+        # rows of ZD: Z = [step-midpoint states (x[n] + x[n+1]) / 2; held input u[n]] (k rows),
+        # then D = (x[n+1] - x[n]) / dt (n rows): dx/dt over each step
+        ZD = np.empty((k + n, len(ok)))
+        np.add(yT[:, 1:], yT[:, :-1], out=ZD[:n])
+        ZD[:n] *= 0.5
+        ZD[n:k] = e.u[:-1].T
+        np.subtract(yT[:, 1:], yT[:, :-1], out=ZD[k:])
+        ZD[k:] *= 1.0 / e.dt
         if n_ok < len(ok):
-            D, Z = D[:, ok], Z[:, ok]
-        Szz += Z @ Z.T
-        Szd += Z @ D.T
-        ss_dd += np.einsum("ij,ij->i", D, D)
+            ZD = np.ascontiguousarray(ZD[:, ok])
+        G = _gram(ZD)  # every sum of products at once
+        Szz += G[:k, :k]
+        Szd += G[:k, k:]
+        ss_dd += np.diag(G[k:, k:])
         count += n_ok
     if count < 3 * k:
         return None
@@ -427,14 +603,10 @@ def equation_error_start(
         return None
     sq = np.sqrt(s[keep])
     Ur = U[:, keep]
-    phi_hat = np.linalg.pinv(Szz) @ Szd  # (k, n): the unconstrained [A B]^T
+    # the unconstrained [A B]^T is Ur S^-1 Ur^T Szd; in the regression metric it is
+    # ``target``, and each row's OLS residual sum of squares is ss_dd - |target column|^2
     target = (Ur.T @ Szd) / sq[:, None]  # (r, n)
-    # residual sum of squares of each row's OLS fit, for the row weights
-    ss_res = (
-        ss_dd
-        + np.einsum("ki,kl,li->i", phi_hat, Szz, phi_hat)
-        - 2 * np.einsum("ki,ki->i", phi_hat, Szd)
-    )
+    ss_res = ss_dd - (target * target).sum(axis=0)
     scale_dd = np.sqrt(ss_dd / count)
     sigma = np.sqrt(np.maximum(ss_res, 0.0) / count) + 1e-12 * scale_dd + 1e-300
 
@@ -462,15 +634,16 @@ def equation_error_start(
 
     lo, hi = log_bounds
     w0 = np.clip([math.log(initial[p]) for p in free], lo, hi)
-    # A small, smooth matching problem: MINPACK's Levenberg-Marquardt (compiled, no bounds) is
-    # several times cheaper here than trf; the start is clipped into the bounds afterwards.
-    # When it fails (it can wander off in a non-identifiable problem), the bounded trf solve.
-    failures = (ValueError, OverflowError, np.linalg.LinAlgError)
+    # A small, smooth matching problem: the Levenberg-Marquardt of the main fit (no bounds;
+    # the start is clipped into the bounds afterwards). When it fails (it can wander off in a
+    # non-identifiable problem), the bounded trf solve.
+    failures = (ValueError, ArithmeticError, np.linalg.LinAlgError)
     w = None
     if fun(w0).size >= len(free):
         try:
-            sol = least_squares(fun, w0, jac=jac, method="lm")
-            if np.all(np.isfinite(sol.x)) and np.all(np.abs(sol.x - w0) < 50):
+            with np.errstate(over="ignore", invalid="ignore"):
+                sol = _levenberg_marquardt(fun, jac, w0)
+            if sol.success and np.all(np.isfinite(sol.x)) and np.all(np.abs(sol.x - w0) < 50):
                 w = np.clip(sol.x, lo, hi)
         except failures:
             w = None
@@ -497,17 +670,19 @@ def _block_average(e: Experiment, factor: int) -> Experiment:
 # covariance
 
 
-def _bartlett_hac(g: np.ndarray, L: int) -> np.ndarray:
-    """sum_{|l| <= L} (1 - |l| / (L + 1)) Gamma_l for the score series g (T x p), computed as
-    (1 / (L + 1)) sum_t G_t G_t^T with G_t the sum of L + 1 consecutive g (zero-padded):
-    every pair at lag l falls in L + 1 - l windows, which is the Bartlett weight exactly."""
+def _bartlett_hac(gT: np.ndarray, L: int) -> np.ndarray:
+    """sum_{|l| <= L} (1 - |l| / (L + 1)) Gamma_l for the score series g (given transposed,
+    gT p x T), computed as (1 / (L + 1)) sum_t G_t G_t^T with G_t the sum of L + 1 consecutive
+    g (zero-padded): every pair at lag l falls in L + 1 - l windows, which is the Bartlett
+    weight exactly. O(T p^2), whatever L."""
     if L <= 0:
-        return g.T @ g
-    p = g.shape[1]
-    c = np.zeros((len(g) + 2 * L + 1, p))
-    np.cumsum(np.vstack([np.zeros((L, p)), g, np.zeros((L, p))]), axis=0, out=c[1:])
-    G = c[L + 1 :] - c[: -(L + 1)]
-    return (G.T @ G) / (L + 1)
+        return _gram(gT)
+    p, T = gT.shape
+    c = np.empty((p, T + 2 * L + 1))  # c[:, j]: sum of the zero-padded g before position j
+    c[:, : L + 1] = 0.0
+    np.cumsum(gT, axis=1, out=c[:, L + 1 : L + 1 + T])
+    c[:, L + 1 + T :] = c[:, L + T : L + T + 1]
+    return _gram(c[:, L + 1 :] - c[:, : T + L]) / (L + 1)
 
 
 def _andrews_bandwidth(e: np.ndarray) -> int:
@@ -622,7 +797,13 @@ def fit(
             candidates.update(
                 _grid_candidates(structure, experiments, fixed, free, init, pack, prob)
             )
-    costs = {name: prob.cost_only(v) for name, v in candidates.items()}
+    # the last candidate (the equation-error start, when there is one) is the likeliest
+    # winner: prob.cost keeps its evaluation for the solver's first step
+    last = list(candidates)[-1]
+    costs = {
+        name: (prob.cost(v) if name == last else prob.cost_only(v))
+        for name, v in candidates.items()
+    }
     start_used = min(costs, key=lambda k: costs[k] if np.isfinite(costs[k]) else np.inf)
     v0 = candidates[start_used]
     if not math.isfinite(costs[start_used]):
@@ -647,22 +828,13 @@ def fit(
         return _result(structure, prob, sol, v0, r, J, covariance, start_used, costs, outputs, bnds)
     lo = np.concatenate([lb, np.full(prob.n_x0, -np.inf)])
     hi = np.concatenate([ub, np.full(prob.n_x0, np.inf)])
-    # The trust-region reflective method is markedly cheaper per iteration, and needs fewer
-    # iterations, without bounds. Run it unbounded first; an optimum strictly inside the
-    # bounds is a local optimum of the bounded problem too. Otherwise (the search left the
-    # box or failed) run the bounded problem from the same start.
-    # Trust-region subproblem: exact (SVD of J) for small problems; LSMR for large ones, where
-    # the SVD of the tall Jacobian dominates the cost (same optimum, see docs).
+    # Levenberg-Marquardt without bounds first: an optimum strictly inside the bounds is a
+    # local optimum of the bounded problem too. Otherwise (the search left the box or
+    # failed) scipy's bounded trust-region reflective solve from the same start; its
+    # subproblem uses the SVD of J for small problems and LSMR for large ones, where the SVD
+    # of the tall Jacobian dominates the cost.
     tr = {"tr_solver": "lsmr"} if prob.m * (prob.P + prob.n_x0) > _LSMR_ABOVE else {}
-    sol = least_squares(
-        prob.residuals,
-        v0,
-        jac=prob.jacobian,
-        method="trf",
-        x_scale=1.0,
-        max_nfev=max_nfev,
-        **tr,
-    )
+    sol = _levenberg_marquardt(prob.residuals, prob.jacobian, v0, max_nfev)
     inside = np.all(sol.x[: prob.P] > lb) and np.all(sol.x[: prob.P] < ub)
     if not (sol.success and inside and np.all(np.isfinite(sol.fun))):
         first = sol
@@ -680,7 +852,7 @@ def fit(
         sol.njev = (sol.njev or 0) + (first.njev or 0)
     v = sol.x
     r = prob.residuals(v)
-    J = prob.jacobian(v)  # cached: least_squares evaluated it at sol.x
+    J = prob.jacobian(v)  # cached: the solver evaluated it at sol.x
     return _result(structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds)
 
 
@@ -708,10 +880,9 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
     P, m = prob.P, prob.m
     p_all = J.shape[1]
     ssr = float(r @ r)
-    # J = Q R, then the SVD of the small R: singular values and right vectors of J
+    # singular values and right vectors of J
     if p_all:
-        R = np.linalg.qr(J, mode="r") if J.shape[0] > J.shape[1] else J
-        _, s, Vt = np.linalg.svd(R, full_matrices=False)
+        s, Vt = _svd_tall(J)
     else:  # nothing estimated
         s, Vt = np.zeros(0), np.zeros((0, 0))
     smax = float(s[0]) if s.size else 0.0
@@ -720,7 +891,7 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
     if P and p_all == P:
         cond = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
     elif P:
-        sp = np.linalg.svd(np.linalg.qr(J[:, :P], mode="r"), compute_uv=False)
+        sp = _svd_tall(J[:, :P])[0]
         cond = float(sp[0] / sp[-1]) if sp[-1] > 0 else math.inf
     else:
         cond = 1.0
@@ -733,21 +904,22 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
         cov = s2 * bread
     else:
         meat = np.zeros((p_all, p_all))
+        JT = np.ascontiguousarray(J.T)  # no copy: J is the transpose of a C-ordered array
         row = 0
         for e, rows in zip(prob.exps, prob.rows, strict=True):
             for rr in rows:
                 N_i = len(e.u) if rr is None else len(rr)
-                ri, Ji = r[row : row + N_i], J[row : row + N_i]
+                ri, JTi = r[row : row + N_i], JT[:, row : row + N_i]
                 if rr is None:
-                    g, res_full = Ji * ri[:, None], ri
+                    gT, res_full = JTi * ri, ri
                 else:
-                    g = np.zeros((len(e.u), p_all))
-                    g[rr] = Ji * ri[:, None]
+                    gT = np.zeros((p_all, len(e.u)))
+                    gT[:, rr] = JTi * ri
                     res_full = np.zeros(len(e.u))
                     res_full[rr] = ri
                 L = _andrews_bandwidth(res_full)
                 bandwidths.append(L)
-                meat += _bartlett_hac(g, L)
+                meat += _bartlett_hac(gT, L)
                 row += N_i
         cov = bread @ meat @ bread
     var = np.diag(cov)[:P].copy()

@@ -62,6 +62,32 @@ def test_recovers_truth_noise_free_from_paper_and_truth(structure, truth, joint)
     assert fits["auto"].start_used in fits["auto"].start_costs
 
 
+@pytest.mark.parametrize("x0", ["measured", "estimated"])
+def test_optimum_is_one_that_scipy_least_squares_cannot_improve(x0):
+    """railtherm's own Levenberg-Marquardt against scipy's trf, on residuals built here from
+    models.simulate with finite differences: started at railtherm's optimum, least_squares
+    finds no lower cost and stays put (a solver stopping at 1e-3 fails this)."""
+    from scipy.optimize import least_squares
+
+    e = experiment(S2, TRAM2, n=3000, noise=0.1, seed=3)
+    r = pem.fit(S2, [e], fixed={"kA": 979.2}, x0=x0, initial=free_of(PAPER, {"kA": 0}))
+    assert r.success
+
+    def residuals(w):
+        theta = {"kA": 979.2, **dict(zip(r.free, np.exp(w[:3]), strict=True))}
+        start = w[3:] if x0 == "estimated" else e.y[0]
+        return (models.simulate(S2, theta, e.u, e.dt, start) - e.y).ravel()
+
+    w = np.log([r.theta[p] for p in r.free])
+    if x0 == "estimated":
+        w = np.concatenate([w, r.x0[0]])
+    assert float(residuals(w) @ residuals(w)) == pytest.approx(r.cost, rel=1e-12)
+    ls = least_squares(residuals, w, method="trf", x_scale="jac")
+    # no lower cost beyond the solvers' relative tolerance (1e-8 in both)
+    assert 2 * ls.cost >= r.cost * (1 - 2e-8)
+    np.testing.assert_allclose(ls.x[:3], w[:3], atol=1e-5)
+
+
 def test_two_stage_keeps_k_fixed_and_estimates_eq_20():
     r = pem.fit(S2, [experiment(S2, TRAM2)], fixed={"kA": 979.2})
     assert r.free == ("C", "K_veh", "C_veh")
@@ -180,7 +206,8 @@ def test_bartlett_meat_equals_explicit_sum():
     for lag in range(1, L + 1):
         G = g[lag:].T @ g[:-lag]
         S += (1 - lag / (L + 1)) * (G + G.T)
-    np.testing.assert_allclose(pem._bartlett_hac(g, L), S, rtol=1e-12)
+    np.testing.assert_allclose(pem._bartlett_hac(np.ascontiguousarray(g.T), L), S, rtol=1e-12)
+    np.testing.assert_allclose(pem._bartlett_hac(np.ascontiguousarray(g.T), 0), g.T @ g, rtol=1e-12)
 
 
 def test_to_dict_is_plain_and_yaml_ready():
