@@ -51,6 +51,7 @@ __all__ = [
     "first_order",
     "free_response",
     "free_response_head",
+    "parameter_sensitivities",
     "second_order",
     "sensitivities",
     "simulate",
