@@ -300,6 +300,10 @@ def check(
         "reasons": reasons,
         "notes": notes,
         "parameters": fit["parameters"],
+        # statistical correlation of the free log parameters (order of ``free``): the
+        # aggregate propagates it into ratios such as delta = C_veh / C (eq. 25)
+        "free": fit["free"],
+        "correlation": fit["correlation"],
         "R2": measures["T"]["overall"]["r2"],
         "nrmse_fit": measures["T"]["overall"]["nrmse_fit"],
         "measures": measures,

@@ -1,0 +1,204 @@
+"""railtherm.aggregate: the study's Tables 1-3, class statistics and class test (section 6)."""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from railtherm import aggregate
+
+
+def fit(
+    C, K_veh, C_veh, *, sd=(0.1, 0.2, 0.1), corr=-0.5, effects=None, verdict=None, kA=None, r2=0.99
+):
+    """A fit_order2.yaml-like dict; sd_log for (C, K_veh, C_veh), corr of C and C_veh."""
+    free = ["C", "K_veh", "C_veh"]
+    R = np.eye(3)
+    R[0, 2] = R[2, 0] = corr
+    params = {"kA": {"value": 1000.0 if kA is None else kA, "estimated": kA is not None}}
+    if kA is not None:
+        params["kA"]["ci95"] = [0.9 * kA, 1.1 * kA]
+        free = ["kA", *free]
+        R = np.pad(R, ((1, 0), (1, 0)))
+        R[0, 0] = 1.0
+    for p, v, s in zip(("C", "K_veh", "C_veh"), (C, K_veh, C_veh), sd, strict=True):
+        params[p] = {
+            "value": v,
+            "estimated": True,
+            "sd_log": s,
+            "ci95": [v * math.exp(-1.96 * s), v * math.exp(1.96 * s)],
+        }
+    return {
+        "vehicle": "x",
+        "order": 2,
+        "k_source": "joint estimation (PEM)" if kA is not None else "static test (eq. 10)",
+        "verdict": verdict or aggregate.ACCEPTABLE,
+        "R2": r2,
+        "parameters": params,
+        "free": free,
+        "correlation": R.tolist(),
+        "systematic": {"effects_log": effects or {}},
+    }
+
+
+def vehicle(cls, mass=30_000.0, A=300.0, windows=1, synthetic=True):
+    return {
+        "class": cls,
+        "mass_kg": mass,
+        "surface_m2": A,
+        "synthetic": synthetic,
+        "windows": {"identification": [{"name": f"w{i}"} for i in range(windows)]},
+    }
+
+
+def kv(k, u_k=0.05, usable=True):
+    return {"k": k, "u_k": u_k, "usable": usable}
+
+
+def test_table2_k_from_static_test_or_joint_estimate_and_config_order():
+    vehicles = {"B": vehicle("metro"), "A": vehicle("tram", A=250.0)}
+    fits = {"A": fit(1e7, 500, 2e7, kA=750.0), "B": fit(9e6, 200, 1e7)}
+    t2 = aggregate.table2(fits, {"A": None, "B": kv(2.8, 0.05)}, vehicles)
+    assert list(t2["vehicle"]) == ["B", "A"]
+    b, a = t2.iloc[0], t2.iloc[1]
+    assert (b["k"], b["k_lo"], b["k_hi"]) == pytest.approx((2.8, 2.7, 2.9))  # k +- 2 u(k)
+    assert (a["k"], a["k_lo"], a["k_hi"]) == pytest.approx((3.0, 2.7, 3.3))  # kA / A
+    assert a["k_source"] == "joint estimation (PEM)"
+    assert b["source"] == aggregate.SYNTHETIC_SOURCE
+
+
+def test_table3_eq_24_and_25_with_correlated_interval_of_delta():
+    f = fit(1e7, 500, 2e7, sd=(0.1, 0.2, 0.1), corr=-0.5)
+    vehicles = {"A": vehicle("metro", mass=40_000.0)}
+    t2 = aggregate.table2({"A": f}, {"A": kv(2.0)}, vehicles)
+    r = aggregate.table3(t2, {"A": f}, vehicles).iloc[0]
+    assert r["c_veh"] == pytest.approx(2e7 / 40_000.0)
+    assert r["c_veh_lo"] == pytest.approx(2e7 * math.exp(-1.96 * 0.1) / 40_000.0)
+    assert r["delta"] == pytest.approx(2.0)
+    sd = math.sqrt(0.1**2 + 0.1**2 + 2 * 0.5 * 0.1 * 0.1)  # var(a - b) with corr -0.5
+    assert r["delta_hi"] == pytest.approx(2.0 * math.exp(aggregate.Z95 * sd))
+    assert r["delta_lo"] == pytest.approx(2.0 * math.exp(-aggregate.Z95 * sd))
+
+
+def test_a_systematic_error_moving_both_capacities_alike_does_not_widen_delta():
+    same = {"C": {"scale_Q_H": 0.3}, "C_veh": {"scale_Q_H": 0.3}}
+    opposite = {"C": {"scale_Q_H": 0.3}, "C_veh": {"scale_Q_H": -0.3}}
+    vehicles = {"A": vehicle("metro")}
+    widths = []
+    for effects in (None, same, opposite):
+        f = fit(1e7, 500, 2e7, corr=0.0, effects=effects)
+        t2 = aggregate.table2({"A": f}, {"A": kv(2.0)}, vehicles)
+        r = aggregate.table3(t2, {"A": f}, vehicles).iloc[0]
+        widths.append(math.log(r["delta_hi"] / r["delta_lo"]))
+    assert widths[1] == pytest.approx(widths[0])
+    assert widths[2] > 2 * widths[0]
+
+
+def test_table1_counts_per_class_and_sum():
+    vehicles = {
+        "T1": vehicle("tram", windows=2),
+        "M1": vehicle("metro"),
+        "M2": vehicle("metro"),
+    }
+    fits = {
+        "T1": fit(1e7, 500, 2e7),
+        "M1": fit(1e7, 500, 2e7, verdict="assumptions in doubt"),
+        "M2": fit(1e7, 500, 2e7),
+    }
+    kvalues = {"T1": kv(3.0), "M1": kv(2.0, usable=False), "M2": None}
+    t1 = aggregate.table1(vehicles, kvalues, fits).set_index("quantity")
+    assert list(t1.columns) == ["Tram", "Metro", "Sum"]
+    assert t1.loc["k value measured"].tolist() == [1, 1, 2]
+    assert t1.loc["k value usable (steady window)"].tolist() == [1, 0, 1]
+    assert t1.loc["experiments available"].tolist() == [2, 2, 4]
+    assert t1.loc["vehicles evaluated (fit acceptable)"].tolist() == [1, 1, 2]
+
+
+def table3_frame(values):
+    rows = []
+    for cls, xs in values.items():
+        for i, x in enumerate(xs):
+            rows.append(
+                {
+                    "vehicle": f"{cls}{i}",
+                    "class": cls,
+                    "c_veh": x,
+                    "delta": x / 100.0,
+                    "verdict": aggregate.ACCEPTABLE if i < 3 else "assumptions in doubt",
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def test_class_summary_statistics_and_bootstrap_only_from_three_vehicles():
+    t3 = table3_frame({"tram": [270.0, 330.0], "metro": [300.0, 350.0, 400.0, 700.0]})
+    cs = aggregate.class_summary(t3)
+    allv = cs[cs["selection"] == "all vehicles (as the paper)"].set_index(["class", "quantity"])
+    metro = allv.loc[("metro", "c_veh")]
+    assert metro["n"] == 4 and metro["mean"] == pytest.approx(437.5)
+    assert metro["median"] == pytest.approx(375.0)
+    assert metro["mean_ci_lo"] < 437.5 < metro["mean_ci_hi"]
+    assert 300.0 <= metro["mean_ci_lo"] and metro["mean_ci_hi"] <= 700.0
+    assert math.isnan(allv.loc[("tram", "c_veh")]["mean_ci_lo"])  # n = 2: no interval
+    acceptable = cs[cs["selection"] == "fit acceptable only"].set_index(["class", "quantity"])
+    assert acceptable.loc[("metro", "c_veh")]["n"] == 3  # the fourth is in doubt
+    again = aggregate.class_summary(t3)
+    pd.testing.assert_frame_equal(cs, again)  # fixed seed: the same interval every run
+
+
+def test_class_test_detects_a_clear_difference_and_not_a_noisy_one():
+    clear = table3_frame({"metro": [300.0, 310.0, 305.0], "regional": [600.0, 610.0, 605.0]})
+    r = aggregate.class_test(clear).iloc[0]
+    assert r["welch_p"] < 0.01 and r["conclusion"].startswith("inconclusive")
+    # exact Mann-Whitney with 3 vs 3 cannot go below p = 0.1: the test says so honestly
+    assert r["mannwhitney_p"] == pytest.approx(0.1)
+    noisy = table3_frame({"metro": [300.0, 600.0, 450.0], "regional": [350.0, 650.0, 500.0]})
+    r = aggregate.class_test(noisy).iloc[0]
+    assert r["welch_p"] > 0.05 and r["conclusion"].startswith("no significant difference")
+    big = table3_frame({"metro": [300.0, 310, 305, 299, 302, 311], "regional": [600.0] * 5})
+    big.loc[big["class"] == "regional", "c_veh"] += np.arange(5.0)
+    big["verdict"] = aggregate.ACCEPTABLE
+    assert aggregate.class_test(big).iloc[0]["conclusion"].startswith("differ")
+    lonely = table3_frame({"metro": [300.0, 310.0], "regional": [600.0]})
+    assert "too few" in aggregate.class_test(lonely).iloc[0]["conclusion"]
+
+
+@pytest.mark.parametrize(
+    "kind, x, lo, hi, text",
+    [
+        ("sci", 1.8e7, 1.7e7, 2.06e7, "1.8×10⁷ [1.70, 2.06]×10⁷"),
+        ("sci", 9.96e6, 9.0e6, 1.1e7, "1.0×10⁷ [0.90, 1.10]×10⁷"),
+        ("int", 47_831.0, 40_000.0, 50_000.0, "47,831 [40,000, 50,000]"),
+        ("k", 3.2353, 3.17, 3.30, "3.2 [3.17, 3.30]"),
+        ("delta", 0.554, 0.5, 0.61, "0.55 [0.500, 0.610]"),
+        ("int", 1e7, 1e-3, math.inf, "10,000,000 [0, ∞]"),
+        ("sci", 1e4, 1e-20, 1e40, "1.0×10⁴ [0, ∞]×10⁴"),
+    ],
+)
+def test_numbers_are_printed_as_the_paper_does(kind, x, lo, hi, text):
+    assert aggregate._value_interval(kind, x, lo, hi, tex=False) == text
+
+
+def test_study_tables_are_written_with_their_source(tmp_path):
+    vehicles = {"T1": vehicle("tram"), "M1": vehicle("metro"), "M2": vehicle("metro")}
+    fits = {vid: fit(1e7, 500, 2e7) for vid in vehicles}
+    tables = aggregate.study_tables(fits, {vid: kv(2.0) for vid in vehicles}, vehicles)
+    paths = {
+        f"{name}_{ext}": str(tmp_path / f"{name}.{ext}")
+        for name in tables
+        for ext in ("csv", "md", "tex")
+    }
+    source = aggregate.data_source(vehicles)
+    aggregate.write_study_tables(tables, source, paths)
+    for name in tables:
+        csv = pd.read_csv(paths[f"{name}_csv"])
+        assert (csv["source"] == aggregate.SYNTHETIC_SOURCE).all()
+        md = (tmp_path / f"{name}.md").read_text(encoding="utf-8")
+        assert md.splitlines()[0].endswith(f"Data: {aggregate.SYNTHETIC_SOURCE}.")
+        assert "not evidence about real vehicles" in md
+        tex = (tmp_path / f"{name}.tex").read_text(encoding="utf-8")
+        assert "\\caption{" in tex and "synthetic" in tex and "\\begin{tabular}" in tex
+    measured = {vid: {**v, "synthetic": False} for vid, v in vehicles.items()}
+    assert aggregate.data_source(measured) == aggregate.MEASURED_SOURCE
+    assert "mixed" in aggregate.data_source({**measured, "X": vehicle("tram")})
