@@ -7,22 +7,47 @@ Time axis of :func:`kvalue_figure`: hours from the start of the record (the firs
 whole-file tidy table). The k window is placed on it either by ``offset_s`` (seconds from the
 record start to the window start) or, by default, by finding the window's first ``timestamp``
 among the record's ``timestamp`` values (ISO text is compared as time, seconds as numbers).
+
+Study figures (paper section 6): :func:`fit_figure` (one vehicle, one model order),
+:func:`figure3` (Tram2, first- vs second-order model), :func:`figure4` (measured vs simulated T
+for a few metros) and :func:`figure5` (c_veh and delta by vehicle class). Their time axes lay
+the identification windows side by side: each window keeps its own time (hours since the
+window start, as in the ``order{n}_series.csv`` files) and starts a small gap after the end of
+the previous one; thin vertical lines separate the windows and the window names stand above the
+top panel. ``synthetic=True`` (or :func:`synthetic_note`) adds the footer
+:data:`SYNTHETIC_NOTE` so figures of virtual-tunnel data cannot pass for measurements.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 import numpy as np
 import pandas as pd
+from matplotlib import transforms
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.layout_engine import ConstrainedLayoutEngine, PlaceHolderLayoutEngine
+from matplotlib.lines import Line2D
+from matplotlib.text import Text
 
 from railtherm.kvalue import KValue
 
-__all__ = ["kvalue_figure", "save_figure", "window_offset_s"]
+__all__ = [
+    "fit_figure",
+    "figure3",
+    "figure4",
+    "figure5",
+    "kvalue_figure",
+    "save_figure",
+    "synthetic_note",
+    "window_offset_s",
+]
 
 FIGSIZE_IN = (7.0, 4.8)  # fits a paper column pair / A4 page width with margins
 DPI = 200
@@ -41,6 +66,29 @@ _RC = {
 }
 
 COLORS = {"T": "#c0392b", "T_veh": "#8e44ad", "T_o": "#2471a3", "Q_H": "#4d4d4d"}
+FIGSIZE_FIG5_IN = (3.5, 3.0)  # each of Figure 5 (a) and (b): one paper column
+SYNTHETIC_NOTE = "synthetic data: virtual climatic wind tunnel (not measurements)"
+CLASS_ORDER = ("tram", "metro", "regional", "main-line")  # the paper's order in Figure 5
+DOUBT = "assumptions in doubt"
+# the models of Figure 3: told apart by line style as well as colour (grey print)
+MODEL_LABELS = {1: "first-order model (eq. 9)", 2: "second-order model (eqs. 7-8)"}
+MODEL_STYLES = {
+    1: {"color": "#1e8449", "ls": (0, (5, 2)), "lw": 1.1},
+    2: {"color": "#17202a", "ls": (0, (6, 2, 1, 2)), "lw": 1.1},
+}
+# measured: wide and light; simulated: thin, dark and dashed, drawn on top
+_MEASURED = {"lw": 1.6, "alpha": 0.55}
+_SIMULATED = {"ls": (0, (4, 2)), "lw": 0.9}
+_SIM_COLORS = {"T": "#641e16", "T_veh": "#4a235a"}
+_SEPARATOR = {"color": "0.45", "lw": 0.6, "zorder": 0.5}
+# Figure 5 points: filled circle, or hollow square for "assumptions in doubt"
+_POINT = {
+    False: {"marker": "o", "ms": 3.8, "mew": 0.9, "mec": COLORS["T_veh"], "mfc": COLORS["T_veh"]},
+    True: {"marker": "s", "ms": 3.6, "mew": 0.9, "mec": COLORS["T_veh"], "mfc": "none"},
+}
+_TIME_LABEL = "time since window start (h)"
+_MAX_TICKS = 12.0  # at most about this many time ticks over the whole axis
+_HOUR_STEPS = (0.25, 0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 12.0, 24.0, 48.0, 72.0, 168.0)
 
 
 def _seconds(stamps: pd.Series) -> np.ndarray:
@@ -66,12 +114,14 @@ def kvalue_figure(
     title: str,
     *,
     offset_s: float | None = None,
+    synthetic: bool = False,
 ) -> Figure:
     """T, T_veh, T_o (left axis, degC) and Q_H (right axis, kW) over the whole record with the
     k window shaded and a box with k +- u(k) and the steady-state verdict.
 
     ``record`` and ``window`` are tidy tables (the whole file and the k window);
-    ``offset_s`` places the window on the record's time axis (default: from ``timestamp``)."""
+    ``offset_s`` places the window on the record's time axis (default: from ``timestamp``);
+    ``synthetic`` adds the :data:`SYNTHETIC_NOTE` footer."""
     if offset_s is None:
         offset_s = window_offset_s(record, window)
     with matplotlib.rc_context(_RC):
@@ -133,6 +183,8 @@ def kvalue_figure(
             fontsize=8,
             bbox={"boxstyle": "round", "facecolor": "white", "lw": 0.5},
         )
+    if synthetic:
+        synthetic_note(fig)
     return fig
 
 
@@ -158,3 +210,541 @@ def save_figure(fig: Figure, stem: str | os.PathLike[str]) -> tuple[Path, Path]:
         fig.savefig(png, format="png", dpi=DPI, metadata=PNG_METADATA)
         fig.savefig(svg, format="svg", metadata=SVG_METADATA)
     return png, svg
+
+
+def synthetic_note(fig: Figure, text: str = SYNTHETIC_NOTE) -> Text:
+    """Add the footer ``text`` (default :data:`SYNTHETIC_NOTE`) at the figure's bottom right.
+
+    For a constrained-layout figure (also one this module already settled) the layout keeps a
+    strip at the bottom free for it, so the note covers no tick label, axis label or legend,
+    and is then settled (:func:`_settle`: later draws and saves reuse that layout unchanged).
+    Returns the text."""
+    size = 6.5
+    strip = min(0.2, 1.9 * size / 72.0 / fig.get_figheight())  # figure fraction for one line
+    engine = fig.get_layout_engine()
+    # a placeholder that replaced a constrained layout (adjust_compatible False): ours, settled
+    settled = isinstance(engine, PlaceHolderLayoutEngine) and not engine.adjust_compatible
+    if settled:
+        engine = ConstrainedLayoutEngine()  # the defaults, as layout="constrained" gives
+        fig.set_layout_engine(engine)
+    if isinstance(engine, ConstrainedLayoutEngine):
+        engine.set(rect=(0.0, strip, 1.0, 1.0 - strip))
+    with matplotlib.rc_context(_RC):
+        note = fig.text(
+            0.995,
+            0.25 * strip,
+            text,
+            ha="right",
+            va="bottom",
+            fontsize=size,
+            fontstyle="italic",
+            color="0.3",
+        )
+    if isinstance(engine, ConstrainedLayoutEngine):
+        _settle(fig)
+    return note
+
+
+def _settle(fig: Figure, passes: int = 10, tol: float = 1e-6) -> Figure:
+    """Run the constrained layout to its fixed point, then keep that layout for good.
+
+    Twin and secondary axes, titles above top tick labels and legends in small grid cells make
+    each constrained-layout pass start from the previous one's result, so a figure drawn twice
+    would come out slightly different. Laying out (without rendering) until the axes stop
+    moving (by less than ``tol`` of the figure size; the passes converge geometrically, in 3
+    to 6 passes) and then swapping the engine for a placeholder makes every later draw, PNG or
+    SVG, first save or second, use the very same layout: :func:`save_figure` stays byte for
+    byte."""
+    with matplotlib.rc_context(_RC):
+        before = None
+        for _ in range(passes):
+            fig.draw_without_rendering()
+            now = np.array([ax.get_position().bounds for ax in fig.axes])
+            if before is not None and float(np.abs(now - before).max()) < tol:
+                break
+            before = now
+        fig.set_layout_engine("none")
+        # the solver's last bits depend on its internal order (they differed from one process
+        # to the next with a footer's rect): round them off so the ids in the SVG, hashes of
+        # the clip rectangles, are the same in every run
+        for ax in fig.axes:
+            ax.set_position([round(float(v), 9) for v in ax.get_position().bounds])
+    return fig
+
+
+def _finish(fig: Figure, synthetic: bool) -> Figure:
+    """The footer when asked; the settled layout either way."""
+    if synthetic:
+        synthetic_note(fig)
+        return fig
+    return _settle(fig)
+
+
+# --- windows laid side by side on one time axis -------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Windows:
+    """The side-by-side layout of a series' windows (consecutive blocks of ``window``).
+
+    ``x``: hours on the common axis, one NaN between windows so no line joins two of them;
+    ``rows``: the series row of each ``x`` (-1 at the NaNs); ``spans``: (name, start, end, local
+    start) per window in axis hours; ``gap``: hours between one window's end and the next."""
+
+    x: np.ndarray
+    rows: np.ndarray
+    spans: tuple[tuple[str, float, float, float], ...]
+    gap: float
+
+    def values(self, series: pd.DataFrame, column: str) -> np.ndarray:
+        """``column`` on the layout (NaN between windows; all NaN if the column is absent)."""
+        if column not in series:
+            return np.full(self.x.size, np.nan)
+        v = series[column].to_numpy(dtype=float)
+        return np.where(self.rows >= 0, v[np.maximum(self.rows, 0)], np.nan)
+
+    def separators(self) -> list[float]:
+        """Axis hours of the thin lines between windows (the middle of each gap)."""
+        return [(a[2] + b[1]) / 2.0 for a, b in zip(self.spans, self.spans[1:], strict=False)]
+
+    def ticks(self) -> tuple[list[float], list[str]]:
+        """Tick positions and labels: each window's own hours (0, step, 2 step ...), with one
+        nice step for all windows; a tick too close to the next window's 0 is left out."""
+        length = self.spans[-1][2] - self.spans[0][1]
+        step = next((s for s in _HOUR_STEPS if length / s <= _MAX_TICKS), None)
+        if step is None:
+            step = _HOUR_STEPS[-1] * np.ceil(length / _MAX_TICKS / _HOUR_STEPS[-1])
+        positions, labels = [], []
+        for i, (_, start, end, local0) in enumerate(self.spans):
+            limit = end if i + 1 == len(self.spans) else self.spans[i + 1][1] - 0.45 * step
+            first = np.ceil(local0 / step - 1e-9) * step
+            for local in np.arange(first, local0 + (limit - start) + 1e-9, step):
+                positions.append(start + local - local0)
+                labels.append(f"{local + 0.0:g}")  # + 0.0: no "-0"
+        return positions, labels
+
+
+def _windows(series: pd.DataFrame) -> _Windows:
+    """Lay the windows of an ``order{n}_series.csv`` table side by side (file order kept)."""
+    missing = [c for c in ("window", "time") if c not in series]
+    if missing:
+        raise ValueError(f"the series lacks the column(s) {', '.join(missing)}")
+    if len(series) == 0:
+        raise ValueError("the series is empty")
+    names = series["window"].astype(str).to_numpy()
+    hours = series["time"].to_numpy(dtype=float) / 3600.0
+    starts = np.flatnonzero(np.r_[True, names[1:] != names[:-1]])
+    stops = np.r_[starts[1:], names.size]
+    total = float(sum(hours[b - 1] - hours[a] for a, b in zip(starts, stops, strict=True)))
+    gap = 0.03 * total if starts.size > 1 else 0.0
+    if starts.size > 1 and gap <= 0.0:
+        gap = 1.0 / 60.0
+    xs, rows, spans = [], [], []
+    offset = 0.0
+    for a, b in zip(starts, stops, strict=True):
+        if xs:
+            xs.append(np.array([np.nan]))
+            rows.append(np.array([-1]))
+        local = hours[a:b]
+        x = offset + (local - local[0])
+        xs.append(x)
+        rows.append(np.arange(a, b))
+        spans.append((str(names[a]), float(x[0]), float(x[-1]), float(local[0])))
+        offset = float(x[-1]) + gap
+    return _Windows(np.concatenate(xs), np.concatenate(rows), tuple(spans), gap)
+
+
+def _time_axis(axes: Sequence[Any], lay: _Windows, *, names: bool = True) -> None:
+    """Ticks, limits, separators and window names for panels sharing the layout ``lay``.
+
+    ``axes`` share their x axis, top panel first; the last one carries the tick labels and the
+    axis label, the first one the window names above it (a secondary axis, so the layout
+    makes room for them)."""
+    positions, labels = lay.ticks()
+    bottom = axes[-1]
+    bottom.set_xticks(positions, labels)
+    bottom.set_xlim(lay.spans[0][1], lay.spans[-1][2])
+    bottom.set_xlabel(_TIME_LABEL)
+    for ax in axes:
+        for x in lay.separators():
+            ax.axvline(x, **_SEPARATOR)
+        ax.grid(True, lw=0.4, alpha=0.5)
+        if ax is not bottom:
+            ax.tick_params(labelbottom=False)
+    if names:
+        top = axes[0].secondary_xaxis("top")
+        top.set_xticks([(s[1] + s[2]) / 2.0 for s in lay.spans], [s[0] for s in lay.spans])
+        top.tick_params(length=0, pad=1.5, labelsize=8)
+
+
+def _legend_row(
+    fig: Figure, cell: Any, handles: list[Any], ncols: int, handlelength: float = 2.4
+) -> None:
+    """The legend in its own (axis-free) grid cell below the panels, so it hides no data and
+    the layout keeps it clear of the tick labels and of a footer."""
+    row = fig.add_subplot(cell)
+    row.set_axis_off()
+    row.legend(
+        handles=handles,
+        loc="upper center",
+        ncols=ncols,
+        frameon=False,
+        borderaxespad=0,
+        handlelength=handlelength,
+        columnspacing=1.2,
+    )
+
+
+def _has_data(v: np.ndarray) -> bool:
+    return bool(np.isfinite(v).any())
+
+
+def _inputs_panel(ax: Any, series: pd.DataFrame, lay: _Windows) -> list[Any]:
+    """T_o (left, degC) and Q_H (right, kW, held over each sample: step "post")."""
+    axq = ax.twinx()
+    lines = ax.plot(
+        lay.x, lay.values(series, "T_o"), color=COLORS["T_o"], lw=1.0, label="T_o (tunnel air)"
+    )
+    q = lay.values(series, "Q_H") / 1000.0
+    lines += axq.step(
+        lay.x, q, where="post", color=COLORS["Q_H"], lw=0.6, alpha=0.75, label="Q_H (heat input)"
+    )
+    ax.set_ylabel("T_o (°C)")
+    axq.set_ylabel("Q_H (kW)")
+    if _has_data(q):
+        low, high = min(0.0, float(np.nanmin(q))), float(np.nanmax(q))
+        axq.set_ylim(low, high + 0.1 * (high - low) if high > low else low + 1.0)
+    ax.set_zorder(axq.get_zorder() + 1)  # the temperature over the power trace
+    ax.patch.set_visible(False)
+    return lines
+
+
+def _fmt(x: Any, digits: int) -> str:
+    try:
+        value = float(x)
+    except (TypeError, ValueError):
+        return "n/a"
+    return f"{value:.{digits}f}" if np.isfinite(value) else "n/a"
+
+
+def _fit_text(fit: Mapping[str, Any]) -> str:
+    """R^2 (eq. 21) and NRMSE fit of T (as in the fit file) and the verdict."""
+    return "\n".join(
+        [
+            f"R² of T (eq. 21) = {_fmt(fit.get('R2'), 4)}",
+            f"NRMSE fit of T = {_fmt(fit.get('nrmse_fit'), 3)}",
+            f"verdict: {fit.get('verdict', 'n/a')}",
+        ]
+    )
+
+
+def fit_figure(
+    series: pd.DataFrame,
+    fit: Mapping[str, Any],
+    title: str,
+    *,
+    synthetic: bool = False,
+) -> Figure:
+    """One vehicle, one model order: measured vs simulated temperatures (top), the residuals of
+    the compared outputs (middle, measured - simulated, K) and the inputs T_o and Q_H (bottom),
+    on one side-by-side time axis; legends and a box with R^2 (eq. 21), the NRMSE fit and the
+    verdict stand right of the panels.
+
+    ``series`` is an ``order{n}_series.csv`` table, ``fit`` the ``fit_order{n}.yaml`` mapping.
+    T_veh is drawn when it was compared (``"T_veh" in fit["outputs"]``) or measured."""
+    lay = _windows(series)
+    outputs = [str(o) for o in (fit.get("outputs") or ["T"])]
+    with matplotlib.rc_context(_RC):
+        fig = Figure(figsize=FIGSIZE_IN, dpi=DPI, layout="constrained")
+        FigureCanvasAgg(fig)
+        grid = fig.add_gridspec(3, 2, height_ratios=[2.3, 1.0, 1.1], width_ratios=[4.7, 1.3])
+        ax = fig.add_subplot(grid[0, 0])
+        axr = fig.add_subplot(grid[1, 0], sharex=ax)
+        axi = fig.add_subplot(grid[2, 0], sharex=ax)
+        infos = [fig.add_subplot(grid[i, 1]) for i in range(3)]
+        for info in infos:
+            info.set_axis_off()
+
+        lines = []
+        for state in ("T", "T_veh"):
+            measured = lay.values(series, state)
+            simulated = lay.values(series, f"{state}_sim")
+            if state == "T_veh" and not (_has_data(measured) or state in outputs):
+                continue
+            if _has_data(measured):
+                lines += ax.plot(
+                    lay.x, measured, color=COLORS[state], label=f"{state} measured", **_MEASURED
+                )
+            if _has_data(simulated):
+                lines += ax.plot(
+                    lay.x,
+                    simulated,
+                    color=_SIM_COLORS[state],
+                    label=f"{state} simulated",
+                    **_SIMULATED,
+                )
+        ax.set_ylabel("temperature (°C)")
+        ax.set_title(title, loc="left")
+
+        residuals = []
+        axr.axhline(0.0, color="0.2", lw=0.6)
+        for state in outputs:
+            e = lay.values(series, f"{state}_residual")
+            if not _has_data(e):  # no residual column: measured - simulated
+                e = lay.values(series, state) - lay.values(series, f"{state}_sim")
+            if _has_data(e):
+                residuals += axr.plot(
+                    lay.x, e, color=COLORS.get(state, "0.3"), lw=0.5, label=f"{state} residual"
+                )
+        axr.set_ylabel("meas. − sim. (K)")
+
+        inputs = _inputs_panel(axi, series, lay)
+        _time_axis([ax, axr, axi], lay)
+
+        legend = {"loc": "upper left", "frameon": False, "borderaxespad": 0, "handlelength": 2.4}
+        infos[0].legend(handles=lines, **legend)
+        infos[0].text(
+            0.0,
+            0.0,
+            _fit_text(fit),
+            transform=infos[0].transAxes,
+            ha="left",
+            va="bottom",
+            fontsize=8,
+            bbox={"boxstyle": "round", "facecolor": "white", "lw": 0.5},
+        )
+        if residuals:
+            infos[1].legend(handles=residuals, **legend)
+        infos[2].legend(handles=inputs, **legend)
+    return _finish(fig, synthetic)
+
+
+def _same_windows(a: pd.DataFrame, b: pd.DataFrame) -> bool:
+    return (
+        len(a) == len(b)
+        and bool((a["window"].astype(str).to_numpy() == b["window"].astype(str).to_numpy()).all())
+        and bool(np.allclose(a["time"].to_numpy(dtype=float), b["time"].to_numpy(dtype=float)))
+    )
+
+
+def figure3(
+    series1: pd.DataFrame,
+    series2: pd.DataFrame,
+    title: str = "Tram2: first- and second-order model vs measurement (Figure 3)",
+    *,
+    synthetic: bool = False,
+) -> Figure:
+    """The paper's Figure 3: measured T and the simulations of the first-order (``series1``,
+    eq. 9) and second-order model (``series2``, eqs. 7-8) over the identification windows laid
+    side by side, with a small panel of the inputs Q_H (kW) and T_o (degC, from ``series2``).
+
+    Both series must cover the same windows and times (ValueError otherwise)."""
+    lay = _windows(series2)
+    if not {"window", "time"} <= set(series1) or not _same_windows(series1, series2):
+        raise ValueError("figure3: the two series must cover the same windows and times")
+    with matplotlib.rc_context(_RC):
+        fig = Figure(figsize=FIGSIZE_IN, dpi=DPI, layout="constrained")
+        FigureCanvasAgg(fig)
+        grid = fig.add_gridspec(3, 1, height_ratios=[3.0, 1.0, 0.3])
+        ax = fig.add_subplot(grid[0])
+        axi = fig.add_subplot(grid[1], sharex=ax)
+        lines = ax.plot(
+            lay.x, lay.values(series2, "T"), color=COLORS["T"], label="measured T", **_MEASURED
+        )
+        for order, series in ((1, series1), (2, series2)):
+            lines += ax.plot(
+                lay.x, lay.values(series, "T_sim"), label=MODEL_LABELS[order], **MODEL_STYLES[order]
+            )
+        ax.set_ylabel("T, indoor air (°C)")
+        ax.set_title(title, loc="left")
+        lines += _inputs_panel(axi, series2, lay)
+        _time_axis([ax, axi], lay)
+        _legend_row(fig, grid[2], lines, ncols=3)
+    return _finish(fig, synthetic)
+
+
+def figure4(
+    series: Mapping[str, pd.DataFrame],
+    title: str = "Measured and simulated indoor air temperature (Figure 4)",
+    *,
+    synthetic: bool = False,
+) -> Figure:
+    """The paper's Figure 4: one panel per vehicle (``series`` maps the vehicle name to its
+    order-2 series, in panel order) with measured and simulated indoor air temperature T over
+    its windows (hours since the window start)."""
+    if not series:
+        raise ValueError("figure4 needs at least one vehicle")
+    layouts = {name: _windows(s) for name, s in series.items()}
+    with matplotlib.rc_context(_RC):
+        fig = Figure(figsize=FIGSIZE_IN, dpi=DPI, layout="constrained")
+        FigureCanvasAgg(fig)
+        grid = fig.add_gridspec(len(series) + 1, 1, height_ratios=[1.0] * len(series) + [0.1])
+        axes = [fig.add_subplot(grid[i]) for i in range(len(series))]
+        lines: list[Any] = []
+        for ax, (name, s) in zip(axes, series.items(), strict=True):
+            lay = layouts[name]
+            measured = ax.plot(
+                lay.x, lay.values(s, "T"), color=COLORS["T"], label="measured T", **_MEASURED
+            )
+            simulated = ax.plot(
+                lay.x,
+                lay.values(s, "T_sim"),
+                label="simulated T, " + MODEL_LABELS[2],
+                **MODEL_STYLES[2],
+            )
+            lines = lines or measured + simulated
+            ax.set_ylabel("T (°C)")
+            ax.set_title(name, loc="left", fontsize=9)
+            _time_axis([ax], lay, names=len(lay.spans) > 1)
+        fig.suptitle(title, x=0.01, ha="left", fontsize=10)
+        _legend_row(fig, grid[-1], lines, ncols=2)
+    return _finish(fig, synthetic)
+
+
+def _class_order(classes: Sequence[str]) -> list[str]:
+    """The classes present: the paper's order first, then any other in order of appearance."""
+    present = list(dict.fromkeys(str(c) for c in classes))
+    return [c for c in CLASS_ORDER if c in present] + [c for c in present if c not in CLASS_ORDER]
+
+
+def _spread(n: int, half_width: float = 0.22) -> np.ndarray:
+    """Deterministic horizontal offsets of n points inside a box, evenly spread."""
+    return np.linspace(-half_width, half_width, n) if n > 1 else np.zeros(n)
+
+
+def _declutter(y: np.ndarray, sep: float) -> np.ndarray:
+    """Label heights (axes fraction) at least ``sep`` apart and inside [0, 1], each as close to
+    its point's height as that allows; ``y`` sorted ascending."""
+    out = np.array(y, dtype=float)
+    for i in range(1, out.size):
+        out[i] = max(out[i], out[i - 1] + sep)
+    if out.size:
+        out[-1] = min(out[-1], 1.0 - sep / 2)
+    for i in range(out.size - 2, -1, -1):
+        out[i] = min(out[i], out[i + 1] - sep)
+    return out
+
+
+def _limits(values: np.ndarray, log: bool, pad: float = 0.07) -> tuple[float, float]:
+    """Axis limits around the finite ``values`` (a fraction ``pad`` of the span each side)."""
+    v = values[np.isfinite(values) & ((values > 0) if log else True)]
+    lo, hi = (np.log10(v.min()), np.log10(v.max())) if log else (v.min(), v.max())
+    span = hi - lo if hi > lo else (abs(hi) if hi else 1.0)
+    lo, hi = lo - pad * span, hi + pad * span
+    return (10.0**lo, 10.0**hi) if log else (float(lo), float(hi))
+
+
+def _class_figure(
+    table3: pd.DataFrame, quantity: str, title: str, ylabel: str, log_if_span: float | None
+) -> Figure:
+    """Box plot of ``quantity`` per class with each vehicle's point, 95 % interval and name."""
+    values = table3[quantity].to_numpy(dtype=float)
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        raise ValueError(f"table3 has no finite {quantity}")
+    log = bool(
+        log_if_span is not None and finite.min() > 0 and finite.max() / finite.min() > log_if_span
+    )
+    if log:
+        ylabel += ", log scale"
+    bounds = np.r_[finite, table3[f"{quantity}_lo"], table3[f"{quantity}_hi"]].astype(float)
+    ylim = _limits(bounds, log)
+
+    def frac(y: float) -> float:  # height as a fraction of the axes
+        f = np.log10 if log else (lambda z: z)
+        return float((f(y) - f(ylim[0])) / (f(ylim[1]) - f(ylim[0])))
+
+    with matplotlib.rc_context(_RC):
+        fig = Figure(figsize=FIGSIZE_FIG5_IN, dpi=DPI, layout="constrained")
+        FigureCanvasAgg(fig)
+        grid = fig.add_gridspec(2, 1, height_ratios=[1.0, 0.12])
+        ax = fig.add_subplot(grid[0])
+        if log:
+            ax.set_yscale("log")
+        ax.set_ylim(*ylim)
+        # a label is about 6 pt high; the axes about 0.55 of the figure height
+        sep = 6.5 / (0.55 * 72.0 * fig.get_figheight())
+        name_at = transforms.offset_copy(ax.get_xaxis_transform(), fig=fig, x=3.0, units="points")
+        classes = _class_order(table3["class"].tolist())
+        boxes, labels = [], []
+        for pos, cls in enumerate(classes, start=1):
+            part = table3[table3["class"].astype(str) == cls]
+            v = part[quantity].to_numpy(dtype=float)
+            ok = np.isfinite(v)
+            boxes.append(v[ok])
+            labels.append(f"{cls}\n(n={int(ok.sum())})")
+            order = np.argsort(np.where(ok, v, np.inf), kind="stable")[: int(ok.sum())]
+            heights = _declutter(np.array([frac(v[i]) for i in order]), sep)
+            for dx, i, h in zip(_spread(order.size), order, heights, strict=True):
+                row = part.iloc[i]
+                x, y = pos + dx, float(v[i])
+                lo, hi = float(row[f"{quantity}_lo"]), float(row[f"{quantity}_hi"])
+                if np.isfinite(lo) and np.isfinite(hi):
+                    ax.vlines(x, lo, hi, color=COLORS["T_veh"], lw=0.6, alpha=0.8, zorder=2)
+                doubt = str(row["verdict"]) == DOUBT
+                (point,) = ax.plot([x], [y], ls="none", zorder=5, **_POINT[doubt])  # over names
+                point.set_gid(f"vehicle-{row['vehicle']}")
+                ax.text(
+                    x,
+                    h,
+                    str(row["vehicle"]),
+                    transform=name_at,
+                    ha="left",
+                    va="center",
+                    fontsize=5.5,
+                    color="0.2",
+                    zorder=4,
+                    # a faint white ground keeps the name legible over bars and box lines
+                    bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.7},
+                )
+        positions = list(range(1, len(classes) + 1))
+        grey = {"color": "0.35", "lw": 0.8}
+        ax.boxplot(
+            boxes,
+            positions=positions,
+            widths=0.62,
+            showfliers=False,
+            manage_ticks=False,
+            boxprops=grey,
+            whiskerprops=grey,
+            capprops=grey,
+            medianprops={"color": "0.1", "lw": 1.2},
+            zorder=1,
+        )
+        ax.set_xticks(positions, labels)
+        ax.set_xlim(0.45, len(classes) + 0.75)
+        ax.set_ylabel(ylabel)
+        ax.set_title(title, loc="left")
+        ax.grid(True, axis="y", lw=0.4, alpha=0.5)
+        verdicts = table3["verdict"].astype(str)
+        handles = [
+            Line2D([], [], ls="none", label=label, **_POINT[doubt])
+            for doubt, label in ((False, "fit acceptable"), (True, DOUBT))
+            if ((verdicts == DOUBT) == doubt).any()
+        ]
+        bar = {"marker": "|", "ms": 9, "mew": 0.6, "color": COLORS["T_veh"]}
+        handles.append(Line2D([], [], ls="none", label="95 % interval", **bar))
+        _legend_row(fig, grid[1], handles, ncols=2, handlelength=1.2)
+    return fig
+
+
+def figure5(table3: pd.DataFrame, *, synthetic: bool = False) -> tuple[Figure, Figure]:
+    """The paper's Figure 5: (a) c_veh and (b) delta by vehicle class (Table 3).
+
+    Box plots per class in the order tram, metro, regional, main-line (then any other class),
+    only classes present; every vehicle's value as a point (evenly spread inside its box,
+    sorted by value), its 95 % interval as a thin bar (left out when a bound is not finite)
+    and its name (nudged up or down where names would overlap). Vehicles whose verdict is
+    "assumptions in doubt" have a hollow square, the others a filled circle. Tick labels give
+    the class and, below it, the number of vehicles with a value ("tram\n(n=2)"). delta gets
+    a log axis when its values span more than a factor 20 (said in the axis label)."""
+    need = ["vehicle", "class", "verdict"]
+    need += [f"{q}{s}" for q in ("c_veh", "delta") for s in ("", "_lo", "_hi")]
+    missing = [c for c in need if c not in table3]
+    if missing:
+        raise ValueError(f"table3 lacks the column(s) {', '.join(missing)}")
+    if len(table3) == 0:
+        raise ValueError("table3 is empty")
+    a = _class_figure(table3, "c_veh", "(a) c_veh by vehicle class", "c_veh (J/(kg K))", None)
+    b = _class_figure(table3, "delta", "(b) δ by vehicle class", "δ = C_veh / C (1)", 20.0)
+    return _finish(a, synthetic), _finish(b, synthetic)
