@@ -47,6 +47,7 @@ u(k) is the root sum of squares of the components.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -178,6 +179,19 @@ class KValue:
             "budget": self.budget.to_dict(),
             "window": {"start": _plain(self.window_start), "end": _plain(self.window_end)},
         }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> KValue:
+        """The inverse of :meth:`to_dict` (a kvalue.yaml read back)."""
+        names = {f.name for f in dataclasses.fields(cls)} - {"budget", "reasons"}
+        window = data.get("window") or {}
+        return cls(
+            **{k: data[k] for k in names if k in data},
+            reasons=tuple(data["reasons"]),
+            budget=Budget(**data["budget"]),
+            window_start=window.get("start"),
+            window_end=window.get("end"),
+        )
 
 
 def _plain(value: Any) -> Any:
