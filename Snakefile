@@ -8,6 +8,9 @@ min_version("9.0")
 configfile: "config/config.yaml"
 
 
+report: "workflow/report/workflow.rst"
+
+
 validate(config, "workflow/schemas/config.schema.yaml")
 
 
@@ -16,6 +19,7 @@ include: "workflow/rules/synthesize.smk"
 include: "workflow/rules/clean.smk"
 include: "workflow/rules/kvalue.smk"
 include: "workflow/rules/identify.smk"
+include: "workflow/rules/study.smk"
 
 
 rule all:

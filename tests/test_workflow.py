@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import re
 import shutil
 import subprocess
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from matplotlib.image import imread
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = ["Tram2", "Metro3"]
@@ -77,10 +79,24 @@ def test_dry_run_plans_the_whole_campaign(tmp_path):
     assert not (study / "resources").exists()
 
 
-def test_run_writes_raw_files_and_truth_deterministically(tmp_path):
-    first = make_study(tmp_path / "a", SMALL)
-    run = snakemake(first)
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory) -> Path:
+    """One finished run of the small study, shared: tests that edit it work on a copy."""
+    study = make_study(tmp_path_factory.mktemp("small"), SMALL)
+    run = snakemake(study)
     assert run.returncode == 0, run.stderr
+    return study
+
+
+def copy_of(study: Path, tmp_path: Path) -> Path:
+    """A copy of a finished study with its timestamps and Snakemake's records."""
+    target = tmp_path / "study"
+    shutil.copytree(study, target, symlinks=True)  # copy2: modification times kept
+    return target
+
+
+def test_run_writes_raw_files_and_truth_deterministically(small_run, tmp_path):
+    first = copy_of(small_run, tmp_path / "a")
     written = outputs(first)
     assert "results/campaign/ground_truth.csv" in written
     for vid in SMALL:
@@ -93,10 +109,28 @@ def test_run_writes_raw_files_and_truth_deterministically(tmp_path):
             assert f"results/vehicles/{vid}/kvalue.{suffix}" in written
     k_table = written["results/tables/kvalue.csv"].decode().splitlines()
     assert k_table[0].startswith("vehicle,method,k,u_k") and len(k_table) == 1 + len(SMALL)
+    for name in ("table1", "table2", "table3", "class_summary", "class_test"):
+        for ext in ("csv", "md", "tex"):
+            assert f"results/tables/{name}.{ext}" in written
+    assert "synthetic" in written["results/tables/table2.md"].decode().splitlines()[0]
+    # Figure 3 (Tram2 has both orders) and Figure 5; no Figure 4 without Metro1 or Metro2
+    for stem in ("figure3", "figure5a", "figure5b"):
+        assert f"results/figures/{stem}.png" in written
+    assert "results/figures/figure4.png" not in written
+    for vid in SMALL:
+        for n in (1, 2):
+            assert f"results/vehicles/{vid}/fit_order{n}.png" in written
 
     again = snakemake(first)
     assert again.returncode == 0, again.stderr
     assert "Nothing to be done" in again.stdout + again.stderr
+
+    report = snakemake(first, "--report", "report.html")
+    assert report.returncode == 0, report.stderr
+    html = (first / "report.html").read_text(encoding="utf-8")
+    for caption in ("Table 2 (paper Table 2)", "Figure 5 (a) (paper Figure 5a)", "Figure 3"):
+        assert caption in html
+    (first / "report.html").unlink()
 
     second = make_study(tmp_path / "b", SMALL)
     assert snakemake(second).returncode == 0
@@ -117,9 +151,8 @@ def test_bad_vehicle_config_stops_before_any_job(tmp_path):
     assert not (study / "resources").exists() and not (study / "results").exists()
 
 
-def test_editing_one_campaign_vehicle_reruns_only_that_vehicle(tmp_path):
-    study = make_study(tmp_path, SMALL)
-    assert snakemake(study).returncode == 0
+def test_editing_one_campaign_vehicle_reruns_only_that_vehicle(small_run, tmp_path):
+    study = copy_of(small_run, tmp_path)
     campaign_path = study / "config" / "campaign" / "virtual_cwt.yaml"
     campaign = yaml.safe_load(campaign_path.read_text())
     campaign["vehicles"]["Metro3"]["truth"]["C"]["value"] *= 1.1
@@ -130,3 +163,49 @@ def test_editing_one_campaign_vehicle_reruns_only_that_vehicle(tmp_path):
         "resources/campaign/Metro3/Metro3_cwt.csv.gz"
     ]
     assert job_counts(run.stdout + run.stderr)["ground_truth"] == 1
+
+
+def test_editing_one_vehicle_config_reruns_only_its_jobs_and_the_aggregates(small_run, tmp_path):
+    study = copy_of(small_run, tmp_path)
+    path = study / "config" / "vehicles" / "Metro3.yaml"
+    vehicle = yaml.safe_load(path.read_text())
+    vehicle.setdefault("check", {})["r2_min"] = 0.95  # a verdict threshold
+    path.write_text(yaml.safe_dump(vehicle, sort_keys=False))
+    run = snakemake(study, "--dry-run")
+    assert run.returncode == 0, run.stderr
+    counts = job_counts(run.stdout + run.stderr)
+    assert counts["check"] == 2  # Metro3, orders 1 and 2
+    for rule in ("aggregate", "fit_table", "figure5"):
+        assert counts[rule] == 1
+    assert "synthesize" not in counts and "ground_truth" not in counts  # raw data untouched
+    planned = re.findall(r"^\s+output: (.+)$", run.stdout, re.MULTILINE)
+    assert planned and not any("Tram2" in line for line in planned)  # the other vehicle rests
+    assert "figure3" not in counts  # Tram2's figure
+
+
+def png_is_a_picture(data: bytes, min_px: int = 400) -> None:
+    """A PNG of a sensible size whose pixels are not all one colour."""
+    img = imread(io.BytesIO(data), format="png")
+    assert img.shape[0] >= min_px and img.shape[1] >= min_px, img.shape
+    grey = img[..., :3].mean(axis=2)
+    assert grey.std() > 0.02 and (grey < 0.5).mean() > 0.002  # ink on the page
+
+
+@pytest.mark.slow
+def test_full_study_reproduces_the_committed_tables_byte_for_byte(tmp_path):
+    """The README's main command, from clean, in a scratch copy: the same tables as committed
+    under results/tables (the reader's copy), and every figure a real picture."""
+    study = make_study(tmp_path)
+    run = snakemake(study)
+    assert run.returncode == 0, run.stderr[-3000:]
+    committed = sorted((REPO / "results" / "tables").glob("*"))
+    assert len(committed) >= 17
+    for path in committed:
+        fresh = study / "results" / "tables" / path.name
+        assert fresh.read_bytes() == path.read_bytes(), path.name
+    figures = sorted((study / "results").rglob("*.png"))
+    assert len(figures) >= 4 + 13 + 26
+    for png in figures:
+        png_is_a_picture(png.read_bytes())
+    again = snakemake(study)
+    assert "Nothing to be done" in again.stdout + again.stderr

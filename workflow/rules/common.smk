@@ -90,6 +90,37 @@ def fit_targets():
     return [(vid, n) for vid in VEHICLES for n in STUDY.vehicles[vid].model["orders"]]
 
 
+def second_order_vehicles():
+    """Vehicles with a second-order fit: the rows of Tables 2 and 3."""
+    return [vid for vid, n in fit_targets() if n == 2]
+
+
+def figure3_vehicle():
+    """The vehicle of Figure 3 when it is in the study with first- and second-order fits."""
+    vid = config["study"]["figure3"]
+    return vid if vid and {(vid, 1), (vid, 2)} <= set(fit_targets()) else None
+
+
+def figure4_vehicles():
+    """The configured Figure 4 vehicles that have a second-order fit."""
+    return [vid for vid in config["study"]["figure4"] if vid in second_order_vehicles()]
+
+
+STUDY_TABLES = ("table1", "table2", "table3", "class_summary", "class_test")
+
+
+def study_figures():
+    """Stems of the study figures this config can draw (results/figures/<stem>.png/.svg)."""
+    stems = []
+    if figure3_vehicle():
+        stems.append("figure3")
+    if figure4_vehicles():
+        stems.append("figure4")
+    if second_order_vehicles():
+        stems += ["figure5a", "figure5b"]
+    return stems
+
+
 def all_outputs():
     """The targets of `rule all`."""
     targets = [path for vid in VEHICLES for path in raw_files(vid)]
@@ -98,11 +129,27 @@ def all_outputs():
         for vid in VEHICLES
         for window in tidy_tables(vid)
     ]
-    targets += [f"results/vehicles/{vid}/kvalue.yaml" for vid in kvalue_vehicles()]
+    targets += [
+        f"results/vehicles/{vid}/kvalue.{ext}"
+        for vid in kvalue_vehicles()
+        for ext in ("yaml", "png", "svg")
+    ]
     if kvalue_vehicles():
         targets.append("results/tables/kvalue.csv")
     targets += [f"results/vehicles/{vid}/fit_order{n}.yaml" for vid, n in fit_targets()]
     targets.append("results/tables/identification.csv")
+    targets += [
+        f"results/vehicles/{vid}/fit_order{n}.{ext}"
+        for vid, n in fit_targets()
+        for ext in ("png", "svg")
+    ]
+    if second_order_vehicles():
+        targets += [
+            f"results/tables/{name}.{ext}"
+            for name in STUDY_TABLES
+            for ext in ("csv", "md", "tex")
+        ]
+    targets += [f"results/figures/{stem}.{ext}" for stem in study_figures() for ext in ("png", "svg")]
     if CAMPAIGN:
         targets += [
             "results/campaign/ground_truth.csv",

@@ -1,0 +1,21 @@
+"""Adapter for rule aggregate: Tables 1-3, class statistics and the class test (CSV, MD, TeX)."""
+
+from pathlib import Path
+
+import yaml
+
+from railtherm import aggregate, logs
+
+log = logs.to_file(snakemake.log[0])
+vehicles = snakemake.params.vehicles
+fits = {
+    vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    for vid, path in zip(vehicles, snakemake.input.fits, strict=True)
+}
+kvalues = {vid: None for vid in vehicles} | {
+    vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    for vid, path in zip(snakemake.params.with_kvalue, snakemake.input.kvalues, strict=True)
+}
+tables = aggregate.study_tables(fits, kvalues, vehicles, snakemake.params.class_test)
+aggregate.write_study_tables(tables, aggregate.data_source(vehicles), dict(snakemake.output))
+log.info("tables of %d vehicles", len(vehicles))
