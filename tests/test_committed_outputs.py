@@ -1,0 +1,57 @@
+"""What a reader sees without running anything: the committed tables and figures."""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib.image import imread
+
+from railtherm import aggregate
+
+REPO = Path(__file__).resolve().parents[1]
+TABLES = REPO / "results" / "tables"
+FIGURES = REPO / "results" / "figures"
+STUDY_TABLES = ("table1", "table2", "table3", "class_summary", "class_test")
+
+
+@pytest.mark.parametrize("stem", ["figure3", "figure4", "figure5a", "figure5b"])
+def test_committed_figure_is_a_legible_picture(stem):
+    for ext in ("png", "svg"):
+        assert (FIGURES / f"{stem}.{ext}").is_file()
+    img = imread(FIGURES / f"{stem}.png")
+    assert min(img.shape[:2]) >= 500  # paper size at 200 dpi
+    grey = img[..., :3].mean(axis=2)
+    assert grey.std() > 0.05, "blank or nearly blank"
+    # ink in every quarter of the picture: axes, data and labels, not a lone corner
+    h, w = grey.shape
+    for part in (
+        grey[: h // 2, : w // 2],
+        grey[: h // 2, w // 2 :],
+        grey[h // 2 :, : w // 2],
+        grey[h // 2 :, w // 2 :],
+    ):
+        assert (part < 0.6).mean() > 0.001
+
+
+@pytest.mark.parametrize("name", STUDY_TABLES)
+def test_committed_table_names_its_data_source(name):
+    csv = pd.read_csv(TABLES / f"{name}.csv")
+    assert (csv["source"] == aggregate.SYNTHETIC_SOURCE).all()
+    first = (TABLES / f"{name}.md").read_text(encoding="utf-8").splitlines()[0]
+    assert "synthetic" in first and "not measurements" in first
+    assert "synthetic" in (TABLES / f"{name}.tex").read_text(encoding="utf-8")
+
+
+def test_committed_table3_follows_from_table2_and_the_masses():
+    t2 = pd.read_csv(TABLES / "table2.csv").set_index("vehicle")
+    t3 = pd.read_csv(TABLES / "table3.csv").set_index("vehicle")
+    np.testing.assert_allclose(t3["c_veh"], t2["C_veh"] / t3["m_veh"], rtol=1e-12)
+    np.testing.assert_allclose(t3["delta"], t2["C_veh"] / t2["C"], rtol=1e-12)
+    assert ((t3["delta_lo"] <= t3["delta"]) & (t3["delta"] <= t3["delta_hi"])).all()
+
+
+def test_readme_shows_figure_5():
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert "](results/figures/figure5a.png)" in readme
+    assert "](results/figures/figure5b.png)" in readme
