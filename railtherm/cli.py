@@ -3,8 +3,11 @@
 ``railtherm validate [--config config/config.yaml] [VEHICLE.yaml ...]`` checks the study config
 and every vehicle it lists (or only the vehicle files given, with the study's defaults and
 campaign layouts when the study config exists). It prints ``ok: N vehicles`` and exits 0, or
-prints the one-line error on stderr and exits 1. More subcommands (new-vehicle, simulate,
-audit) plug into :func:`build_parser`.
+prints the one-line error on stderr and exits 1.
+
+``railtherm audit PUBLISHED.yaml [--ranges config/audit.yaml] [--estimates results/tables]
+[--out results/audit] [--fail-on never|error|warning]`` runs the audit of published values
+(:mod:`railtherm.audit`) without the rest of the pipeline.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ from collections.abc import Sequence
 
 from railtherm import __version__
 from railtherm.config import Study, add_vehicle, load_study, read_yaml, study_context
-from railtherm.errors import RailthermError
+from railtherm.errors import ConfigError, RailthermError
 
 
 def _validate(args: argparse.Namespace) -> int:
@@ -35,6 +38,22 @@ def _validate(args: argparse.Namespace) -> int:
     count = len(study.vehicles)
     print(f"ok: {count} vehicle{'' if count == 1 else 's'}")
     return 0
+
+
+def _audit(args: argparse.Namespace) -> int:
+    from railtherm import audit  # pandas only when auditing
+
+    estimates = args.estimates
+    if estimates is not None and not os.path.isfile(os.path.join(estimates, "table2.csv")):
+        raise ConfigError(
+            "--estimates", "(directory)", estimates, "holds no table2.csv of re-estimates"
+        )
+    findings = audit.audit(args.published, args.ranges, estimates, args.out)
+    counts = findings["severity"].value_counts()
+    summary = ", ".join(f"{counts.get(s, 0)} {s}" for s in audit.SEVERITIES)
+    print(f"{args.out}/findings.csv, {args.out}/audit.md: {summary}")
+    fail = {"never": (), "error": ("error",), "warning": ("error", "warning")}[args.fail_on]
+    return 1 if any(counts.get(s, 0) for s in fail) else 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -67,6 +86,37 @@ def build_parser() -> argparse.ArgumentParser:
     )
     validate.add_argument("vehicles", nargs="*", metavar="VEHICLE.yaml", help="vehicle files")
     validate.set_defaults(run=_validate)
+
+    audit = commands.add_parser(
+        "audit",
+        help="audit a set of published values (consistency, plausibility, fitness, units)",
+        description=(
+            "Run the audit checks on PUBLISHED.yaml (the format of config/published/paper.yaml) "
+            "and write findings.csv and audit.md to --out. Without the rest of the pipeline; "
+            "with --estimates, also the published values beside railtherm's re-estimates."
+        ),
+    )
+    audit.add_argument("published", metavar="PUBLISHED.yaml", help="published values")
+    audit.add_argument(
+        "--ranges",
+        default="config/audit.yaml",
+        help="class-typical ranges and thresholds (default: %(default)s)",
+    )
+    audit.add_argument(
+        "--estimates",
+        metavar="DIR",
+        help="directory with table2.csv (and table3.csv) of re-estimates, e.g. results/tables",
+    )
+    audit.add_argument(
+        "--out", default="results/audit", help="output directory (default: %(default)s)"
+    )
+    audit.add_argument(
+        "--fail-on",
+        choices=["never", "error", "warning"],
+        default="never",
+        help="exit 1 if there are findings of this severity or worse (default: %(default)s)",
+    )
+    audit.set_defaults(run=_audit)
     return parser
 
 
