@@ -20,6 +20,7 @@ include: "workflow/rules/clean.smk"
 include: "workflow/rules/kvalue.smk"
 include: "workflow/rules/identify.smk"
 include: "workflow/rules/study.smk"
+include: "workflow/rules/audit.smk"
 
 
 rule all:

@@ -55,3 +55,11 @@ def test_readme_shows_figure_5():
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     assert "](results/figures/figure5a.png)" in readme
     assert "](results/figures/figure5b.png)" in readme
+
+
+def test_committed_audit_says_where_the_reestimates_come_from():
+    text = (REPO / "results" / "audit" / "audit.md").read_text(encoding="utf-8")
+    assert "synthetic virtual campaign" in text and "not the published measurements" in text
+    findings = pd.read_csv(REPO / "results" / "audit" / "findings.csv")
+    reproduction = findings[findings["family"] == "reproduction"]
+    assert len(reproduction) > 0 and reproduction["message"].str.contains("synthetic").all()

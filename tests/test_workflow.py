@@ -113,6 +113,8 @@ def test_run_writes_raw_files_and_truth_deterministically(small_run, tmp_path):
         for ext in ("csv", "md", "tex"):
             assert f"results/tables/{name}.{ext}" in written
     assert "synthetic" in written["results/tables/table2.md"].decode().splitlines()[0]
+    findings = written["results/audit/findings.csv"].decode()
+    assert "reproduction,reestimate,Tram2 k" in findings and "Metro1 k" not in findings
     # Figure 3 (Tram2 has both orders) and Figure 5; no Figure 4 without Metro1 or Metro2
     for stem in ("figure3", "figure5a", "figure5b"):
         assert f"results/figures/{stem}.png" in written
@@ -128,7 +130,12 @@ def test_run_writes_raw_files_and_truth_deterministically(small_run, tmp_path):
     report = snakemake(first, "--report", "report.html")
     assert report.returncode == 0, report.stderr
     html = (first / "report.html").read_text(encoding="utf-8")
-    for caption in ("Table 2 (paper Table 2)", "Figure 5 (a) (paper Figure 5a)", "Figure 3"):
+    for caption in (
+        "Table 2 (paper Table 2)",
+        "Figure 5 (a) (paper Figure 5a)",
+        "Figure 3",
+        "Audit of the paper's published reference values",
+    ):
         assert caption in html
     (first / "report.html").unlink()
 
@@ -193,15 +200,17 @@ def png_is_a_picture(data: bytes, min_px: int = 400) -> None:
 
 @pytest.mark.slow
 def test_full_study_reproduces_the_committed_tables_byte_for_byte(tmp_path):
-    """The README's main command, from clean, in a scratch copy: the same tables as committed
-    under results/tables (the reader's copy), and every figure a real picture."""
+    """The README's main command, from clean, in a scratch copy: the same tables and audit as
+    committed under results/tables and results/audit (the reader's copy), and every figure a
+    real picture."""
     study = make_study(tmp_path)
     run = snakemake(study)
     assert run.returncode == 0, run.stderr[-3000:]
     committed = sorted((REPO / "results" / "tables").glob("*"))
-    assert len(committed) >= 17
+    committed += sorted((REPO / "results" / "audit").glob("*"))
+    assert len(committed) >= 17 + 2
     for path in committed:
-        fresh = study / "results" / "tables" / path.name
+        fresh = study / path.relative_to(REPO)
         assert fresh.read_bytes() == path.read_bytes(), path.name
     figures = sorted((study / "results").rglob("*.png"))
     assert len(figures) >= 4 + 13 + 26

@@ -150,6 +150,8 @@ def all_outputs():
             for ext in ("csv", "md", "tex")
         ]
     targets += [f"results/figures/{stem}.{ext}" for stem in study_figures() for ext in ("png", "svg")]
+    if config["audit"]["published"]:
+        targets += ["results/audit/findings.csv", "results/audit/audit.md"]
     if CAMPAIGN:
         targets += [
             "results/campaign/ground_truth.csv",
