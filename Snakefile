@@ -21,6 +21,7 @@ include: "workflow/rules/kvalue.smk"
 include: "workflow/rules/identify.smk"
 include: "workflow/rules/study.smk"
 include: "workflow/rules/audit.smk"
+include: "workflow/rules/sindy.smk"
 
 
 rule all:

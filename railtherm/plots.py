@@ -46,6 +46,7 @@ __all__ = [
     "kvalue_figure",
     "save_figure",
     "synthetic_note",
+    "sindy_figure",
     "window_offset_s",
 ]
 
@@ -748,3 +749,152 @@ def figure5(table3: pd.DataFrame, *, synthetic: bool = False) -> tuple[Figure, F
     a = _class_figure(table3, "c_veh", "(a) c_veh by vehicle class", "c_veh (J/(kg K))", None)
     b = _class_figure(table3, "delta", "(b) δ by vehicle class", "δ = C_veh / C (1)", 20.0)
     return _finish(a, synthetic), _finish(b, synthetic)
+
+
+# --- the SINDy cross-check ------------------------------------------------------------------
+
+_EQ14_TERMS = (
+    ("dT/dt", "T", "(kA+K_veh)/C"),
+    ("dT/dt", "T_veh", "K_veh/C"),
+    ("dT/dt", "T_o", "kA/C"),
+    ("dT/dt", "Q_H", "1/C"),
+    ("dT_veh/dt", "T", "K_veh/C_veh"),
+    ("dT_veh/dt", "T_veh", "K_veh/C_veh"),
+)
+_EXTRA_TERMS = (("dT_veh/dt", "T_o"), ("dT_veh/dt", "Q_H"))
+_TERM_COLORS = ("#c0392b", "#e67e22", "#2471a3", "#4d4d4d", "#8e44ad", "#1e8449")
+_RATIO_LIMITS = (-0.5, 2.5)
+
+
+def sindy_figure(results: Mapping[str, Mapping[str, Any]], *, synthetic: bool = False) -> Figure:
+    """The SINDy cross-check of every vehicle (results: vehicle -> sindy.yaml contents).
+
+    (a) Each term of eq. 14 as SINDy's least-squares coefficient divided by the PEM-implied
+    one (1 = agreement), with SINDy's 95 % bootstrap interval over the same divisor; values
+    outside the axis are drawn at its edge as triangles. (b) The terms eq. 14 lacks in
+    dT_veh/dt (T_o: a body-to-outdoor path; Q_H: heating of the body), relative to the
+    equation's largest coefficient, with the STLSQ threshold as dashed lines. Vehicles whose
+    data are too poor to say are drawn hollow and grey; the verdict is printed under each."""
+    names = list(results)
+    if not names:
+        raise ValueError("no SINDy results to draw")
+    with matplotlib.rc_context(_RC):
+        fig = Figure(figsize=(7.0, 5.2), dpi=DPI, layout="constrained")
+        FigureCanvasAgg(fig)
+        grid = fig.add_gridspec(3, 1, height_ratios=[1.0, 0.8, 0.13])
+        ax_a, ax_b = fig.add_subplot(grid[0]), fig.add_subplot(grid[1])
+        x = np.arange(len(names), dtype=float)
+        lo_lim, hi_lim = _RATIO_LIMITS
+        handles = []
+        for k, (eq, feat, label) in enumerate(_EQ14_TERMS):
+            dx = (k - 2.5) * 0.11
+            for n, vid in enumerate(names):
+                data = results[vid]
+                term = _term(data, eq, feat)
+                gb = term.get("grey_box")
+                if gb is None or gb == 0:
+                    continue
+                poor = data["verdict"] == "data too poor to say"
+                r = term["least_squares"] / gb
+                lo, hi = sorted(np.array(term["ci95"]) / gb)
+                ax_a.vlines(
+                    x[n] + dx,
+                    max(lo, lo_lim),
+                    min(hi, hi_lim),
+                    color=_TERM_COLORS[k],
+                    lw=0.7,
+                    alpha=0.4 if poor else 0.9,
+                )
+                clipped = r < lo_lim or r > hi_lim
+                marker = ("v" if r < lo_lim else "^") if clipped else "o"
+                ax_a.plot(
+                    [x[n] + dx],
+                    [min(max(r, lo_lim), hi_lim)],
+                    ls="none",
+                    marker=marker,
+                    ms=3.2,
+                    mew=0.8,
+                    mec="0.55" if poor else _TERM_COLORS[k],
+                    mfc="none" if poor else _TERM_COLORS[k],
+                )
+            handles.append(
+                Line2D(
+                    [],
+                    [],
+                    ls="none",
+                    marker="o",
+                    ms=3.2,
+                    color=_TERM_COLORS[k],
+                    label=f"{eq}, {feat}: {label}",
+                )
+            )
+        ax_a.axhline(1.0, color="0.3", lw=0.6, ls=(0, (4, 2)))
+        ax_a.set_ylim(lo_lim - 0.1, hi_lim + 0.1)
+        ax_a.set_ylabel("SINDy / PEM-implied (1)")
+        ax_a.set_title("(a) terms of eq. 14: SINDy against the grey box", loc="left")
+        for k, (eq, feat) in enumerate(_EXTRA_TERMS):
+            dx = (k - 0.5) * 0.2
+            color = (COLORS["T_o"], COLORS["Q_H"])[k]
+            for n, vid in enumerate(names):
+                data = results[vid]
+                term = _term(data, eq, feat)
+                row = [t["least_squares"] for t in data["terms"] if t["equation"] == eq]
+                scale = max(abs(v) for v in row) or 1.0
+                poor = data["verdict"] == "data too poor to say"
+                lo, hi = np.array(term["ci95"]) / scale
+                ax_b.vlines(x[n] + dx, lo, hi, color=color, lw=0.7, alpha=0.4 if poor else 0.9)
+                ax_b.plot(
+                    [x[n] + dx],
+                    [term["least_squares"] / scale],
+                    ls="none",
+                    marker="s",
+                    ms=3.4,
+                    mew=0.8,
+                    mec="0.55" if poor else color,
+                    mfc=color if term["kept"] and not poor else "none",
+                )
+            handles.append(
+                Line2D(
+                    [],
+                    [],
+                    ls="none",
+                    marker="s",
+                    ms=3.4,
+                    color=color,
+                    label=f"{eq}, {feat} (not in eq. 14; filled: kept by STLSQ)",
+                )
+            )
+        threshold = results[names[0]]["method"]["threshold"]
+        for y in (threshold, -threshold):
+            ax_b.axhline(y, color="0.3", lw=0.6, ls=(0, (4, 2)))
+        ax_b.axhline(0.0, color="0.6", lw=0.4)
+        ax_b.set_ylabel("coefficient / largest\nin dT_veh/dt (1)")
+        ax_b.set_title(
+            f"(b) terms eq. 14 lacks (dashed: STLSQ threshold ±{threshold:g})", loc="left"
+        )
+        short = {
+            "structure confirmed": "confirmed",
+            "structure contradicted": "contradicted",
+            "data too poor to say": "too poor",
+        }
+        for ax in (ax_a, ax_b):
+            ax.set_xlim(-0.6, len(names) - 0.4)
+            ax.grid(True, axis="y", lw=0.4, alpha=0.5)
+        ax_a.set_xticks(x, names, fontsize=7)
+        ax_b.set_xticks(
+            x,
+            [f"{vid}: {short.get(results[vid]['verdict'], '?')}" for vid in names],
+            fontsize=7,
+            rotation=30,
+            ha="right",
+            rotation_mode="anchor",
+        )
+        _legend_row(fig, grid[2], handles, ncols=2, handlelength=1.0)
+    return _finish(fig, synthetic)
+
+
+def _term(data: Mapping[str, Any], equation: str, feature: str) -> Mapping[str, Any]:
+    for term in data["terms"]:
+        if term["equation"] == equation and term["term"] == feature:
+            return term
+    raise ValueError(f"{data.get('vehicle', '?')}: no term {feature} in {equation}")

@@ -15,7 +15,7 @@ FIGURES = REPO / "results" / "figures"
 STUDY_TABLES = ("table1", "table2", "table3", "class_summary", "class_test")
 
 
-@pytest.mark.parametrize("stem", ["figure3", "figure4", "figure5a", "figure5b"])
+@pytest.mark.parametrize("stem", ["figure3", "figure4", "figure5a", "figure5b", "sindy"])
 def test_committed_figure_is_a_legible_picture(stem):
     for ext in ("png", "svg"):
         assert (FIGURES / f"{stem}.{ext}").is_file()

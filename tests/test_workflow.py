@@ -76,7 +76,21 @@ def test_dry_run_plans_the_whole_campaign(tmp_path):
     counts = job_counts(run.stdout + run.stderr)
     assert counts["ground_truth"] == 1
     assert counts["synthesize"] >= 13  # at least one raw file per vehicle
+    assert counts["sindy"] == 13 and counts["sindy_summary"] == 1  # on in the shipped config
     assert not (study / "resources").exists()
+
+
+def test_switched_off_the_sindy_stage_plans_no_job(tmp_path):
+    study = make_study(tmp_path, SMALL)
+    cfg_path = study / "config" / "config.yaml"
+    cfg = yaml.safe_load(cfg_path.read_text())
+    cfg["sindy"]["enabled"] = False
+    cfg_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    run = snakemake(study, "--dry-run")
+    assert run.returncode == 0, run.stderr
+    counts = job_counts(run.stdout + run.stderr)
+    assert "sindy" not in counts and "sindy_summary" not in counts
+    assert counts["identify"] == 4
 
 
 @pytest.fixture(scope="module")
@@ -113,6 +127,11 @@ def test_run_writes_raw_files_and_truth_deterministically(small_run, tmp_path):
         for ext in ("csv", "md", "tex"):
             assert f"results/tables/{name}.{ext}" in written
     assert "synthetic" in written["results/tables/table2.md"].decode().splitlines()[0]
+    for vid in SMALL:
+        assert f"results/vehicles/{vid}/sindy.yaml" in written
+    sindy_table = written["results/tables/sindy.csv"].decode().splitlines()
+    assert sindy_table[0].startswith("vehicle,verdict") and len(sindy_table) == 1 + len(SMALL)
+    assert "results/figures/sindy.png" in written
     findings = written["results/audit/findings.csv"].decode()
     assert "reproduction,reestimate,Tram2 k" in findings and "Metro1 k" not in findings
     # Figure 3 (Tram2 has both orders) and Figure 5; no Figure 4 without Metro1 or Metro2

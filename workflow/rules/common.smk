@@ -106,6 +106,13 @@ def figure4_vehicles():
     return [vid for vid in config["study"]["figure4"] if vid in second_order_vehicles()]
 
 
+def sindy_vehicles():
+    """Vehicles the SINDy cross-check runs on: with it enabled, those with surface sensors."""
+    if not config["sindy"]["enabled"]:
+        return []
+    return [vid for vid in VEHICLES if STUDY.vehicles[vid].channels.get("surface")]
+
+
 STUDY_TABLES = ("table1", "table2", "table3", "class_summary", "class_test")
 
 
@@ -150,6 +157,10 @@ def all_outputs():
             for ext in ("csv", "md", "tex")
         ]
     targets += [f"results/figures/{stem}.{ext}" for stem in study_figures() for ext in ("png", "svg")]
+    if sindy_vehicles():
+        targets += [f"results/vehicles/{vid}/sindy.yaml" for vid in sindy_vehicles()]
+        targets += [f"results/tables/sindy.{ext}" for ext in ("csv", "md")]
+        targets += [f"results/figures/sindy.{ext}" for ext in ("png", "svg")]
     if config["audit"]["published"]:
         targets += ["results/audit/findings.csv", "results/audit/audit.md"]
     if CAMPAIGN:

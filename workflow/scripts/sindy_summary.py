@@ -1,0 +1,21 @@
+"""Adapter for rule sindy_summary: the table and the figure over all vehicles."""
+
+from pathlib import Path
+
+import yaml
+
+from railtherm import aggregate, logs, plots, sindy
+
+log = logs.to_file(snakemake.log[0])
+results = {
+    vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    for vid, path in zip(snakemake.params.vehicles, snakemake.input.results, strict=True)
+}
+source = aggregate.data_source(snakemake.params.data)
+table = sindy.summary_table(results, source)
+table.to_csv(snakemake.output.csv, index=False, lineterminator="\n")
+Path(snakemake.output.md).write_text(sindy.summary_markdown(table, source), encoding="utf-8")
+synthetic = any(v.get("synthetic", False) for v in snakemake.params.data.values())
+figure = plots.sindy_figure(results, synthetic=synthetic)
+plots.save_figure(figure, snakemake.output.png.removesuffix(".png"))
+log.info("%d vehicles", len(results))
