@@ -1,7 +1,9 @@
 """Grey-box state-space structures of the paper (section 5.1), their exact zero-order-hold
 discretisation, fast exact simulation and exact parameter sensitivities.
 
-Inputs are always u = [T_o, Q_H] (degC, W); outputs y = x (C = I, D = 0, eqs. 11-12).
+Inputs are u = [T_o, Q_H] (degC, W), optionally followed by irradiance channels I_i (W/m2,
+:func:`with_irradiance`: solar gains a_i I_i into the air node, eq. 1); outputs y = x (C = I,
+D = 0, eqs. 11-12).
 
 Structures are data (:class:`Structure`, :data:`STRUCTURES`): a name, the parameter and state
 names, and functions giving the continuous (A, B) and their analytic derivatives with respect
@@ -35,14 +37,16 @@ floats, which are very slow).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy.linalg import expm, schur
 from scipy.signal import lfilter
 
 __all__ = [
+    "AIR_CAPACITY",
     "STRUCTURES",
     "Discretisation",
     "Structure",
@@ -56,6 +60,8 @@ __all__ = [
     "sensitivities",
     "simulate",
     "steady_state",
+    "structure_for",
+    "with_irradiance",
 ]
 
 FREE_RESPONSE_CUT = 1e-30  # |lambda|^n below this (relative to 1) is taken as 0
@@ -112,9 +118,52 @@ def _second_order_derivatives(kA: float, C: float, K_veh: float, C_veh: float) -
     }
 
 
+def interior_envelope(
+    C: float, K_i: float, C_e: float, K_o: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(A, B) of the interior-envelope model, states x = [T, T_e]: the air node (with the
+    interior, capacity C) is linked through K_i to an envelope node (C_e), which alone is
+    linked through K_o to the outdoor air; heating enters the air node.
+
+        C dT/dt = K_i (T_e - T) + Q_H,   C_e dT_e/dt = K_i (T - T_e) + K_o (T_o - T_e)
+
+    The building literature's TiTe model and pySIP's TwTi_RoRi (R_i = 1/K_i, R_o = 1/K_o).
+    Unlike eq. 14 every loss passes the envelope; the overall heat-loss coefficient, the
+    paper's kA, is K_i K_o / (K_i + K_o) (:func:`overall_kA`)."""
+    A = np.array([[-K_i / C, K_i / C], [K_i / C_e, -(K_i + K_o) / C_e]])
+    B = np.array([[0.0, 1.0 / C], [K_o / C_e, 0.0]])
+    return A, B
+
+
+def _interior_envelope_derivatives(C: float, K_i: float, C_e: float, K_o: float) -> dict:
+    """Analytic d(A, B)/d(theta) of :func:`interior_envelope`."""
+    z = np.zeros((2, 2))
+    return {
+        "C": (
+            np.array([[K_i / C**2, -K_i / C**2], [0.0, 0.0]]),
+            np.array([[0.0, -1 / C**2], [0, 0]]),
+        ),
+        "K_i": (np.array([[-1 / C, 1 / C], [1 / C_e, -1 / C_e]]), z.copy()),
+        "C_e": (
+            np.array([[0.0, 0.0], [-K_i / C_e**2, (K_i + K_o) / C_e**2]]),
+            np.array([[0.0, 0.0], [-K_o / C_e**2, 0.0]]),
+        ),
+        "K_o": (np.array([[0.0, 0.0], [0.0, -1 / C_e]]), np.array([[0.0, 0.0], [1 / C_e, 0.0]])),
+    }
+
+
+def overall_kA(theta: Mapping[str, float]) -> float:
+    """The overall heat-loss coefficient (W/K) of a structure's parameters: kA itself, or
+    K_i K_o / (K_i + K_o) for the interior-envelope structure (losses in series)."""
+    if "kA" in theta:
+        return float(theta["kA"])
+    return float(theta["K_i"] * theta["K_o"] / (theta["K_i"] + theta["K_o"]))
+
+
 @dataclass(frozen=True)
 class Structure:
-    """A grey-box structure dx/dt = A(theta) x + B(theta) u, u = [T_o, Q_H], y = x.
+    """A grey-box structure dx/dt = A(theta) x + B(theta) u, u = ``inputs`` (T_o, Q_H, then
+    any irradiance channels of :func:`with_irradiance`), y = x.
 
     ``build(**theta) -> (A, B)`` and ``jacobian(**theta) -> {param: (dA, dB)}`` take the
     parameters by name; ``initial`` holds the paper's start values (section 5.3) and
@@ -175,7 +224,130 @@ STRUCTURES: dict[str, Structure] = {
         },
         equations="eqs. 7-8, eq. 14",
     ),
+    "interior_envelope": Structure(
+        name="interior_envelope",
+        parameters=("C", "K_i", "C_e", "K_o"),
+        states=("T", "T_e"),
+        build=interior_envelope,
+        jacobian=_interior_envelope_derivatives,
+        # start: the paper's capacities (section 5.3), an envelope 10 times tighter to the air
+        # than to the outdoors is not assumed: both conductances start equal
+        initial={"C": 120_480.0, "K_i": 1000.0, "C_e": 500_000.0, "K_o": 1000.0},
+        bounds={
+            "C": (1.0e4, 1.0e10),
+            "K_i": (1.0e-1, 1.0e7),
+            "C_e": (1.0e4, 1.0e10),
+            "K_o": (1.0e-1, 1.0e6),
+        },
+        equations="interior-envelope (TiTe, pySIP TwTi_RoRi)",
+    ),
 }
+
+
+# The air node's capacity parameter of each base structure: heating (and any solar gain)
+# enters the air node (state 0) through B[0, 1] = 1 / theta[AIR_CAPACITY[name]].
+AIR_CAPACITY: dict[str, str] = {
+    "first_order": "C_bar",
+    "second_order": "C",
+    "interior_envelope": "C",
+}
+
+APERTURE_INITIAL = 1.0  # m2: start value of an effective aperture a_i
+APERTURE_BOUNDS = (1.0e-3, 1.0e3)  # m2
+
+
+def _air_capacity(structure: Structure) -> str:
+    """The parameter whose value is 1 / B[0, 1] (the air node's capacity)."""
+    name = AIR_CAPACITY.get(structure.name)
+    if name is not None and name in structure.parameters:
+        return name
+    for candidate in ("C", "C_bar"):
+        if candidate in structure.parameters:
+            return candidate
+    raise ValueError(f"structure {structure.name!r} has no air-node capacity (C or C_bar)")
+
+
+@dataclass(frozen=True)
+class _WithApertures:
+    """(A, B) or their derivatives of a base structure with irradiance inputs appended: the
+    base (A, B), and B[0, m0 + i] = a_i / C_air (m0 the base's number of inputs). A frozen
+    dataclass (not a closure) so that structures built alike compare equal and pickle."""
+
+    base: Callable[..., Any]
+    base_parameters: tuple[str, ...]
+    air: str
+    apertures: tuple[str, ...]
+    derivatives: bool
+
+    def __call__(self, **theta: float):
+        out = self.base(**{p: theta[p] for p in self.base_parameters})
+        a = np.array([theta[p] for p in self.apertures], dtype=float)
+        C = theta[self.air]
+        k = len(self.apertures)
+        if not self.derivatives:
+            A, B = out
+            extra = np.zeros((B.shape[0], k))
+            extra[0] = a / C
+            return A, np.concatenate([B, extra], axis=1)
+        der = {}
+        for p, (dA, dB) in out.items():
+            extra = np.zeros((dB.shape[0], k))
+            if p == self.air:
+                extra[0] = -a / C**2
+            der[p] = (dA, np.concatenate([dB, extra], axis=1))
+        dA0, dB0 = out[self.air]
+        for i, p in enumerate(self.apertures):
+            dB = np.zeros((dB0.shape[0], dB0.shape[1] + k))
+            dB[0, dB0.shape[1] + i] = 1.0 / C
+            der[p] = (np.zeros_like(dA0), dB)
+        return der
+
+
+def with_irradiance(structure: Structure, names: Sequence[str]) -> Structure:
+    """``structure`` with irradiance inputs ``names`` (W/m2, e.g. "I_sol") appended to its
+    inputs, each entering the air node with an unknown effective aperture a_<name> (m2): the
+    heat flow into the air node is a I (eq. 1's solar gains), B[0, m0 + i] = a_i / C_air.
+
+    The new parameters a_<name> follow the base ones (start 1 m2, bounds 1e-3 to 1e3 m2);
+    the Jacobian is exact. No names: ``structure`` itself."""
+    names = tuple(names)
+    if not names:
+        return structure
+    bad = [n for n in names if not isinstance(n, str) or not n]
+    if bad:
+        raise ValueError(f"irradiance names must be non-empty strings, got {bad}")
+    clash = sorted({n for n in names if names.count(n) > 1 or n in structure.inputs})
+    if clash:
+        raise ValueError(
+            f"irradiance inputs {clash} repeat or clash with the inputs {structure.inputs} "
+            f"of {structure.name!r}"
+        )
+    apertures = tuple(f"a_{n}" for n in names)
+    taken = [p for p in apertures if p in structure.parameters]
+    if taken:
+        raise ValueError(f"parameters {taken} already exist in {structure.name!r}")
+    air = _air_capacity(structure)
+    common = dict(base_parameters=structure.parameters, air=air, apertures=apertures)
+    equations = "solar gains a_i I_i into the air node (eq. 1)"
+    return replace(
+        structure,
+        name=f"{structure.name}+{'+'.join(names)}",
+        parameters=structure.parameters + apertures,
+        build=_WithApertures(base=structure.build, derivatives=False, **common),
+        jacobian=_WithApertures(base=structure.jacobian, derivatives=True, **common),
+        inputs=tuple(structure.inputs) + names,
+        initial={**structure.initial, **dict.fromkeys(apertures, APERTURE_INITIAL)},
+        bounds={**structure.bounds, **dict.fromkeys(apertures, APERTURE_BOUNDS)},
+        equations=f"{structure.equations}; {equations}" if structure.equations else equations,
+    )
+
+
+def structure_for(name: str, irradiance: Sequence[str] = ()) -> Structure:
+    """The structure ``name`` of :data:`STRUCTURES` with irradiance inputs ``irradiance``
+    (:func:`with_irradiance`)."""
+    if name not in STRUCTURES:
+        raise KeyError(f"unknown structure {name!r}; known: {sorted(STRUCTURES)}")
+    return with_irradiance(STRUCTURES[name], irradiance)
 
 
 def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -296,7 +468,9 @@ def _propagate(d: Discretisation, w: np.ndarray, z0: np.ndarray) -> np.ndarray:
 def _input_array(u: np.ndarray, n_in: int) -> np.ndarray:
     u = np.asarray(u, dtype=float)
     if u.ndim != 2 or u.shape[1] != n_in:
-        raise ValueError(f"u must be N x {n_in} (T_o, Q_H), got shape {u.shape}")
+        raise ValueError(
+            f"u must be N x {n_in} (T_o, Q_H, then any further inputs), got shape {u.shape}"
+        )
     if not np.all(np.isfinite(u)):
         raise ValueError("u contains NaN or inf: the simulation needs every input sample")
     return u
@@ -336,7 +510,8 @@ def simulate(
     x0,
 ) -> np.ndarray:
     """Exact ZOH simulation (eq. 15, K = 0): x (N x n) with x[0] = x0 and
-    x[n+1] = Ad x[n] + Bd u[n]; u is N x 2 = [T_o, Q_H] (the last row is not used)."""
+    x[n+1] = Ad x[n] + Bd u[n]; u is N x m in the order of ``structure.inputs`` ([T_o, Q_H],
+    then any irradiance; the last row is not used)."""
     u = _input_array(u, len(structure.inputs))
     d = discretize(structure, theta, dt)
     return _run(d, u, _initial_array(x0, structure))

@@ -63,9 +63,10 @@ _NULL_REL = 1e-13  # singular values below this (relative) span unidentifiable d
 
 @dataclass
 class Experiment:
-    """One record: ``u`` N x 2 = [T_o, Q_H] (u[n] held over [t_n, t_n + dt), eq. 15), ``y``
-    N x n_states in the structure's state order (NaN = not measured / not used), ``x0`` the
-    measured initial state (NaN entries are estimated) or None (the first row of ``y``)."""
+    """One record: ``u`` N x m in the structure's input order, [T_o, Q_H] then any further
+    inputs such as irradiance (u[n] held over [t_n, t_n + dt), eq. 15), ``y`` N x n_states in
+    the structure's state order (NaN = not measured / not used), ``x0`` the measured initial
+    state (NaN entries are estimated) or None (the first row of ``y``)."""
 
     name: str
     dt: float
@@ -80,22 +81,36 @@ class Experiment:
             self.y = self.y[:, None]
         if self.x0 is not None:
             self.x0 = np.asarray(self.x0, dtype=float).reshape(-1)
-        if self.u.ndim != 2 or self.u.shape[1] != 2 or len(self.u) != len(self.y):
+        if self.u.ndim != 2 or self.u.shape[1] < 2 or len(self.u) != len(self.y):
             raise ValueError(
-                f"experiment {self.name!r}: u must be N x 2 and y N x n, got {self.u.shape}, "
-                f"{self.y.shape}"
+                f"experiment {self.name!r}: u must be N x m with m >= 2 (T_o, Q_H, then any "
+                f"further inputs) and y N x n, got {self.u.shape}, {self.y.shape}"
             )
         if not (self.dt > 0):
             raise ValueError(f"experiment {self.name!r}: dt must be > 0, got {self.dt}")
 
 
-def experiment_from_table(table, name: str, states=("T", "T_veh"), T_o_hold: str = "mean"):
+def experiment_from_table(
+    table,
+    name: str,
+    states=("T", "T_veh"),
+    T_o_hold: str = "mean",
+    inputs: Sequence[str] = ("T_o", "Q_H"),
+):
     """An :class:`Experiment` from a tidy table (railtherm.ingest.read_tidy).
 
-    Q_H[n] is already the mean power over [t_n, t_n + step). T_o is a point sample: with
+    ``inputs``: the structure's inputs, "T_o" and "Q_H" first, then any further tidy columns
+    (irradiance, e.g. "I_sol"). Q_H[n] is already the mean power over [t_n, t_n + step), and
+    so is every further input (taken as it is). T_o is a point sample: with
     ``T_o_hold="mean"`` (default) the input over the step is (T_o[n] + T_o[n+1]) / 2 (the
     trapezoidal mean; the last row keeps T_o[N-1]), with ``"zoh"`` T_o[n] is held.
     """
+    inputs = tuple(inputs)
+    if inputs[:2] != ("T_o", "Q_H"):
+        raise ValueError(f"inputs must start with ('T_o', 'Q_H'), got {inputs}")
+    missing = [c for c in inputs if c not in table.columns]
+    if missing:
+        raise ValueError(f"experiment {name!r}: the table has no input columns {missing}")
     t = table["time"].to_numpy(float)
     dt = float(np.median(np.diff(t)))
     To = table["T_o"].to_numpy(float)
@@ -103,7 +118,7 @@ def experiment_from_table(table, name: str, states=("T", "T_veh"), T_o_hold: str
         To = np.concatenate([(To[:-1] + To[1:]) / 2.0, To[-1:]])
     elif T_o_hold != "zoh":
         raise ValueError(f"T_o_hold must be 'mean' or 'zoh', got {T_o_hold!r}")
-    u = np.column_stack([To, table["Q_H"].to_numpy(float)])
+    u = np.column_stack([To] + [table[c].to_numpy(float) for c in inputs[1:]])
     y = np.column_stack(
         [
             table[s].to_numpy(float) if s in table.columns else np.full(len(t), np.nan)
@@ -571,7 +586,7 @@ def equation_error_start(
     the regression (each row weighted by its residual variance). Returns None when a state is
     not measured or the regression is degenerate."""
     n = len(structure.states)
-    k = n + 2
+    k = n + len(structure.inputs)
     Szz, Szd, ss_dd, count = np.zeros((k, k)), np.zeros((k, n)), np.zeros(n), 0
     for e in experiments:
         yT = np.ascontiguousarray(e.y[:, :n].T)
@@ -662,7 +677,7 @@ def _block_average(e: Experiment, factor: int) -> Experiment:
     """A coarser copy for cheap cost ranking: inputs averaged over blocks of ``factor``
     samples, outputs sampled at the block starts."""
     N = (len(e.u) // factor) * factor
-    u = e.u[:N].reshape(-1, factor, 2).mean(axis=1)
+    u = e.u[:N].reshape(-1, factor, e.u.shape[1]).mean(axis=1)
     return Experiment(name=e.name, dt=e.dt * factor, u=u, y=e.y[:N:factor], x0=e.x0)
 
 
@@ -758,6 +773,13 @@ def fit(
     experiments = list(experiments)
     if not experiments:
         raise ValueError("fit needs at least one experiment")
+    m_in = len(structure.inputs)
+    wrong = [f"{e.name!r} ({e.u.shape[1]})" for e in experiments if e.u.shape[1] != m_in]
+    if wrong:
+        raise ValueError(
+            f"structure {structure.name!r} has {m_in} inputs {structure.inputs}, but the u of "
+            f"experiments {', '.join(wrong)} has a different number of columns"
+        )
     free = tuple(p for p in structure.parameters if p not in fixed)
     init = dict(structure.initial)
     init.update({p: float(v) for p, v in (initial or {}).items() if p in structure.parameters})
