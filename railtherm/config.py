@@ -50,8 +50,16 @@ __all__ = [
     "vehicle_schema",
 ]
 
-CHANNEL_GROUPS = ("indoor_air", "surface", "outdoor_air", "heater_power", "fan_power")
-PARAMETERS = ("C_bar", "C", "K_veh", "C_veh")
+CHANNEL_GROUPS = (
+    "indoor_air",
+    "surface",
+    "outdoor_air",
+    "heater_power",
+    "fan_power",
+    "heat_flows",
+    "irradiance",
+)
+PARAMETERS = ("C_bar", "C", "K_veh", "C_veh", "K_i", "C_e", "K_o")
 
 
 @dataclass(frozen=True)

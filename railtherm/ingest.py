@@ -19,6 +19,13 @@ Tidy table (columns in this order)
                ``sqrt(sum w_i (T_i - T)^2 / sum w_i)`` (0 with one sensor)
 ``filled``     1 if any value used for this row was interpolated across a gap, else 0
 
+Only when the vehicle declares them (the further terms of the general balance, eq. 1):
+
+``Q_known``    known heat flows (``channels.heat_flows``: passengers, auxiliaries, ...), W,
+               already included in ``Q_H`` (which is then ``Q_heater + Q_fan + Q_known``)
+``I_<name>``   each irradiance channel (``channels.irradiance``), W/m2, a mean over the step
+               like the powers; a further model input with an estimated effective aperture
+
 Grid
 ----
 ``t_n = window start + n step`` for ``n = 0..N`` with ``t_N <= window end``; ``step`` is
@@ -82,6 +89,7 @@ from railtherm.rawfile import parse_times, read_columns
 
 __all__ = [
     "TIDY_COLUMNS",
+    "irradiance_names",
     "clean_window",
     "read_raw",
     "read_tidy",
@@ -106,6 +114,20 @@ TIDY_COLUMNS = (
 KELVIN = 273.15
 TEMPERATURE_GROUPS = ("indoor_air", "surface", "outdoor_air")
 POWER_GROUPS = ("heater_power", "fan_power")
+KNOWN_HEAT = "heat_flows"  # eq. 1's known heat flows (W), summed into Q_H
+IRRADIANCE = "irradiance"  # W/m2, one model input per channel
+_UNIT_FACTOR = {"W": 1.0, "kW": 1000.0, "W/m2": 1.0, "kW/m2": 1000.0}
+
+
+def irradiance_names(vehicle_data: dict[str, Any]) -> list[str]:
+    """The tidy column (and model input) of each irradiance channel, in config order:
+    ``I_<name>``, by default ``I_sol`` (then ``I_sol2``, ...)."""
+    return [
+        f"I_{c.get('name') or ('sol' if i == 0 else f'sol{i + 1}')}"
+        for i, c in enumerate(_channels(vehicle_data, IRRADIANCE))
+    ]
+
+
 RESERVED_WINDOWS = ("kvalue", "record")
 
 
@@ -508,7 +530,7 @@ def tidy(
 
     # channels: numbers in SI units (degC, W), in config order
     groups: dict[str, list[tuple[str, float, np.ndarray]]] = {}
-    for group in (*TEMPERATURE_GROUPS, *POWER_GROUPS):
+    for group in (*TEMPERATURE_GROUPS, *POWER_GROUPS, KNOWN_HEAT, IRRADIANCE):
         found = []
         for i, channel in enumerate(_channels(vehicle_data, group)):
             column = channel["column"]
@@ -525,8 +547,8 @@ def tidy(
             unit = channel.get("unit", "degC" if group in TEMPERATURE_GROUPS else "W")
             if unit == "K":
                 values = values - KELVIN
-            elif unit == "kW":
-                values = values * 1000.0
+            elif unit in ("kW", "kW/m2"):
+                values = values * _UNIT_FACTOR[unit]
             found.append((column, float(channel.get("weight", 1.0)), values))
         groups[group] = found
 
@@ -595,7 +617,8 @@ def tidy(
             dev = x - means[group][:, None]
             spread = np.sqrt(np.maximum((dev * dev) @ w / w.sum(), 0.0))
 
-    # powers: heater and fan sums, integrated over [t_n, t_n + step)
+    # powers: heater and fan sums (then known heat flows, then each irradiance channel, when
+    # declared), integrated over [t_n, t_n + step)
     sums = []
     p_flags = np.zeros(t_full.size, dtype=bool)
     for group in POWER_GROUPS:
@@ -605,9 +628,24 @@ def tidy(
             p_flags |= flags.any(axis=1)
         else:
             sums.append(np.zeros(t_full.size))
+    extra: dict[str, int] = {}
+    if KNOWN_HEAT in filled_parts:
+        values, flags = filled_parts[KNOWN_HEAT]
+        extra["Q_known"] = len(sums)
+        sums.append(values.sum(axis=1))
+        p_flags |= flags.any(axis=1)
+    if IRRADIANCE in filled_parts:
+        values, flags = filled_parts[IRRADIANCE]
+        for i, name in enumerate(irradiance_names(vehicle_data)):
+            extra[name] = len(sums)
+            sums.append(values[:, i])
+        p_flags |= flags.any(axis=1)
     q, q_filled = _power_means(
         t_full, np.column_stack(sums), p_flags, grid, step, dt_log, timing, tol
     )
+    Q_H = q[:, 0] + q[:, 1]
+    if "Q_known" in extra:
+        Q_H = Q_H + q[:, extra["Q_known"]]
 
     out = pd.DataFrame(
         {
@@ -616,13 +654,14 @@ def tidy(
             "T": means["indoor_air"],
             "T_veh": means["surface"],
             "T_o": means["outdoor_air"],
-            "Q_H": q[:, 0] + q[:, 1],
+            "Q_H": Q_H,
             "Q_heater": q[:, 0],
             "Q_fan": q[:, 1],
             "T_spread": spread,
             "filled": (t_filled | q_filled).astype(np.int64),
+            **{name: q[:, i] for name, i in extra.items()},
         },
-        columns=list(TIDY_COLUMNS),
+        columns=list(TIDY_COLUMNS) + list(extra),
     )
     out.attrs = {
         "file": file,
