@@ -16,15 +16,35 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import metrics, models, pem
+from railtherm import ingest, metrics, models, pem
 from railtherm.kvalue import sensor_counts
 
-ORDER_STRUCTURE = {1: "first_order", 2: "second_order"}
+# the fitted models of a vehicle, by the key in their file names (fit_<key>.yaml)
+MODEL_STRUCTURE = {
+    "order1": "first_order",
+    "order2": "second_order",
+    "interior_envelope": "interior_envelope",
+}
 KA_BOUNDS = (1.0, 1.0e5)  # W/K, for joint estimation when the config gives none
 
 
-def _structure(order: int) -> models.Structure:
-    return models.STRUCTURES[ORDER_STRUCTURE[int(order)]]
+def model_keys(vehicle_data: Mapping[str, Any]) -> list[str]:
+    """The models a vehicle's config asks for: its orders (order1, order2), then any further
+    structures (interior_envelope)."""
+    model = vehicle_data["model"]
+    return [f"order{int(n)}" for n in model["orders"]] + list(model.get("structures") or [])
+
+
+def model_key(order: int | str) -> str:
+    """``1``, ``"1"`` or ``"order1"`` -> ``"order1"``; a structure key stays as it is."""
+    text = str(order)
+    return f"order{text}" if text.isdigit() else text
+
+
+def _structure(order: int | str, vehicle_data: Mapping[str, Any] | None = None):
+    """The structure of a model key, with the vehicle's irradiance inputs (eq. 1)."""
+    irradiance = ingest.irradiance_names(dict(vehicle_data)) if vehicle_data else []
+    return models.structure_for(MODEL_STRUCTURE[model_key(order)], irradiance)
 
 
 def _outputs(structure: models.Structure, vehicle_data: Mapping[str, Any], tables) -> tuple:
@@ -41,10 +61,13 @@ def _outputs(structure: models.Structure, vehicle_data: Mapping[str, Any], table
 
 
 def experiments(structure: models.Structure, tables: Mapping[str, pd.DataFrame]) -> list:
-    """pem.Experiment per tidy window (inputs T_o, Q_H; the structure's states as measured,
-    NaN where a state has no sensor; x0 the first row, the measured initial state)."""
+    """pem.Experiment per tidy window (inputs T_o, Q_H and any irradiance I_<name>; the
+    structure's states as measured, NaN where a state has no sensor; x0 the first row, the
+    measured initial state)."""
     return [
-        pem.experiment_from_table(table, name, states=structure.states)
+        pem.experiment_from_table(
+            table, name, states=structure.states, inputs=tuple(structure.inputs)
+        )
         for name, table in tables.items()
     ]
 
@@ -59,7 +82,17 @@ def _settings(structure, vehicle_data, kvalue: Mapping[str, Any] | None):
     initial = {p: float(v) for p, v in model.get("initial", {}).items()}
     bounds = {p: tuple(map(float, b)) for p, b in model.get("bounds", {}).items()}
     fixed = {}
-    if mode == "static" and usable:
+    if "kA" not in structure.parameters:  # losses in series: kA = K_i K_o / (K_i + K_o)
+        guess = float(kvalue["k"]) * A if kvalue else 2.0 * A
+        for p in ("K_i", "K_o"):
+            initial.setdefault(p, 2.0 * guess)
+        k_source = "joint estimation (PEM), kA = K_i K_o / (K_i + K_o)"
+        if mode == "static":
+            notes.append(
+                f"{structure.name}: the static k cannot be imposed (kA is derived from K_i and "
+                "K_o); it is estimated with the capacities"
+            )
+    elif mode == "static" and usable:
         fixed["kA"] = float(kvalue["k"]) * A
         k_source = "static test (eq. 10), forced" if kvalue["forced"] else "static test (eq. 10)"
     else:
@@ -86,7 +119,7 @@ def identify(
     Returns the estimate (a plain dict for YAML) and the series table (per window: time,
     measured and simulated states, residuals and inputs).
     """
-    structure = _structure(order)
+    structure = _structure(order, vehicle_data)
     outputs = _outputs(structure, vehicle_data, tables)
     fixed, initial, bounds, k_source, notes = _settings(structure, vehicle_data, kvalue)
     model = vehicle_data["model"]
@@ -104,10 +137,13 @@ def identify(
     fitted = result.to_dict()
     budget = systematic_budget(structure, exps, options, result, vehicle_data, kvalue)
     combine_uncertainty(fitted["parameters"], budget)
+    if "kA" not in fitted["parameters"]:
+        fitted["parameters"]["kA"] = derived_kA(fitted)
     estimate = {
         "vehicle": vehicle_data["id"],
         "synthetic": bool(vehicle_data.get("synthetic", False)),
-        "order": int(order),
+        "order": len(structure.states),
+        "model": model_key(order),
         "structure": structure.name,
         "k_source": k_source,
         "A": float(vehicle_data["surface_m2"]),
@@ -119,6 +155,32 @@ def identify(
         "cross_validation": _cross_validate(structure, exps, options) if len(exps) > 1 else [],
     }
     return estimate, _series(structure, exps, result)
+
+
+def derived_kA(fitted: Mapping[str, Any]) -> dict[str, Any]:
+    """The overall heat-loss coefficient of losses in series, kA = K_i K_o / (K_i + K_o), with
+    a 95 % interval by the delta method on log K_i, log K_o (their combined sds and the fit's
+    correlation): d log kA = K_o/(K_i+K_o) d log K_i + K_i/(K_i+K_o) d log K_o."""
+    par = fitted["parameters"]
+    K_i, K_o = par["K_i"]["value"], par["K_o"]["value"]
+    value = K_i * K_o / (K_i + K_o)
+    g = {"K_i": K_o / (K_i + K_o), "K_o": K_i / (K_i + K_o)}
+    sd = {p: par[p].get("sd_log_total", par[p].get("sd_log", 0.0)) for p in g}
+    free = list(fitted["free"])
+    corr = np.asarray(fitted["correlation"], dtype=float)
+    rho = corr[free.index("K_i"), free.index("K_o")] if {"K_i", "K_o"} <= set(free) else 0.0
+    var = (g["K_i"] * sd["K_i"]) ** 2 + (g["K_o"] * sd["K_o"]) ** 2
+    var += 2.0 * rho * g["K_i"] * g["K_o"] * sd["K_i"] * sd["K_o"]
+    sd_log = float(np.sqrt(max(var, 0.0)))
+    with np.errstate(over="ignore"):
+        ci = [float(value * np.exp(-1.96 * sd_log)), float(value * np.exp(1.96 * sd_log))]
+    return {
+        "value": float(value),
+        "estimated": "derived",
+        "derived_from": "K_i K_o / (K_i + K_o)",
+        "ci95": ci,
+        "sd_log_total": sd_log,
+    }
 
 
 def _perturbed(exps, column: str, u: float) -> list:
@@ -212,7 +274,8 @@ def _series(structure, exps, result) -> pd.DataFrame:
             frame[state] = exp.y[:, i]
             frame[f"{state}_sim"] = sim[:, i]
             frame[f"{state}_residual"] = exp.y[:, i] - sim[:, i]
-        frame["T_o"], frame["Q_H"] = exp.u[:, 0], exp.u[:, 1]
+        for j, name in enumerate(structure.inputs):
+            frame[name] = exp.u[:, j]
         frames.append(pd.DataFrame(frame))
     return pd.concat(frames, ignore_index=True)
 
@@ -294,6 +357,7 @@ def check(
         "vehicle": estimate["vehicle"],
         "synthetic": estimate["synthetic"],
         "order": estimate["order"],
+        "model": estimate.get("model", model_key(estimate["order"])),
         "structure": estimate["structure"],
         "k_source": estimate["k_source"],
         "verdict": metrics.IN_DOUBT if reasons else metrics.ACCEPTABLE,

@@ -67,6 +67,7 @@ _RC = {
 }
 
 COLORS = {"T": "#c0392b", "T_veh": "#8e44ad", "T_o": "#2471a3", "Q_H": "#4d4d4d"}
+IRRADIANCE_COLORS = ("#d68910", "#b9770e", "#7d6608")
 FIGSIZE_FIG5_IN = (3.5, 3.0)  # each of Figure 5 (a) and (b): one paper column
 SYNTHETIC_NOTE = "synthetic data: virtual climatic wind tunnel (not measurements)"
 CLASS_ORDER = ("tram", "metro", "regional", "main-line")  # the paper's order in Figure 5
@@ -400,18 +401,33 @@ def _has_data(v: np.ndarray) -> bool:
     return bool(np.isfinite(v).any())
 
 
-def _inputs_panel(ax: Any, series: pd.DataFrame, lay: _Windows) -> list[Any]:
-    """T_o (left, degC) and Q_H (right, kW, held over each sample: step "post")."""
+def _inputs_panel(ax: Any, series: pd.DataFrame, lay: _Windows, tunnel: bool = True) -> list[Any]:
+    """T_o (left, degC) and Q_H (right, kW, held over each sample: step "post"); T_o is the
+    tunnel air of a climatic wind tunnel (``tunnel``), else the outdoor air."""
     axq = ax.twinx()
+    where = "tunnel air" if tunnel else "outdoor air"
     lines = ax.plot(
-        lay.x, lay.values(series, "T_o"), color=COLORS["T_o"], lw=1.0, label="T_o (tunnel air)"
+        lay.x, lay.values(series, "T_o"), color=COLORS["T_o"], lw=1.0, label=f"T_o ({where})"
     )
     q = lay.values(series, "Q_H") / 1000.0
     lines += axq.step(
         lay.x, q, where="post", color=COLORS["Q_H"], lw=0.6, alpha=0.75, label="Q_H (heat input)"
     )
     ax.set_ylabel("T_o (°C)")
-    axq.set_ylabel("Q_H (kW)")
+    # irradiance inputs (eq. 1), means over the step like Q_H, on the same axis in kW/m2
+    irradiance = [c for c in series.columns if c.startswith("I_")]
+    for i, name in enumerate(irradiance):
+        lines += axq.step(
+            lay.x,
+            lay.values(series, name) / 1000.0,
+            where="post",
+            color=IRRADIANCE_COLORS[i % len(IRRADIANCE_COLORS)],
+            lw=0.7,
+            label=f"{name} (irradiance, kW/m²)",
+        )
+    axq.set_ylabel("Q_H (kW), I (kW/m²)" if irradiance else "Q_H (kW)")
+    values = [q] + [lay.values(series, name) / 1000.0 for name in irradiance]
+    q = np.concatenate(values)
     if _has_data(q):
         low, high = min(0.0, float(np.nanmin(q))), float(np.nanmax(q))
         axq.set_ylim(low, high + 0.1 * (high - low) if high > low else low + 1.0)
@@ -499,7 +515,7 @@ def fit_figure(
                 )
         axr.set_ylabel("meas. − sim. (K)")
 
-        inputs = _inputs_panel(axi, series, lay)
+        inputs = _inputs_panel(axi, series, lay, tunnel=synthetic)
         _time_axis([ax, axr, axi], lay)
 
         legend = {"loc": "upper left", "frameon": False, "borderaxespad": 0, "handlelength": 2.4}

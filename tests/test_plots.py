@@ -295,6 +295,18 @@ def test_q_h_is_a_post_step_in_kw():
     assert np.nanmax(np.asarray(q.get_ydata(), dtype=float)) == pytest.approx(24.1, abs=0.01)
 
 
+def test_irradiance_inputs_are_drawn_in_kw_per_m2_and_t_o_says_where_it_was_measured():
+    s = series().assign(I_sol=lambda d: 800.0 * (d["time"] % 7200 < 3600))
+    fig = plots.fit_figure(s, FIT, "sunshine", synthetic=False)
+    labels = labels_of(fig)
+    assert "T_o (outdoor air)" in labels and "T_o (tunnel air)" not in labels
+    line = next(ln for ax in fig.axes for ln in ax.lines if ln.get_label().startswith("I_sol"))
+    assert line.get_drawstyle() == "steps-post"
+    assert np.nanmax(np.asarray(line.get_ydata(), dtype=float)) == pytest.approx(0.8)
+    assert any("kW/m²" in ax.get_ylabel() for ax in fig.axes)
+    assert "T_o (tunnel air)" in labels_of(plots.fit_figure(series(), FIT, "CWT", synthetic=True))
+
+
 def test_figure3_names_the_models_and_checks_the_windows():
     fig = plots.figure3(order1(series()), series())
     legend = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().texts]

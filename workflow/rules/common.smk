@@ -6,6 +6,8 @@ from pathlib import Path
 from snakemake.exceptions import WorkflowError
 
 import railtherm
+from railtherm import identify as rt_identify
+from railtherm import reference as rt_reference
 from railtherm import ingest, synth
 from railtherm.config import load_study
 from railtherm.errors import RailthermError
@@ -90,6 +92,32 @@ def fit_targets():
     return [(vid, n) for vid in VEHICLES for n in STUDY.vehicles[vid].model["orders"]]
 
 
+def model_targets():
+    """(vehicle, model key) of every configured fit: order1, order2, then further structures
+    (the key names the files: fit_<key>.yaml)."""
+    return [
+        (vid, key) for vid in VEHICLES for key in rt_identify.model_keys(STUDY.vehicles[vid].data)
+    ]
+
+
+def references():
+    """The study's published analyses of the same data, validated: [(file, reference)]."""
+    out = []
+    for path in config["study"]["references"]:
+        try:
+            out.append((path, rt_reference.load_reference(path)))
+        except RailthermError as err:
+            raise WorkflowError(f"invalid configuration: {err}") from None
+        ref = out[-1][1]
+        if (ref["vehicle"], ref["model"]) not in model_targets():
+            raise WorkflowError(
+                f"invalid configuration: {path}: key 'model' = '{ref['model']}' of vehicle "
+                f"'{ref['vehicle']}': no such fit in the study (list the vehicle in the study "
+                "config and the model in its model.orders or model.structures)"
+            )
+    return out
+
+
 def second_order_vehicles():
     """Vehicles with a second-order fit: the rows of Tables 2 and 3."""
     return [vid for vid, n in fit_targets() if n == 2]
@@ -123,7 +151,7 @@ def study_figures():
         stems.append("figure3")
     if figure4_vehicles():
         stems.append("figure4")
-    if second_order_vehicles():
+    if second_order_vehicles() and config["study"]["paper_tables"]:
         stems += ["figure5a", "figure5b"]
     return stems
 
@@ -143,14 +171,18 @@ def all_outputs():
     ]
     if kvalue_vehicles():
         targets.append("results/tables/kvalue.csv")
-    targets += [f"results/vehicles/{vid}/fit_order{n}.yaml" for vid, n in fit_targets()]
+    targets += [f"results/vehicles/{vid}/fit_{key}.yaml" for vid, key in model_targets()]
     targets.append("results/tables/identification.csv")
     targets += [
-        f"results/vehicles/{vid}/fit_order{n}.{ext}"
-        for vid, n in fit_targets()
+        f"results/vehicles/{vid}/fit_{key}.{ext}"
+        for vid, key in model_targets()
         for ext in ("png", "svg")
     ]
-    if second_order_vehicles():
+    if config["study"]["models_table"]:
+        targets += [f"results/tables/models.{ext}" for ext in ("csv", "md")]
+    if config["study"]["references"]:
+        targets += [f"results/tables/reference.{ext}" for ext in ("csv", "md")]
+    if second_order_vehicles() and config["study"]["paper_tables"]:
         targets += [
             f"results/tables/{name}.{ext}"
             for name in STUDY_TABLES

@@ -9,16 +9,16 @@ rule identify:
         ),
         kvalue=lambda wildcards: kvalue_input(wildcards.vehicle),
     output:
-        estimate="results/vehicles/{vehicle}/identify/order{order}.yaml",
-        series="results/vehicles/{vehicle}/identify/order{order}_series.csv",
+        estimate="results/vehicles/{vehicle}/identify/{model}.yaml",
+        series="results/vehicles/{vehicle}/identify/{model}_series.csv",
     wildcard_constraints:
-        order="[12]",
+        model="order[12]|interior_envelope",
     params:
         vehicle=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data,
         windows=lambda wildcards: identification_windows(wildcards.vehicle),
         code=code_digest("identify.py", "pem.py", "models.py"),
     log:
-        "logs/identify/{vehicle}/order{order}.log",
+        "logs/identify/{vehicle}/{model}.log",
     threads: 1
     resources:
         mem_mb=2000,
@@ -31,17 +31,17 @@ rule identify:
 
 rule check:
     input:
-        estimate="results/vehicles/{vehicle}/identify/order{order}.yaml",
-        series="results/vehicles/{vehicle}/identify/order{order}_series.csv",
+        estimate="results/vehicles/{vehicle}/identify/{model}.yaml",
+        series="results/vehicles/{vehicle}/identify/{model}_series.csv",
     output:
-        "results/vehicles/{vehicle}/fit_order{order}.yaml",
+        "results/vehicles/{vehicle}/fit_{model}.yaml",
     wildcard_constraints:
-        order="[12]",
+        model="order[12]|interior_envelope",
     params:
         check=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data["check"],
         code=code_digest("identify.py", "metrics.py"),
     log:
-        "logs/check/{vehicle}/order{order}.log",
+        "logs/check/{vehicle}/{model}.log",
     threads: 1
     resources:
         mem_mb=1000,
@@ -71,3 +71,29 @@ rule fit_table:
         "../envs/railtherm.yaml"
     script:
         "../scripts/fit_table.py"
+
+
+rule compare_models:
+    input:
+        fits=[f"results/vehicles/{vid}/fit_{key}.yaml" for vid, key in model_targets()],
+    output:
+        csv=report(
+            "results/tables/models.csv",
+            caption="../report/models.rst",
+            category="Tables",
+            labels={"table": "models"},
+        ),
+        md="results/tables/models.md",
+    params:
+        data={vid: STUDY.vehicles[vid].data for vid in VEHICLES},
+        code=code_digest("aggregate.py"),
+    log:
+        "logs/compare_models.log",
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=5,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/compare_models.py"

@@ -4,23 +4,23 @@
 
 rule fit_figure:
     input:
-        series="results/vehicles/{vehicle}/identify/order{order}_series.csv",
-        fit="results/vehicles/{vehicle}/fit_order{order}.yaml",
+        series="results/vehicles/{vehicle}/identify/{model}_series.csv",
+        fit="results/vehicles/{vehicle}/fit_{model}.yaml",
     output:
         png=report(
-            "results/vehicles/{vehicle}/fit_order{order}.png",
+            "results/vehicles/{vehicle}/fit_{model}.png",
             caption="../report/fit_figure.rst",
             category="Fits per vehicle",
             subcategory="{vehicle}",
-            labels={"vehicle": "{vehicle}", "model order": "{order}"},
+            labels={"vehicle": "{vehicle}", "model": "{model}"},
         ),
-        svg="results/vehicles/{vehicle}/fit_order{order}.svg",
+        svg="results/vehicles/{vehicle}/fit_{model}.svg",
     wildcard_constraints:
-        order="[12]",
+        model="order[12]|interior_envelope",
     params:
         code=code_digest("plots.py"),
     log:
-        "logs/fit_figure/{vehicle}/order{order}.log",
+        "logs/fit_figure/{vehicle}/{model}.log",
     threads: 1
     resources:
         mem_mb=1000,
@@ -159,3 +159,36 @@ rule figure5:
         "../envs/railtherm.yaml"
     script:
         "../scripts/figure5.py"
+
+
+rule reference:
+    input:
+        refs=[path for path, _ in references()],
+        fits=[f"results/vehicles/{ref['vehicle']}/fit_{ref['model']}.yaml" for _, ref in references()],
+        windows=[
+            f"results/vehicles/{ref['vehicle']}/clean/{window}.csv"
+            for _, ref in references()
+            for window in identification_windows(ref["vehicle"])
+        ],
+    output:
+        csv=report(
+            "results/tables/reference.csv",
+            caption="../report/reference.rst",
+            category="Tables",
+            labels={"table": "reference"},
+        ),
+        md="results/tables/reference.md",
+    params:
+        vehicles={ref["vehicle"]: STUDY.vehicles[ref["vehicle"]].data for _, ref in references()},
+        windows={ref["vehicle"]: identification_windows(ref["vehicle"]) for _, ref in references()},
+        code=code_digest("reference.py", "identify.py", "pem.py", "models.py", "metrics.py"),
+    log:
+        "logs/reference.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/reference.py"

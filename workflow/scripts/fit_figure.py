@@ -10,9 +10,13 @@ from railtherm import logs, plots
 log = logs.to_file(snakemake.log[0])
 fit = yaml.safe_load(Path(snakemake.input.fit).read_text(encoding="utf-8"))
 series = pd.read_csv(snakemake.input.series)
-model = {1: "first-order model (eq. 9)", 2: "second-order model (eqs. 7-8)"}[int(fit["order"])]
+model = {
+    "first_order": "first-order model (eq. 9)",
+    "second_order": "second-order model (eqs. 7-8)",
+    "interior_envelope": "interior-envelope model",
+}[fit["structure"].split("+")[0]]
 figure = plots.fit_figure(
     series, fit, f"{fit['vehicle']}: {model}", synthetic=bool(fit.get("synthetic", False))
 )
 plots.save_figure(figure, snakemake.output.png.removesuffix(".png"))
-log.info("fit figure of %s, order %s", fit["vehicle"], fit["order"])
+log.info("fit figure of %s, %s", fit["vehicle"], fit["structure"])

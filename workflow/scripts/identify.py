@@ -1,4 +1,4 @@
-"""Adapter for rule identify: PEM fit of one model order to a vehicle's windows."""
+"""Adapter for rule identify: PEM fit of one model to a vehicle's windows."""
 
 import yaml
 
@@ -14,14 +14,14 @@ if snakemake.input.kvalue:
     with open(snakemake.input.kvalue, encoding="utf-8") as stream:
         kvalue = yaml.safe_load(stream)
 estimate, series = identify.identify(
-    tables, snakemake.params.vehicle, kvalue, snakemake.wildcards.order
+    tables, snakemake.params.vehicle, kvalue, snakemake.wildcards.model
 )
 with open(snakemake.output.estimate, "w", encoding="utf-8") as stream:
     yaml.safe_dump(estimate, stream, sort_keys=False)
 ingest.write_tidy(series, snakemake.output.series)
 log.info(
-    "order %s: %s, cost %.6g",
-    snakemake.wildcards.order,
+    "%s: %s, cost %.6g",
+    snakemake.wildcards.model,
     estimate["k_source"],
     estimate["fit"]["cost"],
 )
