@@ -12,14 +12,26 @@ from railtherm import aggregate
 REPO = Path(__file__).resolve().parents[1]
 TABLES = REPO / "results" / "tables"
 FIGURES = REPO / "results" / "figures"
+VALIDATION = REPO / "validation" / "results"
 STUDY_TABLES = ("table1", "table2", "table3", "class_summary", "class_test")
 
 
-@pytest.mark.parametrize("stem", ["figure3", "figure4", "figure5a", "figure5b", "sindy"])
-def test_committed_figure_is_a_legible_picture(stem):
-    for ext in ("png", "svg"):
-        assert (FIGURES / f"{stem}.{ext}").is_file()
-    img = imread(FIGURES / f"{stem}.png")
+VALIDATION_FIGURES = [
+    VALIDATION / "vehicles" / vid / "fit_interior_envelope.png"
+    for vid in ("Armadillo", "Armadillo_solar")
+]
+
+
+@pytest.mark.parametrize(
+    "png",
+    [FIGURES / f"{stem}.png" for stem in ("figure3", "figure4", "figure5a", "figure5b", "sindy")]
+    + VALIDATION_FIGURES,
+    ids=lambda p: str(p.relative_to(REPO)),
+)
+def test_committed_figure_is_a_legible_picture(png):
+    if png.parent == FIGURES:
+        assert png.with_suffix(".svg").is_file()
+    img = imread(png)
     assert min(img.shape[:2]) >= 500  # paper size at 200 dpi
     grey = img[..., :3].mean(axis=2)
     assert grey.std() > 0.05, "blank or nearly blank"
@@ -41,6 +53,52 @@ def test_committed_table_names_its_data_source(name):
     first = (TABLES / f"{name}.md").read_text(encoding="utf-8").splitlines()[0]
     assert "synthetic" in first and "not measurements" in first
     assert "synthetic" in (TABLES / f"{name}.tex").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize(
+    ("folder", "names", "word"),
+    [
+        (TABLES, ["models"], "synthetic"),
+        (VALIDATION / "tables", ["models", "reference"], "measured"),
+    ],
+    ids=["campaign", "validation"],
+)
+def test_committed_comparisons_name_their_data_source(folder, names, word):
+    for name in names:
+        first = (folder / f"{name}.md").read_text(encoding="utf-8").splitlines()[0]
+        assert f"Data: {word}" in first, name
+    sources = set(pd.read_csv(folder / "models.csv")["source"])
+    assert len(sources) == 1 and word in sources.pop()
+
+
+def test_adding_a_vehicle_doc_quotes_the_committed_reference_table():
+    """docs/adding-a-vehicle.md copies the pySIP comparison: it must be the committed one."""
+    doc = (REPO / "docs" / "adding-a-vehicle.md").read_text(encoding="utf-8")
+    rows = [
+        line
+        for line in (VALIDATION / "tables" / "reference.md")
+        .read_text(encoding="utf-8")
+        .splitlines()
+        if line.startswith("|")
+    ]
+    assert len(rows) >= 8
+    for row in rows:
+        assert row in doc, row
+    # the model comparison is quoted with fewer columns: every quoted cell as committed
+    committed = _markdown_rows((VALIDATION / "tables" / "models.md").read_text(encoding="utf-8"))
+    quoted = _markdown_rows(doc.split("### Which model?", 1)[1].split("###", 1)[0])
+    assert len(quoted) == len(committed) == 6
+    for key, cells in quoted.items():
+        for header, cell in cells.items():
+            assert committed[key][header] == cell, (key, header)
+
+
+def _markdown_rows(text: str) -> dict[tuple[str, str], dict[str, str]]:
+    """{(vehicle, model): {header: cell}} of the first Markdown table in ``text``."""
+    lines = [line for line in text.splitlines() if line.startswith("|")]
+    split = [[c.strip() for c in line.strip("|").split("|")] for line in lines]
+    header, rows = split[0], split[2:]
+    return {(r[0], r[1]): dict(zip(header, r, strict=True)) for r in rows}
 
 
 def test_committed_table3_follows_from_table2_and_the_masses():

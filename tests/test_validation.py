@@ -1,0 +1,258 @@
+"""The validation study on real measured data (the Armadillo Box, data/armadillo): a data set
+is added by config alone, its estimates agree with pySIP's published analysis, and the
+reference comparison (railtherm.reference) is honest about its inputs."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from railtherm import config, identify, ingest, reference
+from railtherm.errors import ConfigError
+
+REPO = Path(__file__).resolve().parents[1]
+VALIDATION = REPO / "validation"
+RAW = REPO / "data" / "armadillo" / "armadillo_data_H2.csv"
+PYSIP = VALIDATION / "config" / "published" / "pysip_armadillo.yaml"
+
+# the published pySIP analysis (data/armadillo/README.md)
+PYSIP_KA = 51.0  # W/K, 1 / (R_o + R_i)
+PYSIP_NRMSE_FIT = 0.843
+
+
+def validation_copy(tmp_path: Path) -> Path:
+    """A scratch copy of the validation study (its config; the data through a link)."""
+    study = tmp_path / "validation"
+    shutil.copytree(VALIDATION / "config", study / "config")
+    (tmp_path / "data").symlink_to(REPO / "data")
+    return study
+
+
+def snakemake(study: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "snakemake", "--snakefile", str(REPO / "Snakefile")]
+        + ["--directory", str(study), "--cores", "2", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
+def renamed_copy(folder: Path, **extra: np.ndarray) -> Path:
+    """The Armadillo CSV as another logger would write it: own column names and order,
+    semicolons and decimal commas, the heating in kW and the indoor air in kelvin."""
+    raw = pd.read_csv(RAW)
+    renamed = pd.DataFrame(
+        {
+            "Innen_K": raw["T_int"] + 273.15,
+            "Zeit_s": raw["Time"],
+            "Heizung_kW": raw["P_hea"] / 1000.0,
+            "Aussen_C": raw["T_ext"],
+            "Strahlung": raw["I_sol"],
+            **extra,
+        }
+    )
+    path = folder / "logger.csv"
+    renamed.to_csv(path, sep=";", decimal=",", index=False)
+    return path
+
+
+def renamed_vehicle(folder: Path) -> Path:
+    """The Armadillo vehicle config, mapped onto the renamed copy: only config changes."""
+    data = yaml.safe_load((VALIDATION / "config" / "vehicles" / "Armadillo.yaml").read_text())
+    data["id"] = "Renamed"
+    data["raw_files"] = {"h2": "logger.csv"}
+    data["format"].update(
+        separator=";", decimal=",", time={"column": "Zeit_s", "format": "seconds"}
+    )
+    data["channels"] = {
+        "indoor_air": [{"column": "Innen_K", "unit": "K"}],
+        "outdoor_air": [{"column": "Aussen_C"}],
+        "heater_power": [{"column": "Heizung_kW", "unit": "kW"}],
+    }
+    path = folder / "Renamed.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def fit(vehicle_file: Path, model: str = "interior_envelope") -> tuple[dict, dict]:
+    """What rules clean, identify and check do for one vehicle file: (the checked fit, as
+    in fit_<model>.yaml, and the tidy windows)."""
+    vehicle = config.load_vehicle(vehicle_file)
+    tables = {}
+    for w in vehicle.windows["identification"]:
+        key, _, _ = ingest.window_spec(vehicle.data, w["name"])
+        tables[w["name"]] = ingest.clean_window(vehicle.raw_files[key], vehicle.data, w["name"])
+    estimate, series = identify.identify(tables, vehicle.data, None, model)
+    return identify.check(estimate, series, vehicle.data["check"]), tables
+
+
+@pytest.fixture(scope="module")
+def armadillo():
+    """railtherm's interior-envelope fit of the Armadillo data (vehicle, fit, tables)."""
+    path = VALIDATION / "config" / "vehicles" / "Armadillo.yaml"
+    checked, tables = fit(path)
+    return config.load_vehicle(path), checked, tables
+
+
+def test_interior_envelope_kA_agrees_with_pysip(armadillo):
+    _, checked, _ = armadillo
+    kA = checked["parameters"]["kA"]
+    assert kA["estimated"] == "derived"
+    assert abs(kA["value"] / PYSIP_KA - 1) < 0.10
+    lo, hi = kA["ci95"]
+    assert lo < kA["value"] < hi
+    assert checked["k_source"].startswith("joint estimation")
+    assert checked["measures"]["T"]["overall"]["r2"] > 0.99
+
+
+def test_adding_a_renamed_copy_needs_config_only(armadillo, tmp_path):
+    """Same data, other column names, separators and units, declared in YAML alone: the same
+    estimates."""
+    _, original, _ = armadillo
+    renamed_copy(tmp_path)
+    estimate, tables = fit(renamed_vehicle(tmp_path))
+    assert list(tables["h2"]["T"].round(9)) == pytest.approx(
+        list(pd.read_csv(RAW)["T_int"]), abs=1e-9
+    )
+    for p in ("C", "K_i", "C_e", "K_o", "kA"):
+        assert estimate["parameters"][p]["value"] == pytest.approx(
+            original["parameters"][p]["value"], rel=1e-6
+        ), p
+
+
+def test_irradiance_and_known_heat_flows_are_declared_channels(tmp_path):
+    """eq. 1's further terms: a known heat flow is added to Q_H, an irradiance channel
+    becomes a model input I_<name> with its own aperture a_I_<name>."""
+    occupants = np.where(np.arange(233) % 48 < 20, 0.35, 0.0)  # kW, 10 h a day
+    renamed_copy(tmp_path, Personen_kW=occupants)
+    data = yaml.safe_load(renamed_vehicle(tmp_path).read_text())
+    data["channels"]["heat_flows"] = [{"column": "Personen_kW", "unit": "kW"}]
+    data["channels"]["irradiance"] = [{"column": "Strahlung", "unit": "W/m2", "name": "south"}]
+    path = tmp_path / "Renamed.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    vehicle = config.load_vehicle(path)
+    table = ingest.clean_window(vehicle.raw_files["h2"], vehicle.data, "h2")
+    raw = pd.read_csv(RAW)
+    assert ingest.irradiance_names(vehicle.data) == ["I_south"]
+    # samples are interval means of the following step (power_timing: mean_following)
+    np.testing.assert_allclose(table["Q_known"], 1000.0 * occupants)
+    np.testing.assert_allclose(table["Q_H"], table["Q_heater"] + 1000.0 * occupants)
+    np.testing.assert_allclose(table["I_south"].to_numpy(), raw["I_sol"].to_numpy())
+    structure = identify._structure("interior_envelope", vehicle.data)
+    assert structure.inputs[-1] == "I_south" and "a_I_south" in structure.parameters
+
+
+def test_solar_input_is_estimated_with_an_interval():
+    vehicle_file = VALIDATION / "config" / "vehicles" / "Armadillo_solar.yaml"
+    checked, _ = fit(vehicle_file)
+    a = checked["parameters"]["a_I_sol"]
+    assert a["estimated"] is True and a["value"] > 0
+    assert a["ci95"][0] < a["value"] < a["ci95"][1]
+
+
+def test_reference_comparison_on_the_armadillo_data(armadillo):
+    vehicle, checked, tables = armadillo
+    ref = reference.load_reference(PYSIP)
+    table = reference.compare(ref, checked, tables, vehicle.data).set_index("quantity")
+    # pySIP's own parameters through railtherm's simulator reproduce pySIP's printed fit:
+    # both tools read the same data and the same model
+    assert table.loc["nrmse_fit", "published_simulated"] == pytest.approx(PYSIP_NRMSE_FIT, abs=0.01)
+    assert table.loc["kA", "published_simulated"] == pytest.approx(1 / (0.01759 + 0.001984))
+    # railtherm's fit is within 10 % on kA and at least as good in simulation
+    assert abs(table.loc["kA", "ratio"] - 1) < 0.10
+    assert table.loc["nrmse_fit", "railtherm"] >= table.loc["nrmse_fit", "published_simulated"]
+    md = reference.markdown(table.reset_index(), [ref], "measured")
+    assert "NRMSE fit" in md and "R² (eq. 21)" in md and "pySIP" in md
+    with pytest.raises(ValueError, match="compared with the fit"):
+        reference.compare(ref, {**checked, "model": "order2"}, tables, vehicle.data)
+
+
+@pytest.mark.parametrize(
+    ("edit", "key"),
+    [
+        (lambda d: d["parameters"].pop("C"), "parameters"),
+        (lambda d: d["parameters"].update(K_veh=3.0), "parameters"),
+        (lambda d: d["parameters"].update(C=-1.0), "parameters.C"),
+        (lambda d: d.update(model="order3"), "model"),
+    ],
+)
+def test_bad_reference_file_names_the_key(tmp_path, edit, key):
+    data = yaml.safe_load(PYSIP.read_text())
+    edit(data)
+    path = tmp_path / "ref.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError) as err:
+        reference.load_reference(path)
+    assert str(path) in str(err.value) and key in str(err.value)
+
+
+@pytest.mark.workflow
+def test_validation_study_reproduces_its_committed_results(tmp_path):
+    """The README's validation command, from clean, in a scratch copy: the tables and the
+    interior-envelope figures committed under validation/results, and none of the paper's
+    rail-vehicle tables; a second run does nothing."""
+    study = validation_copy(tmp_path)
+    run = snakemake(study)
+    assert run.returncode == 0, run.stderr[-3000:]
+    tables = sorted((VALIDATION / "results" / "tables").glob("*"))
+    assert {p.name for p in tables} == {
+        "identification.csv",
+        "models.csv",
+        "models.md",
+        "reference.csv",
+        "reference.md",
+    }
+    assert {p.name for p in (study / "results" / "tables").glob("*")} == {p.name for p in tables}
+    for path in tables:
+        assert (study / path.relative_to(VALIDATION)).read_bytes() == path.read_bytes(), path.name
+    for vid in ("Armadillo", "Armadillo_solar"):
+        for key in ("order1", "order2", "interior_envelope"):
+            assert (study / "results" / "vehicles" / vid / f"fit_{key}.png").is_file()
+    assert not (study / "results" / "figures").exists()  # no Figure 3-5 of rail vehicles
+    again = snakemake(study)
+    assert "Nothing to be done" in again.stdout + again.stderr
+
+
+@pytest.mark.parametrize("rho", [-0.8, 0.0, 0.6])
+def test_derived_kA_interval_matches_monte_carlo(rho):
+    """kA = K_i K_o / (K_i + K_o) of losses in series: its delta-method sd (log) against
+    sampling log K_i, log K_o from the fit's normal approximation."""
+    sd = {"K_i": 0.04, "K_o": 0.02}
+    fitted = {
+        "parameters": {
+            "K_i": {"value": 320.0, "sd_log": sd["K_i"]},
+            "K_o": {"value": 65.0, "sd_log_total": sd["K_o"]},
+        },
+        "free": ["C", "K_i", "K_o"],
+        "correlation": [[1.0, 0.0, 0.0], [0.0, 1.0, rho], [0.0, rho, 1.0]],
+    }
+    kA = identify.derived_kA(fitted)
+    assert kA["value"] == pytest.approx(320.0 * 65.0 / 385.0)
+    cov = np.array([[sd["K_i"] ** 2, rho * 0.04 * 0.02], [rho * 0.04 * 0.02, sd["K_o"] ** 2]])
+    draws = np.random.default_rng(8).multivariate_normal([np.log(320.0), np.log(65.0)], cov, 50_000)
+    K_i, K_o = np.exp(draws).T
+    assert np.std(np.log(K_i * K_o / (K_i + K_o))) == pytest.approx(kA["sd_log_total"], rel=0.03)
+    lo, hi = kA["ci95"]
+    assert lo < kA["value"] < hi
+
+
+@pytest.mark.workflow
+def test_reference_to_a_fit_not_in_the_study_stops_the_run(tmp_path):
+    study = validation_copy(tmp_path)
+    vehicle = study / "config" / "vehicles" / "Armadillo.yaml"
+    data = yaml.safe_load(vehicle.read_text())
+    del data["model"]["structures"]
+    vehicle.write_text(yaml.safe_dump(data, sort_keys=False))
+    run = snakemake(study, "--dry-run")
+    assert run.returncode != 0
+    err = run.stdout + run.stderr
+    assert "config/published/pysip_armadillo.yaml" in err and "'interior_envelope'" in err
+    assert "Armadillo" in err and not (study / "results").exists()
