@@ -36,6 +36,7 @@ from jsonschema import Draft202012Validator
 from jsonschema.exceptions import ValidationError, best_match
 
 from railtherm.errors import ConfigError, DataError
+from railtherm.ingest import irradiance_names
 from railtherm.rawfile import RawLayout, read_columns, read_layout
 
 __all__ = [
@@ -576,6 +577,12 @@ def _check_channels(file: str, data: dict[str, Any], layouts: dict[str, RawLayou
             for name, layout in layouts.items():
                 if column not in layout.columns:
                     raise _missing_column(file, key, column, layout.path or name, layout)
+    inputs: dict[str, str] = {}
+    for i, name in enumerate(irradiance_names(data)):
+        key = f"channels.irradiance[{i}].name"
+        if name in inputs:
+            raise ConfigError(file, key, name[2:], f"input {name} already named by {inputs[name]}")
+        inputs[name] = key
 
 
 def _windows(data: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:

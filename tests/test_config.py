@@ -190,6 +190,35 @@ BAD_VEHICLES = [
         "not a column of data/V1.csv (did you mean 'T_in_1'?",
     ),
     (
+        "irradiance-unit",
+        lambda d: d["channels"].update(irradiance=[{"column": "I_a", "unit": "W"}]),
+        csv_text(columns=[*COLUMNS, "I_a"]),
+        "channels.irradiance[0].unit",
+        "W",
+        "must be one of W/m2, kW/m2",
+    ),
+    (
+        "irradiance-names-clash",
+        lambda d: d["channels"].update(
+            irradiance=[
+                {"column": "I_a", "unit": "W/m2", "name": "south"},
+                {"column": "I_b", "unit": "W/m2", "name": "south"},
+            ]
+        ),
+        csv_text(columns=[*COLUMNS, "I_a", "I_b"]),
+        "channels.irradiance[1].name",
+        "south",
+        "input I_south already named by channels.irradiance[0].name",
+    ),
+    (
+        "heat-flow-not-in-file",
+        lambda d: d["channels"].update(heat_flows=[{"column": "P_pax", "unit": "W"}]),
+        None,
+        "channels.heat_flows[0].column",
+        "P_pax",
+        "not a column of data/V1.csv",
+    ),
+    (
         "column-used-twice",
         lambda d: d["channels"]["surface"][0].update(column="T_in_2"),
         None,
