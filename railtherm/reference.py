@@ -154,6 +154,7 @@ def compare(
     for q, label in METRIC_LABELS.items():
         rows.append(_row(q, label, printed.get(q), {"value": overall[q]}, simulated[q]))
     table = pd.DataFrame(rows)
+    table["k_source"] = fit["k_source"]
     table.insert(0, "model", reference["model"])
     table.insert(0, "vehicle", reference["vehicle"])
     return table
@@ -178,6 +179,8 @@ def markdown(table: pd.DataFrame, references: list[Mapping[str, Any]], source: s
             f"### {ref['vehicle']}, {ref['model']}",
             "",
             f"Published: {' '.join(ref['source'].split())} ({ref['location']}).",
+            "",
+            f"railtherm's kA: {rows['k_source'].iloc[0]}.",
             "",
             "| quantity | unit | published | railtherm (PEM) | 95 % interval | railtherm / "
             "published | published parameters, simulated by railtherm |",
