@@ -46,7 +46,6 @@ from scipy.linalg import expm, schur
 from scipy.signal import lfilter
 
 __all__ = [
-    "AIR_CAPACITY",
     "STRUCTURES",
     "Discretisation",
     "Structure",
@@ -167,7 +166,9 @@ class Structure:
 
     ``build(**theta) -> (A, B)`` and ``jacobian(**theta) -> {param: (dA, dB)}`` take the
     parameters by name; ``initial`` holds the paper's start values (section 5.3) and
-    ``bounds`` loose default bounds (SI units) for parameters the caller does not bound.
+    ``bounds`` loose default bounds (SI units) for parameters the caller does not bound;
+    ``air`` names the air node's capacity, the parameter through which heating and any solar
+    gain enter the air node (state 0): B[0, 1] = 1 / theta[air].
     """
 
     name: str
@@ -179,6 +180,7 @@ class Structure:
     initial: Mapping[str, float] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     equations: str = ""
+    air: str = "C"
 
     def _theta(self, theta: Mapping[str, float]) -> dict:
         missing = [p for p in self.parameters if p not in theta]
@@ -206,6 +208,7 @@ STRUCTURES: dict[str, Structure] = {
         initial={"kA": 1000.0, "C_bar": 120_480.0 + 500_000.0},
         bounds={"kA": (1.0, 1.0e6), "C_bar": (1.0e4, 1.0e10)},
         equations="eq. 9, eq. 13",
+        air="C_bar",
     ),
     "second_order": Structure(
         name="second_order",
@@ -244,27 +247,8 @@ STRUCTURES: dict[str, Structure] = {
 }
 
 
-# The air node's capacity parameter of each base structure: heating (and any solar gain)
-# enters the air node (state 0) through B[0, 1] = 1 / theta[AIR_CAPACITY[name]].
-AIR_CAPACITY: dict[str, str] = {
-    "first_order": "C_bar",
-    "second_order": "C",
-    "interior_envelope": "C",
-}
-
 APERTURE_INITIAL = 1.0  # m2: start value of an effective aperture a_i
 APERTURE_BOUNDS = (1.0e-3, 1.0e3)  # m2
-
-
-def _air_capacity(structure: Structure) -> str:
-    """The parameter whose value is 1 / B[0, 1] (the air node's capacity)."""
-    name = AIR_CAPACITY.get(structure.name)
-    if name is not None and name in structure.parameters:
-        return name
-    for candidate in ("C", "C_bar"):
-        if candidate in structure.parameters:
-            return candidate
-    raise ValueError(f"structure {structure.name!r} has no air-node capacity (C or C_bar)")
 
 
 @dataclass(frozen=True)
@@ -326,8 +310,9 @@ def with_irradiance(structure: Structure, names: Sequence[str]) -> Structure:
     taken = [p for p in apertures if p in structure.parameters]
     if taken:
         raise ValueError(f"parameters {taken} already exist in {structure.name!r}")
-    air = _air_capacity(structure)
-    common = dict(base_parameters=structure.parameters, air=air, apertures=apertures)
+    if structure.air not in structure.parameters:
+        raise ValueError(f"structure {structure.name!r} has no air-node capacity {structure.air!r}")
+    common = dict(base_parameters=structure.parameters, air=structure.air, apertures=apertures)
     equations = "solar gains a_i I_i into the air node (eq. 1)"
     return replace(
         structure,

@@ -29,7 +29,7 @@ def data(n_days: int = 5, dt: float = 1800.0):
     return np.column_stack([T_o, Q_H, I_sol]), dt
 
 
-@pytest.mark.parametrize("base", sorted(models.AIR_CAPACITY))
+@pytest.mark.parametrize("base", sorted(models.STRUCTURES))
 @pytest.mark.parametrize("names", [["I_sol"], ["I_roof", "I_side"]])
 def test_jacobian_matches_central_differences(base, names):
     s = models.structure_for(base, names)
