@@ -28,15 +28,12 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
-from functools import cache
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
-import yaml
 
-from railtherm.config import read_yaml, validate_schema
+from railtherm.config import packaged_schema, read_yaml, validate_schema
 from railtherm.errors import ConfigError
 
 SEVERITIES = ("error", "warning", "info")
@@ -282,24 +279,12 @@ class Published:
         return self.section(name).get("location", name)
 
 
-@cache
-def published_schema() -> dict[str, Any]:
-    text = resources.files("railtherm").joinpath("schemas/published.schema.yaml").read_text()
-    return yaml.safe_load(text)
-
-
-@cache
-def ranges_schema() -> dict[str, Any]:
-    text = resources.files("railtherm").joinpath("schemas/audit.schema.yaml").read_text()
-    return yaml.safe_load(text)
-
-
 def load_published(path: str | Path, display: str | None = None) -> Published:
     """Read and validate a published-values file; :class:`ConfigError` naming the file, key
     and value on any problem (including a number that is not a number as printed)."""
     name = display or str(path)
     data = read_yaml(path, display=name)
-    validate_schema(name, data, published_schema())
+    validate_schema(name, data, packaged_schema("published"))
     pub = Published(name, data)
     for section in ("parameters", "generalised"):
         for vid, row in (pub.section(section).get("rows") or {}).items():
@@ -324,7 +309,7 @@ def load_ranges(path: str | Path, display: str | None = None) -> dict[str, Any]:
     """Read and validate the audit's ranges and thresholds (``config/audit.yaml``)."""
     name = display or str(path)
     data = read_yaml(path, display=name)
-    validate_schema(name, data, ranges_schema())
+    validate_schema(name, data, packaged_schema("audit"))
     for quantity, by_class in data["ranges"].items():
         for cls, entry in by_class.items():
             lo, hi = entry["range"]

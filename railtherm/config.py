@@ -22,6 +22,7 @@ from __future__ import annotations
 import copy
 import datetime as dt
 import difflib
+import functools
 import importlib.resources
 import math
 import os
@@ -48,6 +49,7 @@ __all__ = [
     "load_vehicle",
     "read_yaml",
     "study_context",
+    "packaged_schema",
     "vehicle_schema",
 ]
 
@@ -219,10 +221,17 @@ def _extend_with_default(validator_class: type) -> type:
 _DefaultFillingValidator = _extend_with_default(Draft202012Validator)
 
 
+@functools.cache
+def packaged_schema(name: str) -> dict[str, Any]:
+    """The JSON Schema ``railtherm/schemas/<name>.schema.yaml`` (vehicle, published, audit,
+    reference), read once; shared, so treat it as read-only."""
+    text = importlib.resources.files("railtherm").joinpath(f"schemas/{name}.schema.yaml")
+    return yaml.safe_load(text.read_text(encoding="utf-8"))
+
+
 def vehicle_schema() -> dict[str, Any]:
     """The vehicle JSON Schema (a fresh copy), read from the package's schemas directory."""
-    text = importlib.resources.files("railtherm").joinpath("schemas/vehicle.schema.yaml")
-    return yaml.safe_load(text.read_text(encoding="utf-8"))
+    return copy.deepcopy(packaged_schema("vehicle"))
 
 
 # Tidy-table names the workflow uses itself: the k window and the whole recording.

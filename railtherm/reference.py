@@ -16,17 +16,14 @@ Fit quality is given both as the NRMSE fit that pySIP and MATLAB report and as R
 from __future__ import annotations
 
 from collections.abc import Mapping
-from functools import cache
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from railtherm import identify, metrics, models, pem
-from railtherm.config import read_yaml, validate_schema
+from railtherm.config import packaged_schema, read_yaml, validate_schema
 from railtherm.errors import ConfigError
 
 __all__ = ["compare", "load_reference", "markdown", "published_parameters", "simulate_published"]
@@ -47,18 +44,12 @@ UNITS = {
 METRIC_LABELS = {"nrmse_fit": "NRMSE fit", "r2": "R² (eq. 21)", "rmse": "RMSE of T"}
 
 
-@cache
-def _schema() -> dict[str, Any]:
-    text = resources.files("railtherm").joinpath("schemas/reference.schema.yaml").read_text()
-    return yaml.safe_load(text)
-
-
 def load_reference(path: str | Path, display: str | None = None) -> dict[str, Any]:
     """Read and validate a reference file; :class:`ConfigError` naming the file, key and
     value on any problem."""
     name = display or str(path)
     data = read_yaml(path, display=name)
-    validate_schema(name, data, _schema())
+    validate_schema(name, data, packaged_schema("reference"))
     structure = models.STRUCTURES[identify.MODEL_STRUCTURE[data["model"]]]
     params = published_parameters(data)
     unknown = sorted(set(params) - set(structure.parameters))
