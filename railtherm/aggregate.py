@@ -130,7 +130,7 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
         rows.append(
             {
                 "vehicle": fit["vehicle"],
-                "model": fit.get("model", f"order{fit['order']}"),
+                "model": fit["model"],
                 "structure": fit["structure"],
                 "k_source": fit["k_source"],
                 "kA": kA.get("value"),

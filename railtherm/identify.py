@@ -41,9 +41,9 @@ def model_key(order: int | str) -> str:
     return f"order{text}" if text.isdigit() else text
 
 
-def _structure(order: int | str, vehicle_data: Mapping[str, Any] | None = None):
+def model_structure(order: int | str, vehicle_data: Mapping[str, Any] | None = None):
     """The structure of a model key, with the vehicle's irradiance inputs (eq. 1)."""
-    irradiance = ingest.irradiance_names(dict(vehicle_data)) if vehicle_data else []
+    irradiance = ingest.irradiance_names(vehicle_data) if vehicle_data else []
     return models.structure_for(MODEL_STRUCTURE[model_key(order)], irradiance)
 
 
@@ -82,10 +82,10 @@ def _settings(structure, vehicle_data, kvalue: Mapping[str, Any] | None):
     initial = {p: float(v) for p, v in model.get("initial", {}).items()}
     bounds = {p: tuple(map(float, b)) for p, b in model.get("bounds", {}).items()}
     fixed = {}
+    kA_start = float(kvalue["k"]) * A if kvalue else 2.0 * A
     if "kA" not in structure.parameters:  # losses in series: kA = K_i K_o / (K_i + K_o)
-        guess = float(kvalue["k"]) * A if kvalue else 2.0 * A
         for p in ("K_i", "K_o"):
-            initial.setdefault(p, 2.0 * guess)
+            initial.setdefault(p, 2.0 * kA_start)
         k_source = "joint estimation (PEM), kA = K_i K_o / (K_i + K_o)"
         if mode == "static":
             notes.append(
@@ -100,7 +100,7 @@ def _settings(structure, vehicle_data, kvalue: Mapping[str, Any] | None):
             why = "no k window" if kvalue is None else "its window failed the steady-state test"
             notes.append(f"static k not usable ({why}): kA estimated jointly")
         k_source = "joint estimation (PEM)"
-        initial.setdefault("kA", float(kvalue["k"]) * A if kvalue else 2.0 * A)
+        initial.setdefault("kA", kA_start)
         bounds.setdefault("kA", KA_BOUNDS)
     initial = {p: v for p, v in initial.items() if p in structure.parameters and p not in fixed}
     bounds = {p: b for p, b in bounds.items() if p in structure.parameters and p not in fixed}
@@ -119,7 +119,7 @@ def identify(
     Returns the estimate (a plain dict for YAML) and the series table (per window: time,
     measured and simulated states, residuals and inputs).
     """
-    structure = _structure(order, vehicle_data)
+    structure = model_structure(order, vehicle_data)
     outputs = _outputs(structure, vehicle_data, tables)
     fixed, initial, bounds, k_source, notes = _settings(structure, vehicle_data, kvalue)
     model = vehicle_data["model"]
@@ -357,7 +357,7 @@ def check(
         "vehicle": estimate["vehicle"],
         "synthetic": estimate["synthetic"],
         "order": estimate["order"],
-        "model": estimate.get("model", model_key(estimate["order"])),
+        "model": estimate["model"],
         "structure": estimate["structure"],
         "k_source": estimate["k_source"],
         "verdict": metrics.IN_DOUBT if reasons else metrics.ACCEPTABLE,

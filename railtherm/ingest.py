@@ -79,6 +79,7 @@ from __future__ import annotations
 import datetime as dt
 import gzip
 import os
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -119,7 +120,7 @@ IRRADIANCE = "irradiance"  # W/m2, one model input per channel
 _UNIT_FACTOR = {"W": 1.0, "kW": 1000.0, "W/m2": 1.0, "kW/m2": 1000.0}
 
 
-def irradiance_names(vehicle_data: dict[str, Any]) -> list[str]:
+def irradiance_names(vehicle_data: Mapping[str, Any]) -> list[str]:
     """The tidy column (and model input) of each irradiance channel, in config order:
     ``I_<name>``, by default ``I_sol`` (then ``I_sol2``, ...)."""
     return [
@@ -286,7 +287,7 @@ def _bound(file: str, key: str, value: Any, time_format: str, origin: Any) -> fl
 # Cleaning
 
 
-def _channels(vehicle_data: dict[str, Any], group: str) -> list[dict[str, Any]]:
+def _channels(vehicle_data: Mapping[str, Any], group: str) -> list[dict[str, Any]]:
     return list(vehicle_data["channels"].get(group) or [])
 
 

@@ -82,7 +82,7 @@ def simulate_published(
     """The published parameters simulated by railtherm (eq. 15) on the cleaned windows that
     railtherm's own fit used, every initial state estimated, nothing else: the fit figures
     (metrics.summary) of the simulated T, and the overall kA of those parameters."""
-    structure = identify._structure(reference["model"], vehicle_data)
+    structure = identify.model_structure(reference["model"], vehicle_data)
     theta = published_parameters(reference)
     free = [p for p in structure.parameters if p not in theta]
     if free:  # only apertures of irradiance inputs the published model did not have
