@@ -163,11 +163,11 @@ rule figure5:
 
 rule reference:
     input:
-        refs=[path for path, _ in references()],
-        fits=[f"results/vehicles/{ref['vehicle']}/fit_{ref['model']}.yaml" for _, ref in references()],
+        refs=[path for path, _ in REFERENCES],
+        fits=[f"results/vehicles/{ref['vehicle']}/fit_{ref['model']}.yaml" for _, ref in REFERENCES],
         windows=[
             f"results/vehicles/{ref['vehicle']}/clean/{window}.csv"
-            for _, ref in references()
+            for _, ref in REFERENCES
             for window in identification_windows(ref["vehicle"])
         ],
     output:
@@ -179,8 +179,15 @@ rule reference:
         ),
         md="results/tables/reference.md",
     params:
-        vehicles={ref["vehicle"]: STUDY.vehicles[ref["vehicle"]].data for _, ref in references()},
-        windows={ref["vehicle"]: identification_windows(ref["vehicle"]) for _, ref in references()},
+        # per reference, in the order of input.refs: its vehicle's config and clean windows
+        vehicles=[STUDY.vehicles[ref["vehicle"]].data for _, ref in REFERENCES],
+        windows=[
+            {
+                window: f"results/vehicles/{ref['vehicle']}/clean/{window}.csv"
+                for window in identification_windows(ref["vehicle"])
+            }
+            for _, ref in REFERENCES
+        ],
         code=code_digest("reference.py", "identify.py", "pem.py", "models.py", "metrics.py"),
     log:
         "logs/reference.log",

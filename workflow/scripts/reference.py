@@ -8,21 +8,22 @@ import yaml
 from railtherm import aggregate, ingest, logs, reference
 
 log = logs.to_file(snakemake.log[0])
-vehicles = snakemake.params.vehicles
-refs, parts = [], []
-for path in snakemake.input.refs:
+refs, parts, vehicles = [], [], {}
+for path, fit_file, vehicle, windows in zip(
+    snakemake.input.refs,
+    snakemake.input.fits,
+    snakemake.params.vehicles,
+    snakemake.params.windows,
+    strict=True,
+):
     ref = reference.load_reference(path)
-    vid, key = ref["vehicle"], ref["model"]
-    fit_file = Path(f"results/vehicles/{vid}/fit_{key}.yaml")
-    fit = yaml.safe_load(fit_file.read_text(encoding="utf-8"))
-    tables = {
-        w: ingest.read_tidy(f"results/vehicles/{vid}/clean/{w}.csv")
-        for w in snakemake.params.windows[vid]
-    }
-    parts.append(reference.compare(ref, fit, tables, vehicles[vid]))
+    fit = yaml.safe_load(Path(fit_file).read_text(encoding="utf-8"))
+    tables = {w: ingest.read_tidy(p) for w, p in windows.items()}
+    parts.append(reference.compare(ref, fit, tables, vehicle))
     refs.append(ref)
-    log.info("%s: %s/%s", path, vid, key)
+    vehicles[vehicle["id"]] = vehicle
+    log.info("%s: %s/%s", path, ref["vehicle"], ref["model"])
 table = pd.concat(parts, ignore_index=True)
-source = aggregate.data_source({r["vehicle"]: vehicles[r["vehicle"]] for r in refs})
+source = aggregate.data_source(vehicles)
 table.to_csv(snakemake.output.csv, index=False, lineterminator="\n")
 Path(snakemake.output.md).write_text(reference.markdown(table, refs, source), encoding="utf-8")
