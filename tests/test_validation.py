@@ -5,14 +5,13 @@ reference comparison (railtherm.reference) is honest about its inputs."""
 from __future__ import annotations
 
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from snakemake_run import snakemake
 
 from railtherm import config, identify, ingest, reference
 from railtherm.errors import ConfigError
@@ -33,16 +32,6 @@ def validation_copy(tmp_path: Path) -> Path:
     shutil.copytree(VALIDATION / "config", study / "config")
     (tmp_path / "data").symlink_to(REPO / "data")
     return study
-
-
-def snakemake(study: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "snakemake", "--snakefile", str(REPO / "Snakefile")]
-        + ["--directory", str(study), "--cores", "2", *args],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
 
 
 def renamed_copy(folder: Path, **extra: np.ndarray) -> Path:

@@ -5,13 +5,12 @@ from __future__ import annotations
 import io
 import re
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import yaml
 from matplotlib.image import imread
+from snakemake_run import snakemake
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = ["Tram2", "Metro3"]
@@ -29,16 +28,6 @@ def make_study(tmp_path: Path, vehicles: list[str] | None = None) -> Path:
         cfg["vehicles"] = [f"config/vehicles/{v}.yaml" for v in vehicles]
         cfg_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
     return study
-
-
-def snakemake(study: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "snakemake", "--snakefile", str(REPO / "Snakefile")]
-        + ["--directory", str(study), "--cores", "2", *args],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
 
 
 def job_counts(output: str) -> dict[str, int]:
