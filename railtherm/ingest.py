@@ -548,7 +548,7 @@ def tidy(
             unit = channel.get("unit", "degC" if group in TEMPERATURE_GROUPS else "W")
             if unit == "K":
                 values = values - KELVIN
-            elif unit in ("kW", "kW/m2"):
+            elif _UNIT_FACTOR.get(unit, 1.0) != 1.0:
                 values = values * _UNIT_FACTOR[unit]
             found.append((column, float(channel.get("weight", 1.0)), values))
         groups[group] = found

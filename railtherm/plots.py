@@ -415,19 +415,18 @@ def _inputs_panel(ax: Any, series: pd.DataFrame, lay: _Windows, tunnel: bool = T
     )
     ax.set_ylabel("T_o (°C)")
     # irradiance inputs (eq. 1), means over the step like Q_H, on the same axis in kW/m2
-    irradiance = [c for c in series.columns if c.startswith("I_")]
-    for i, name in enumerate(irradiance):
+    irradiance = {c: lay.values(series, c) / 1000.0 for c in series.columns if c.startswith("I_")}
+    for i, (name, values) in enumerate(irradiance.items()):
         lines += axq.step(
             lay.x,
-            lay.values(series, name) / 1000.0,
+            values,
             where="post",
             color=IRRADIANCE_COLORS[i % len(IRRADIANCE_COLORS)],
             lw=0.7,
             label=f"{name} (irradiance, kW/m²)",
         )
     axq.set_ylabel("Q_H (kW), I (kW/m²)" if irradiance else "Q_H (kW)")
-    values = [q] + [lay.values(series, name) / 1000.0 for name in irradiance]
-    q = np.concatenate(values)
+    q = np.concatenate([q, *irradiance.values()])  # the right axis's range covers every trace
     if _has_data(q):
         low, high = min(0.0, float(np.nanmin(q))), float(np.nanmax(q))
         axq.set_ylim(low, high + 0.1 * (high - low) if high > low else low + 1.0)
