@@ -163,7 +163,7 @@ def derived_kA(fitted: Mapping[str, Any]) -> dict[str, Any]:
     correlation): d log kA = K_o/(K_i+K_o) d log K_i + K_i/(K_i+K_o) d log K_o."""
     par = fitted["parameters"]
     K_i, K_o = par["K_i"]["value"], par["K_o"]["value"]
-    value = K_i * K_o / (K_i + K_o)
+    value = models.overall_kA({"K_i": K_i, "K_o": K_o})
     g = {"K_i": K_o / (K_i + K_o), "K_o": K_i / (K_i + K_o)}
     sd = {p: par[p].get("sd_log_total", par[p].get("sd_log", 0.0)) for p in g}
     free = list(fitted["free"])

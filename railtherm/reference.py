@@ -50,7 +50,7 @@ def load_reference(path: str | Path, display: str | None = None) -> dict[str, An
     name = display or str(path)
     data = read_yaml(path, display=name)
     validate_schema(name, data, packaged_schema("reference"))
-    structure = models.STRUCTURES[identify.MODEL_STRUCTURE[data["model"]]]
+    structure = identify.model_structure(data["model"])
     params = published_parameters(data)
     unknown = sorted(set(params) - set(structure.parameters))
     if unknown:
