@@ -10,14 +10,16 @@ estimated with the capacities; every output says which way k was obtained.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from railtherm import ingest, metrics, models, pem
-from railtherm.kvalue import sensor_counts
+from railtherm.kvalue import sensor_counts, sensor_u_K
 
 # the fitted models of a vehicle, by the key in their file names (fit_<key>.yaml)
 MODEL_STRUCTURE = {
@@ -173,7 +175,7 @@ def derived_kA(fitted: Mapping[str, Any]) -> dict[str, Any]:
     var += 2.0 * rho * g["K_i"] * g["K_o"] * sd["K_i"] * sd["K_o"]
     sd_log = float(np.sqrt(max(var, 0.0)))
     with np.errstate(over="ignore"):
-        ci = [float(value * np.exp(-1.96 * sd_log)), float(value * np.exp(1.96 * sd_log))]
+        ci = [float(value * np.exp(-pem.Z95 * sd_log)), float(value * np.exp(pem.Z95 * sd_log))]
     return {
         "value": float(value),
         "estimated": "derived",
@@ -183,9 +185,10 @@ def derived_kA(fitted: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
-def _perturbed(exps, column: str, u: float) -> list:
+def _perturbed(exps, column: Any, u: float) -> list:
     """Copies of the experiments with a systematic error of size u: an offset on a measured
-    state (T, T_veh) or on T_o, or a relative scale error on Q_H."""
+    state (its index) or on T_o, a relative scale error on Q_H, or none (``column`` None). A
+    measured initial state is the first row, so it carries the same error."""
     out = []
     for e in exps:
         y, inputs = e.y.copy(), e.u.copy()
@@ -193,65 +196,156 @@ def _perturbed(exps, column: str, u: float) -> list:
             inputs[:, 0] += u
         elif column == "Q_H":
             inputs[:, 1] *= 1.0 + u
-        else:
+        elif column is not None:
             y[:, column] += u
-        out.append(pem.Experiment(name=e.name, dt=e.dt, u=inputs, y=y, x0=y[0].copy()))
+        x0 = None if e.x0 is None else y[0].copy()
+        out.append(pem.Experiment(name=e.name, dt=e.dt, u=inputs, y=y, x0=x0))
     return out
 
 
-def systematic_budget(structure, exps, options, result, vehicle_data, kvalue) -> dict[str, Any]:
-    """Type-B uncertainty of the estimates (GUM): each declared systematic error is applied at
-    one standard uncertainty and the fit repeated from the estimate; the shift of log(theta) is
-    that source's contribution (a linearisation of the estimator, as in the GUM's
-    sensitivity-coefficient method). Sources: kA when it is fixed from the static test (u(k) A),
-    the calibration of the mean indoor (T), surface (T_veh) and outdoor (T_o) temperatures
-    (temperature_u_K / sqrt(effective sensor count)), and the power meters' scale
-    (power_u_rel)."""
+@dataclass(frozen=True)
+class ErrorSource:
+    """One physical error source of the type-B budget at one standard uncertainty ``u``.
+
+    ``column``: what it does to the identification windows (a state's index for a sensor
+    offset, ``"T_o"``, ``"Q_H"`` for the power meters' scale, None for nothing); ``kA``: the
+    static kA that eq. 10 gives on the k window with the same error (None when kA is not
+    fixed from the static test); ``meaning``: one line for the reader."""
+
+    name: str
+    u: float
+    column: Any
+    kA: float | None
+    meaning: str
+
+
+def error_sources(structure, options, vehicle_data, kvalue) -> list[ErrorSource]:
+    """The physical error sources of a fit, each once, with what each does to both stages.
+
+    With kA fixed from the static test, kA = mean(Q_H) / (mean(T) - mean(T_o)) over the k
+    window (eq. 10). A scale error of the power meters or a calibration offset of a
+    temperature sensor group moves the k window's means and the identification windows
+    alike, so it reaches the capacities twice - through kA and through the fitted records -
+    and both paths are taken together, as one perturbation (the k stage's u(k) is not added
+    on top: its power and temperature components are these very sources). The k window's
+    own random error (the scatter of its means) and the heat still going into storage reach
+    the capacities through kA only. The surface A does not reach them at all: eq. 10
+    measures kA and eqs. 7-8 use kA, so an error of A moves k alone."""
     instruments = vehicle_data["instruments"]
     counts = sensor_counts(vehicle_data["channels"])
-    u_T = float(instruments["temperature_u_K"])
-    sources: dict[str, tuple[float, Any]] = {}
-    if "kA" in options["fixed"] and kvalue:
-        sources["kA"] = (float(kvalue["u_k"]) * float(vehicle_data["surface_m2"]), None)
-    for i, state in enumerate(structure.states):
-        n = counts["indoor"] if state == "T" else counts["surface"]
-        if state in options["outputs"] and n > 0:
-            sources[f"offset_{state}"] = (u_T / np.sqrt(n), i)
-    sources["offset_T_o"] = (u_T / np.sqrt(counts["outdoor"]), "T_o")
-    sources["scale_Q_H"] = (float(instruments["power_u_rel"]), "Q_H")
+    u_power = float(instruments["power_u_rel"])
+    u_in = sensor_u_K(instruments, "indoor") / math.sqrt(counts["indoor"])
+    u_out = sensor_u_K(instruments, "outdoor") / math.sqrt(counts["outdoor"])
+    static = "kA" in options["fixed"] and kvalue is not None
+    kA = float(options["fixed"]["kA"]) if static else math.nan
+    Q, dT = (float(kvalue["Q_H_mean"]), float(kvalue["delta_T"])) if static else (0.0, 0.0)
 
+    def k_stage(value: float) -> float | None:
+        return float(value) if static else None
+
+    sources = [
+        ErrorSource(
+            "power_scale",
+            u_power,
+            "Q_H",
+            k_stage(kA * (1.0 + u_power)),
+            "scale error of the power meters (instruments.power_u_rel)",
+        ),
+        ErrorSource(
+            "offset_T",
+            u_in,
+            structure.states.index("T"),
+            k_stage(Q / (dT + u_in) if static else math.nan),
+            "calibration offset of the mean indoor temperature (u_K / sqrt(n_eff))",
+        ),
+        ErrorSource(
+            "offset_T_o",
+            u_out,
+            "T_o",
+            k_stage(Q / (dT - u_out) if static else math.nan),
+            "calibration offset of the mean outdoor temperature (u_K / sqrt(n_eff))",
+        ),
+    ]
+    for i, state in enumerate(structure.states):
+        if state != "T" and state in options["outputs"] and counts["surface"] > 0:
+            sources.append(
+                ErrorSource(
+                    f"offset_{state}",
+                    sensor_u_K(instruments, "surface") / math.sqrt(counts["surface"]),
+                    i,
+                    k_stage(kA),
+                    "calibration offset of the mean surface temperature (u_K / sqrt(n))",
+                )
+            )
+    if static:
+        budget, k = kvalue["budget"], float(kvalue["k"])
+        u_scatter = float(budget["scatter"]) / k
+        u_storage = float(budget["storage"]) / k
+        sources += [
+            ErrorSource(
+                "k_scatter",
+                u_scatter,
+                None,
+                kA * (1.0 + u_scatter),
+                "random error of eq. 10 on the k window, from its energy balance (relative to kA)",
+            ),
+            ErrorSource(
+                "k_storage",
+                u_storage,
+                None,
+                kA * (1.0 + u_storage),
+                "heat still going into storage during the k window (relative to kA)",
+            ),
+        ]
+    return sources
+
+
+def systematic_budget(structure, exps, options, result, vehicle_data, kvalue) -> dict[str, Any]:
+    """Type-B uncertainty of the estimates (GUM): every physical error source
+    (:func:`error_sources`) is applied once, at one standard uncertainty, to every record it
+    touches - the static k window and the identification windows together - and the
+    two-stage estimate is repeated from the estimate; the shift of log(theta) is that
+    source's effect (a linearisation of the whole estimator, the GUM's sensitivity
+    coefficient times u). The sources are independent, so their effects add in quadrature
+    (:func:`combine_uncertainty`); the signed effects are kept for ratios such as delta."""
     warm = {**options, "initial": {p: result.theta[p] for p in result.free}, "start": "initial"}
     warm["covariance"] = "iid"
     effects: dict[str, dict[str, float]] = {p: {} for p in result.free}
-    for name, (u, column) in sources.items():
-        if u <= 0:
+    sources = error_sources(structure, options, vehicle_data, kvalue)
+    for source in sources:
+        if not source.u > 0:
             continue
+        fixed = dict(options["fixed"])
+        if source.kA is not None:
+            fixed["kA"] = source.kA
         try:
-            if name == "kA":
-                fixed = {"kA": result.theta["kA"] + u}
-                refit = pem.fit(structure, exps, **{**warm, "fixed": fixed})
-            else:
-                refit = pem.fit(structure, _perturbed(exps, column, u), **warm)
+            if not all(math.isfinite(v) and v > 0 for v in fixed.values()):
+                raise ValueError("the k stage gives no kA under this error")
+            perturbed = _perturbed(exps, source.column, source.u)
+            refit = pem.fit(structure, perturbed, **{**warm, "fixed": fixed})
             shifts = {p: float(np.log(refit.theta[p] / result.theta[p])) for p in result.free}
         except (np.linalg.LinAlgError, ValueError, FloatingPointError):
             shifts = {}
         for p in result.free:
             # a refit that fails or leaves the finite range: the estimate does not follow the
             # data smoothly (not identifiable), so its systematic effect is unbounded
-            effects[p][name] = shifts.get(p, float("inf"))
-            if not np.isfinite(effects[p][name]):
-                effects[p][name] = float("inf")
+            shift = shifts.get(p, math.inf)
+            effects[p][source.name] = shift if math.isfinite(shift) else math.inf
     return {
-        "method": "one-at-a-time refits at one standard uncertainty (GUM type B)",
-        "sources": {name: float(u) for name, (u, _) in sources.items()},
+        "method": (
+            "GUM type B: each physical error source once, applied to the k window and the "
+            "identification windows together, the two-stage estimate repeated"
+        ),
+        "sources": {s.name: float(s.u) for s in sources},
+        "meaning": {s.name: s.meaning for s in sources},
         "effects_log": effects,
     }
 
 
 def combine_uncertainty(parameters: dict[str, Any], budget: Mapping[str, Any]) -> None:
     """Replace each estimated parameter's 95 % interval by the combined one: the statistical
-    sd of log(theta) (from the fit) and the systematic effects added in quadrature. The
-    statistical interval is kept as ``ci95_statistical``."""
+    sd of log(theta) (from the fit) and the effects of the independent error sources added in
+    quadrature. The statistical interval is kept as ``ci95_statistical``."""
     for p, effects in budget["effects_log"].items():
         entry = parameters[p]
         sd = float(np.sqrt(entry["sd_log"] ** 2 + sum(e**2 for e in effects.values())))
@@ -260,8 +354,8 @@ def combine_uncertainty(parameters: dict[str, Any], budget: Mapping[str, Any]) -
         entry["sd_log_total"] = sd
         with np.errstate(over="ignore"):  # a non-identifiable parameter: [0, inf) is honest
             entry["ci95"] = [
-                float(np.exp(log_value - 1.96 * sd)),
-                float(np.exp(log_value + 1.96 * sd)),
+                float(np.exp(log_value - pem.Z95 * sd)),
+                float(np.exp(log_value + pem.Z95 * sd)),
             ]
 
 

@@ -30,13 +30,22 @@ W/(m^2 K)); k is a product of powers, so each relative uncertainty enters with s
   fully correlated: one rig, one calibration reference, and the tidy table carries only the
   sum; independent channels would give up to sqrt(n) less, so this is the conservative side).
 * ``temperature``: the calibration error of a weighted mean of n sensors is u_T / sqrt(n_eff)
-  with n_eff = (sum w)^2 / sum w^2 (Kish; = n for equal weights); T and T_o independent:
-  u(dT) = u_T sqrt(1/n_indoor + 1/n_outdoor), relative u(dT) / dT.
+  with n_eff = (sum w)^2 / sum w^2 (Kish; = n for equal weights), u_T the group's sensor
+  accuracy (:func:`sensor_u_K`); T and T_o independent:
+  u(dT) = sqrt(u_in^2 / n_indoor + u_out^2 / n_outdoor), relative u(dT) / dT.
 * ``surface``: ``surface_u_rel``.
-* ``scatter_delta_T``, ``scatter_Q_H``: the standard error of the window mean of T - T_o and of
-  Q_H from the residuals about the fitted line, sd / sqrt(n_eff), with the effective sample size
-  n_eff = n / tau and tau = 1 + 2 sum rho_j (Geyer's initial positive sequence of the residual
-  autocorrelation, tau >= 1).
+* ``scatter``: the random error of eq. 10 itself. To first order,
+  k_hat - k = mean(r) / (A mean(T - T_o)) with the energy-balance residual
+  r[n] = Q_H[n] - kA (T - T_o)[n] (T - T_o over the step Q_H[n] covers, kA from eq. 10): the
+  heat that goes into or comes out of storage. Its mean over the window is the change of the
+  stored energy E(t) = integral of r (about its fitted line) between the window's two ends,
+  divided by the duration; with the ends independent, u_E = sqrt(2) sd(E) / duration. A
+  thermostat's cycling moves heat in and out of storage and so sets sd(E), but its mean
+  cancels over the window except for the ends: the standard error of the mean of r treated as
+  a noise series (Q_H and T - T_o apart, or together) overstates it several times, since it
+  sees the cycling's swings but not that they cancel. White measurement noise on r adds
+  u_w = sigma_w / sqrt(n), sigma_w^2 = mean((r[n+1] - r[n])^2) / 2 (von Neumann; the
+  cycling's jumps make it conservative); u = sqrt(u_E^2 + u_w^2) / (A mean(T - T_o)).
 * ``storage``: heat still going into storage biases eq. 10. It is bounded by
   ``mass_kg`` ``storage_c_J_per_kgK`` |dT_s/dt| (the fitted slope of T_veh if the table has it,
   since the body stores most; else of T), taken as a rectangular half-width:
@@ -64,12 +73,12 @@ __all__ = [
     "autocorrelation_time",
     "effective_count",
     "sensor_counts",
-    "standard_error_of_mean",
+    "sensor_u_K",
     "static_k",
 ]
 
 SQRT3 = math.sqrt(3.0)
-COMPONENTS = ("power", "temperature", "surface", "scatter_delta_T", "scatter_Q_H", "storage")
+COMPONENTS = ("power", "temperature", "surface", "scatter", "storage")
 
 
 @dataclass(frozen=True)
@@ -79,23 +88,19 @@ class Budget:
 
     ``storage_bound_W`` is the bound on the heat still going into storage, mass c |dT_s/dt|
     (W), ``storage_bound_k`` the same bound expressed in k (W/(m^2 K)), ``storage_rate_K_per_h``
-    the slope used and ``storage_from`` its source column (``T_veh`` or ``T``). ``n_eff_*`` are
-    the effective sample sizes of the scatter terms; ``n_indoor``/``n_outdoor`` the effective
-    sensor counts used for the calibration term.
+    the slope used and ``storage_from`` its source column (``T_veh`` or ``T``);
+    ``n_indoor``/``n_outdoor`` the effective sensor counts used for the calibration term.
     """
 
     power: float
     temperature: float
     surface: float
-    scatter_delta_T: float
-    scatter_Q_H: float
+    scatter: float
     storage: float
     storage_bound_W: float
     storage_bound_k: float
     storage_rate_K_per_h: float
     storage_from: str
-    n_eff_delta_T: float
-    n_eff_Q_H: float
     n_indoor: float
     n_outdoor: float
     power_basis: str = "total"
@@ -111,8 +116,6 @@ class Budget:
             storage_bound_k=float(self.storage_bound_k),
             storage_rate_K_per_h=float(self.storage_rate_K_per_h),
             storage_from=self.storage_from,
-            n_eff_delta_T=float(self.n_eff_delta_T),
-            n_eff_Q_H=float(self.n_eff_Q_H),
             n_indoor=float(self.n_indoor),
             n_outdoor=float(self.n_outdoor),
             power_basis=self.power_basis,
@@ -221,6 +224,13 @@ def effective_count(weights: Sequence[float]) -> float:
     return float(w.sum() ** 2 / np.sum(w**2))
 
 
+def sensor_u_K(instruments: Mapping[str, Any], group: str) -> float:
+    """Standard uncertainty (K) of one calibrated sensor of ``group`` (indoor, surface,
+    outdoor): ``instruments.<group>_temperature_u_K`` where declared, else
+    ``instruments.temperature_u_K``."""
+    return float(instruments.get(f"{group}_temperature_u_K", instruments["temperature_u_K"]))
+
+
 def sensor_counts(channels: Mapping[str, Sequence[Mapping[str, Any]]]) -> dict[str, float]:
     """Effective sensor counts for :func:`static_k` from a vehicle's ``channels`` section.
 
@@ -265,17 +275,6 @@ def autocorrelation_time(x: Sequence[float]) -> float:
             break
         total += pair
     return max(1.0, 2.0 * total - 1.0)
-
-
-def standard_error_of_mean(x: Sequence[float]) -> tuple[float, float]:
-    """(standard error of the mean, effective sample size) of a series, corrected for its
-    autocorrelation: sd / sqrt(n_eff), n_eff = n / tau (:func:`autocorrelation_time`)."""
-    x = np.asarray(x, dtype=float)
-    n = x.size
-    if n < 2:
-        return 0.0, float(n)
-    n_eff = n / autocorrelation_time(x)
-    return float(np.std(x, ddof=1) / math.sqrt(n_eff)), float(n_eff)
 
 
 def _line(t: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
@@ -378,7 +377,7 @@ def static_k(
     t_q = t[:-1] + np.diff(t) / 2.0  # Q_H[n] is the mean over [t_n, t_n+1)
     drift_T, u_drift_T, _ = _drift(t, T, duration)
     drift_T_o, u_drift_T_o, _ = _drift(t, T_o, duration)
-    drift_Q, u_drift_Q, res_Q = _drift(t_q, Q_H[:-1], duration)
+    drift_Q, u_drift_Q, _ = _drift(t_q, Q_H[:-1], duration)
     drift_Q_rel, u_drift_Q_rel = drift_Q / Q_mean, u_drift_Q / Q_mean
     duration_h = duration / 3600.0
 
@@ -414,19 +413,20 @@ def static_k(
     usable = steady or forced
 
     # -- uncertainty budget (W/(m^2 K)) ---------------------------------------------------
-    u_T = float(instruments["temperature_u_K"])
+    u_in_K, u_out_K = sensor_u_K(instruments, "indoor"), sensor_u_K(instruments, "outdoor")
     n_in, n_out = float(n_sensors["indoor"]), float(n_sensors["outdoor"])
     if not (n_in > 0 and n_out > 0):
         raise ValueError(f"sensor counts must be > 0, got {dict(n_sensors)}")
     u_power = k * float(instruments["power_u_rel"])
-    u_temp = k * u_T * math.sqrt(1.0 / n_in + 1.0 / n_out) / delta_T
+    u_temp = k * math.sqrt(u_in_K**2 / n_in + u_out_K**2 / n_out) / delta_T
     u_surface = k * float(instruments["surface_u_rel"])
 
-    _, res_dT = _line(t, T - T_o)
-    se_dT, n_eff_dT = standard_error_of_mean(res_dT)
-    se_Q, n_eff_Q = standard_error_of_mean(res_Q)
-    u_scatter_dT = k * se_dT / delta_T
-    u_scatter_Q = k * se_Q / Q_mean
+    dT_step = (T[:-1] - T_o[:-1] + T[1:] - T_o[1:]) / 2.0  # over the step Q_H[n] covers
+    _, balance = _line(t_q, Q_H[:-1] - kA * dT_step)
+    stored = np.cumsum(balance * np.diff(t))  # E(t): heat into storage since the start, J
+    u_stored = math.sqrt(2.0) * float(np.std(stored, ddof=1)) / duration
+    u_noise = math.sqrt(float(np.mean(np.diff(balance) ** 2)) / 2.0 / balance.size)
+    u_scatter = math.hypot(u_stored, u_noise) / (A * delta_T)
 
     finite_veh = np.isfinite(T_veh)
     if np.count_nonzero(finite_veh) >= 2:
@@ -441,15 +441,12 @@ def static_k(
         power=u_power,
         temperature=u_temp,
         surface=u_surface,
-        scatter_delta_T=u_scatter_dT,
-        scatter_Q_H=u_scatter_Q,
+        scatter=u_scatter,
         storage=u_storage,
         storage_bound_W=bound_W,
         storage_bound_k=bound_k,
         storage_rate_K_per_h=rate * 3600.0,
         storage_from=storage_from,
-        n_eff_delta_T=n_eff_dT,
-        n_eff_Q_H=n_eff_Q,
         n_indoor=n_in,
         n_outdoor=n_out,
     )

@@ -1129,6 +1129,11 @@ def vehicle_config(campaign: dict, vehicle_id: str, raw_dir: str = "../../resour
             "time": {"column": lg["time_column"], "format": lg["time_format"]},
         },
         "channels": channels,
+        # the campaign's sensors, as a lab declares its calibration: one sensor's offset sd
+        "instruments": {
+            f"{group}_temperature_u_K": float(m["sensors"][group]["offset_sd_K"])
+            for group in ("indoor", "surface", "outdoor")
+        },
         "windows": windows(spec),
     }
 

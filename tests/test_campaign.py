@@ -179,6 +179,7 @@ def _normalised(cfg: dict) -> dict:
         f["time"],
     )
     out["cleaning"] = cfg.get("cleaning", {})
+    out["instruments"] = cfg.get("instruments", {})
     ch = {}
     for group in ("indoor_air", "surface", "outdoor_air", "heater_power", "fan_power"):
         items = cfg["channels"].get(group, [])

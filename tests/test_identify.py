@@ -49,9 +49,19 @@ def vehicle(**model) -> dict:
     }
 
 
-def k_result(usable=True, u_k=0.0):
+def k_result(usable=True, scatter=0.0, storage=0.0, delta_T=30.0):
+    """A static k stage that measured the truth: kA = mean(Q_H) / delta_T (eq. 10), with
+    the k window's own standard uncertainties (W/(m^2 K))."""
     k = TRUTH["kA"] / A
-    return {"k": k, "u_k": u_k, "usable": usable, "forced": False}
+    budget = {"scatter": scatter, "storage": storage}
+    return {
+        "k": k,
+        "usable": usable,
+        "forced": False,
+        "Q_H_mean": TRUTH["kA"] * delta_T,
+        "delta_T": delta_T,
+        "budget": budget,
+    }
 
 
 TABLES = {"up": window(30, 20_000, 29_000), "down": window(30, 29_000, 20_000)}
@@ -85,21 +95,24 @@ def test_unusable_static_k_falls_back_to_joint_and_says_so():
 
 
 def test_systematic_uncertainty_widens_the_interval_by_its_budget():
-    exact, _ = identify.identify(TABLES, vehicle(), k_result(u_k=0.0), 2)
+    exact, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
     assert all(
         e == pytest.approx(0.0, abs=1e-9)
         for effects in exact["systematic"]["effects_log"].values()
         for e in effects.values()
     )
     data = vehicle()
-    data["instruments"] = {"temperature_u_K": 0.1, "power_u_rel": 0.01, "surface_u_rel": 0.0}
-    uncertain, _ = identify.identify(TABLES, data, k_result(u_k=0.05), 2)
+    data["instruments"] = {"temperature_u_K": 0.1, "power_u_rel": 0.01, "surface_u_rel": 0.02}
+    uncertain, _ = identify.identify(TABLES, data, k_result(scatter=0.02, storage=0.01), 2)
+    # each physical source once: no kA source beside the instruments it is made of, and the
+    # surface, which moves k but not kA = k A, is none
     assert set(uncertain["systematic"]["sources"]) == {
-        "kA",
+        "power_scale",
         "offset_T",
         "offset_T_veh",
         "offset_T_o",
-        "scale_Q_H",
+        "k_scatter",
+        "k_storage",
     }
     for p in ("C", "K_veh", "C_veh"):
         entry = uncertain["fit"]["parameters"][p]
@@ -109,15 +122,37 @@ def test_systematic_uncertainty_widens_the_interval_by_its_budget():
         assert lo < TRUTH[p] < hi
 
 
-def test_power_scale_error_scales_every_parameter_in_joint_mode():
-    """Q_H -> s Q_H is matched exactly by kA, K_veh, C, C_veh -> s times each (eqs. 7-8 are
-    homogeneous in them), so each log-parameter moves by log(s)."""
-    data = vehicle(mode="joint")
+@pytest.mark.parametrize("mode", ["static", "joint"])
+def test_power_scale_error_moves_every_parameter_by_its_scale(mode):
+    """Q_H -> s Q_H in every record, the k window's included, is matched exactly by kA, K_veh,
+    C, C_veh -> s times each (eqs. 7-8 and 10 are homogeneous in them), so each log-parameter
+    moves by log(s): in the two-stage method too, where kA follows through eq. 10."""
+    data = vehicle(mode=mode)
     data["instruments"] = {"temperature_u_K": 0.0, "power_u_rel": 0.01, "surface_u_rel": 0.0}
-    estimate, _ = identify.identify(TABLES, data, None, 2)
-    for p in ("kA", "C", "K_veh", "C_veh"):
-        assert estimate["systematic"]["effects_log"][p]["scale_Q_H"] == pytest.approx(
-            np.log(1.01), rel=1e-3
+    estimate, _ = identify.identify(TABLES, data, k_result() if mode == "static" else None, 2)
+    effects = estimate["systematic"]["effects_log"]
+    for p in ("C", "K_veh", "C_veh") + (("kA",) if mode == "joint" else ()):
+        assert effects[p]["power_scale"] == pytest.approx(np.log(1.01), rel=1e-4)
+        entry = estimate["fit"]["parameters"][p]
+        assert entry["sd_log_total"] == pytest.approx(np.log(1.01), rel=1e-3)
+
+
+def test_an_offset_on_both_temperatures_of_the_k_window_is_one_source_each():
+    """A calibration offset of the indoor sensors moves mean(T) - mean(T_o) in eq. 10 and the
+    fitted T together; its effect on C_veh is that of the joint perturbation, not of kA alone
+    or of the records alone."""
+    data = vehicle()
+    data["instruments"] = {"temperature_u_K": 0.2, "power_u_rel": 0.0, "surface_u_rel": 0.0}
+    estimate, _ = identify.identify(TABLES, data, k_result(), 2)
+    u = 0.2 / 2.0  # four indoor sensors
+    kA = TRUTH["kA"] * 30.0 / (30.0 + u)  # eq. 10 with the offset on T
+    shifted = {n: t.assign(T=t["T"] + u) for n, t in TABLES.items()}
+    direct, _ = identify.identify(shifted, vehicle(), {**k_result(), "k": kA / A}, 2)
+    for p in ("C", "K_veh", "C_veh"):
+        expected = np.log(direct["fit"]["parameters"][p]["value"] / TRUTH[p])
+        assert estimate["systematic"]["effects_log"][p]["offset_T"] == pytest.approx(
+            expected,
+            abs=5e-5,  # two fits, each converged to ~1e-5 in log theta
         )
 
 

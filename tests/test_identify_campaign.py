@@ -1,15 +1,17 @@
 """Issue 4's recovery acceptance on the virtual campaign, library only: clean, static k, then
 the second-order PEM fit of every vehicle, compared with the declared truth."""
 
+import numpy as np
 import pytest
 
 from railtherm import aggregate, identify, ingest, kvalue, models, pem, synth
 
 
 @pytest.fixture(scope="module")
-def table(campaign_study):
+def fitted(campaign_study):
+    """(identification table, {vehicle: estimate}) of the whole campaign."""
     root, campaign, study = campaign_study
-    fits = []
+    fits, estimates = [], {}
     for vehicle in study.vehicles.values():
         data = vehicle.data
 
@@ -20,18 +22,39 @@ def table(campaign_study):
         k = kvalue.for_vehicle(clean("kvalue"), data, source=vehicle.id).to_dict()
         tables = {w["name"]: clean(w["name"]) for w in data["windows"]["identification"]}
         estimate, series = identify.identify(tables, data, k, 2)
+        estimates[vehicle.id] = estimate
         fits.append(identify.check(estimate, series, data["check"]))
-    return aggregate.fit_table(fits, synth.ground_truth_table(campaign)).set_index("vehicle")
+    truth = synth.ground_truth_table(campaign)
+    return aggregate.fit_table(fits, truth).set_index("vehicle"), estimates
 
 
-def test_vehicles_without_deviations_are_recovered_with_a_good_fit(table):
+@pytest.fixture(scope="module")
+def table(fitted):
+    return fitted[0]
+
+
+@pytest.fixture(scope="module")
+def estimates(fitted):
+    return fitted[1]
+
+
+def test_vehicles_without_deviations_are_fitted_well_within_their_intervals(table, estimates):
+    """At the shipped seed. The coverage of the combined 95 % intervals over 30 seeds is a
+    benchmark (benchmarks/coverage.py); one seed can only show that the intervals are of the
+    right size: every estimate within 3.5 combined standard deviations of the truth (a 1 in
+    2000 event for an honest interval) and at least 85 % of the intervals holding it."""
     clean = table[table["deviations"] == ""]
     assert len(clean) >= 6
+    covered = []
     for vid, row in clean.iterrows():
         for p in ("C", "K_veh", "C_veh"):
-            assert row[f"{p}_recovered"], (vid, p, row[f"{p}_rel_error"])
+            entry = estimates[vid]["fit"]["parameters"][p]
+            z = np.log(entry["value"] / row[f"{p}_truth"]) / entry["sd_log_total"]
+            assert abs(z) < 3.5, (vid, p, z)
+            covered.append(entry["ci95"][0] <= row[f"{p}_truth"] <= entry["ci95"][1])
         assert row["R2"] >= 0.98, vid
         assert row["verdict"] == "fit acceptable", vid
+    assert np.mean(covered) >= 0.85, covered
 
 
 def test_vehicles_with_deviations_are_put_in_doubt(table):
