@@ -2,9 +2,10 @@
 statistics (paper section 6), each with 95 % intervals and the source of its data.
 
 Formatting for readers (:func:`to_markdown`, :func:`to_latex`) follows the paper's tables:
-k with one decimal, C and C_veh as 1.8x10^7, K_veh as an integer with thousands separators,
+k with two decimals, C and C_veh as 1.8x10^7, K_veh as an integer with thousands separators,
 R^2 with three decimals, c_veh as an integer and delta with two decimals; intervals in
-brackets beside the value. The CSV files keep full precision.
+brackets beside the value. The CSV files hold the numbers at six significant digits
+(railtherm.tables).
 """
 
 from __future__ import annotations
@@ -15,9 +16,10 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
+from railtherm import pem
 from railtherm.synth import DEVIATION_EFFECT_ON_K
+from railtherm.tables import round_significant, write_csv
 
 COVERAGE_FACTOR = 2.0  # expanded uncertainty U = 2 u: about 95 % for a normal distribution
 K_TOLERANCE_REL = 0.03  # agreement floor: within 3 % of the truth counts as agreeing
@@ -74,7 +76,7 @@ def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame |
 
 
 PARAMETERS = ("kA", "C_bar", "C", "K_veh", "C_veh")
-# Recovery tolerance of the second-order estimates against the campaign's truth (issue 4).
+# Recovery tolerance of the second-order estimates against the campaign's truth.
 RECOVERY_TOLERANCE = {"C": 0.05, "K_veh": 0.10, "C_veh": 0.05}
 
 
@@ -82,7 +84,9 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
     """One row per vehicle and model order: verdict, R^2 (eq. 21), NRMSE fit, how k was
     obtained, every parameter with its 95 % interval, the flags; and, for second-order fits of
     campaign vehicles, the truth, the relative error and whether the estimate is recovered
-    (within 5 % for C and C_veh, 10 % for K_veh, or the truth inside the 95 % interval)."""
+    (within 5 % for C and C_veh, 10 % for K_veh, or the truth inside the 95 % interval). A
+    parameter the data do not determine has no value there (``<p>_status`` says why) and is
+    never recovered: a comparison with the truth needs a bounded interval."""
     truth_by_id = truth.set_index("vehicle") if truth is not None else None
     rows = []
     for fit in fits:
@@ -95,17 +99,25 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
             "k_source": fit["k_source"],
         }
         for p in PARAMETERS:
-            entry = fit["parameters"].get(p, {})
-            lo, hi = entry.get("ci95", (None, None))
-            row |= {p: entry.get("value"), f"{p}_lo": lo, f"{p}_hi": hi}
+            entry = fit["parameters"].get(p)
+            if entry is None:
+                row |= {p: math.nan, f"{p}_lo": math.nan, f"{p}_hi": math.nan, f"{p}_status": ""}
+            elif not entry.get("estimated"):  # held fixed (kA from the static test)
+                value = float(entry["value"])
+                row |= {p: value, f"{p}_lo": math.nan, f"{p}_hi": math.nan, f"{p}_status": "fixed"}
+            else:
+                judged = _judged(entry)
+                q = quantity(entry["value"], entry["ci95"], judged)
+                row |= {f"{p}{suffix}": q[suffix] for suffix in ("", "_lo", "_hi", "_status")}
         row["flags"] = ";".join(sorted({f["code"] for f in fit["flags"]}))
         known = truth_by_id is not None and fit["vehicle"] in truth_by_id.index
         if known and fit["order"] == 2:
             t = truth_by_id.loc[fit["vehicle"]]
             row["deviations"] = "" if pd.isna(t["deviations"]) else t["deviations"]
             for p, tol in RECOVERY_TOLERANCE.items():
+                # only an identified estimate can be recovered: a bounded interval is needed
                 error = row[p] / t[p] - 1.0
-                inside = row[f"{p}_lo"] is not None and row[f"{p}_lo"] <= t[p] <= row[f"{p}_hi"]
+                inside = row[f"{p}_lo"] <= t[p] <= row[f"{p}_hi"]
                 row |= {
                     f"{p}_truth": float(t[p]),
                     f"{p}_rel_error": float(error),
@@ -126,16 +138,21 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
     for fit in fits:
         T = fit["measures"]["T"]["overall"]
         kA = fit["parameters"].get("kA", {})
-        lo, hi = kA.get("ci95", (None, None))
+        if kA.get("estimated"):
+            q = quantity(kA["value"], kA["ci95"], _judged(kA))
+        else:  # fixed from the static test
+            q = {"": kA.get("value", math.nan), "_lo": math.nan, "_hi": math.nan}
+            q["_status"] = "fixed" if kA else ""
         rows.append(
             {
                 "vehicle": fit["vehicle"],
                 "model": fit["model"],
                 "structure": fit["structure"],
                 "k_source": fit["k_source"],
-                "kA": kA.get("value"),
-                "kA_lo": lo,
-                "kA_hi": hi,
+                "kA": q[""],
+                "kA_lo": q["_lo"],
+                "kA_hi": q["_hi"],
+                "kA_status": q["_status"],
                 "unknowns": T["p"],
                 "R2": T["r2"],
                 "nrmse_fit": T["nrmse_fit"],
@@ -159,6 +176,8 @@ def model_markdown(df: pd.DataFrame, source: str) -> str:
     """The model comparison for readers."""
 
     def ka(r) -> str:
+        if str(r.kA_status).startswith("not identified"):
+            return "not identified"
         if r.kA is None or not math.isfinite(r.kA):
             return "–"
         if r.kA_lo is None or not math.isfinite(r.kA_lo):
@@ -211,12 +230,11 @@ CLASS_LABEL = {
     "main-line": "Main-line",
     "other": "Other",
 }
-Z95 = 1.959963984540054
+Z95 = pem.Z95
 SYNTHETIC_SOURCE = "synthetic: virtual climatic wind tunnel campaign (not measurements)"
 MEASURED_SOURCE = "measured"
 ACCEPTABLE = "fit acceptable"
-BOOTSTRAP_RESAMPLES = 10_000
-BOOTSTRAP_SEED = 20_150_302
+ESTIMATED = "estimated"
 
 
 def data_source(vehicles: Mapping[str, Mapping[str, Any]]) -> str:
@@ -230,9 +248,76 @@ def data_source(vehicles: Mapping[str, Mapping[str, Any]]) -> str:
     return f"mixed: {', '.join(names)} synthetic (virtual climatic wind tunnel), the rest measured"
 
 
-def _interval(entry: Mapping[str, Any]) -> tuple[float, float]:
-    lo, hi = entry.get("ci95", (math.nan, math.nan))
-    return float(lo), float(hi)
+def class_order(classes: Sequence[str]) -> list[str]:
+    """The classes present: the paper's order (tram, metro, regional, main-line) first, then
+    any other in order of appearance."""
+    present = list(dict.fromkeys(str(c) for c in classes))
+    return [c for c in CLASS_ORDER if c in present] + [c for c in present if c not in CLASS_ORDER]
+
+
+def by_class(vehicles: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Vehicle ids grouped by class in :func:`class_order`, the config's order within a class:
+    a vehicle added at the end of the config lands among its class."""
+    order = class_order([v["class"] for v in vehicles.values()])
+    return sorted(vehicles, key=lambda vid: order.index(str(vehicles[vid]["class"])))
+
+
+# --- values the data determine, and those they do not ----------------------------------------
+
+
+def quantity(value: float, ci95: Sequence[float], judged: Mapping[str, Any]) -> dict[str, Any]:
+    """The table columns of one quantity: ``q``, ``q_lo``, ``q_hi`` (NaN when not identified:
+    such a value is never printed, averaged or compared as an estimate), ``q_status``
+    ("estimated" or "not identified: <reason>"), and ``q_limit`` with ``q_limit_kind`` ("upper"
+    / "lower" / "none"): the one-sided limit the data do give (railtherm.pem.identification)."""
+    if judged.get("identified", True):
+        lo, hi = (float(c) for c in ci95)
+        return {"": float(value), "_lo": lo, "_hi": hi, "_status": ESTIMATED}
+    limit = judged.get("limit_value")
+    return {
+        "": math.nan,
+        "_lo": math.nan,
+        "_hi": math.nan,
+        "_status": f"not identified: {judged['reason']}",
+        "_limit": math.nan if limit is None else float(limit),
+        "_limit_kind": judged["limit"],
+    }
+
+
+def _columns(name: str, q: Mapping[str, Any]) -> dict[str, Any]:
+    out = {f"{name}{suffix}": v for suffix, v in q.items()}
+    out.setdefault(f"{name}_limit", math.nan)
+    out.setdefault(f"{name}_limit_kind", "")
+    return out
+
+
+def _judged(entry: Mapping[str, Any]) -> Mapping[str, Any]:
+    """A fit parameter's identification (computed from its interval for fits written before
+    it was recorded)."""
+    if "identified" in entry:
+        return entry
+    return pem.identification(entry["value"], entry.get("ci95", (math.nan, math.nan)))
+
+
+_FLIP = {"upper": "lower", "lower": "upper", "point": "point", "none": "none"}
+
+
+def _ratio_limit(num: tuple[str, float], den: tuple[str, float]) -> tuple[str, float]:
+    """What num / den is known to be when a part is only a one-sided limit: ("point", x) for
+    an estimate, ("upper", b) for "at most b", ("lower", b), ("none", nan). An upper limit of
+    the denominator is a lower limit of the ratio; limits of opposite kinds give none."""
+    kinds = {num[0], _FLIP[den[0]]} - {"point"}
+    if "none" in kinds or len(kinds) > 1:
+        return "none", math.nan
+    return (kinds.pop() if kinds else "point"), num[1] / den[1]
+
+
+def _part(entry: Mapping[str, Any]) -> tuple[str, float]:
+    judged = _judged(entry)
+    if judged.get("identified", True):
+        return "point", float(entry["value"])
+    limit = judged.get("limit_value")
+    return judged["limit"], math.nan if limit is None else float(limit)
 
 
 def table2(
@@ -241,36 +326,38 @@ def table2(
     vehicles: Mapping[str, Mapping[str, Any]],
 ) -> pd.DataFrame:
     """Table 2: per vehicle k (W/(m^2 K)), C (J/K), K_veh (W/K), C_veh (J/K) and R^2 (eq. 21) of
-    the second-order model, each estimate with its 95 % interval, the verdict and how k was
-    obtained. Rows in the order of ``vehicles`` (the study config's order).
+    the second-order model, each estimate with its 95 % interval and its status, the verdict
+    and how k was obtained. Rows by class (tram, metro, regional, main-line, then others),
+    within a class in the order of ``vehicles`` (the study config's order).
 
     ``fits``: vehicle -> its fit_order2.yaml; ``kvalues``: vehicle -> its kvalue.yaml (or None);
     ``vehicles``: vehicle -> its config. k from the static test carries k +- 2 u(k) (expanded
     uncertainty, coverage factor 2, as the k table); k from joint estimation kA / A with kA's
-    interval. C, K_veh, C_veh intervals are the combined ones (statistical and systematic)."""
+    interval. C, K_veh, C_veh intervals are the combined ones (statistical and systematic); a
+    parameter the data do not determine has no value, its status and its one-sided limit
+    (:func:`quantity`)."""
     rows = []
-    for vid, vehicle in vehicles.items():
-        fit = fits[vid]
+    for vid in by_class(vehicles):
+        vehicle, fit = vehicles[vid], fits[vid]
         params = fit["parameters"]
         A = float(vehicle["surface_m2"])
         kv = kvalues.get(vid)
         if params["kA"]["estimated"] or kv is None:
-            lo, hi = _interval(params["kA"])
-            k, k_lo, k_hi = params["kA"]["value"] / A, lo / A, hi / A
+            entry = params["kA"]
+            judged = dict(_judged(entry))
+            if judged.get("limit_value") is not None:
+                judged["limit_value"] = judged["limit_value"] / A
+            ci = [c / A for c in entry.get("ci95", (math.nan, math.nan))]
+            k = quantity(entry["value"] / A, ci, judged)
         else:
-            k = float(kv["k"])
-            k_lo, k_hi = k - COVERAGE_FACTOR * kv["u_k"], k + COVERAGE_FACTOR * kv["u_k"]
-        row: dict[str, Any] = {
-            "vehicle": vid,
-            "class": vehicle["class"],
-            "k": k,
-            "k_lo": k_lo,
-            "k_hi": k_hi,
-            "k_source": fit["k_source"],
-        }
+            U = COVERAGE_FACTOR * float(kv["u_k"])
+            k = quantity(float(kv["k"]), (float(kv["k"]) - U, float(kv["k"]) + U), {})
+        row: dict[str, Any] = {"vehicle": vid, "class": vehicle["class"]}
+        row |= _columns("k", k)
+        row["k_source"] = fit["k_source"]
         for p in ("C", "K_veh", "C_veh"):
-            lo, hi = _interval(params[p])
-            row |= {p: float(params[p]["value"]), f"{p}_lo": lo, f"{p}_hi": hi}
+            entry = params[p]
+            row |= _columns(p, quantity(entry["value"], entry["ci95"], _judged(entry)))
         row |= {
             "R2": float(fit["R2"]),
             "verdict": fit["verdict"],
@@ -303,32 +390,46 @@ def table3(
     vehicles: Mapping[str, Mapping[str, Any]],
 ) -> pd.DataFrame:
     """Table 3: c_veh = C_veh / m_veh (eq. 24, J/(kg K)) and delta = C_veh / C (eq. 25) with
-    95 % intervals. c_veh takes C_veh's interval (the mass is taken as exact); delta's
-    interval is exp(log delta +- 1.96 sd), sd combining the statistical variances and the
-    correlation of log C and log C_veh with the systematic effects of each source on both."""
+    95 % intervals, in Table 2's row order. c_veh takes C_veh's interval (the mass is taken as
+    exact); delta's interval is exp(log delta +- 1.96 sd), sd combining the statistical
+    variances and the correlation of log C and log C_veh with the systematic effects of each
+    source on both. A ratio with a part the data do not determine is not identified either;
+    its limit follows from the parts' (C at its lower bound: delta at least C_veh / bound)."""
     rows = []
-    for _, r in t2.iterrows():
-        vid = r["vehicle"]
+    for vid, cls, verdict, source in zip(
+        t2["vehicle"], t2["class"], t2["verdict"], t2["source"], strict=True
+    ):
+        fit = fits[vid]
+        params = fit["parameters"]
         m = float(vehicles[vid]["mass_kg"])
-        delta = r["C_veh"] / r["C"]
-        sd = _sd_log_ratio(fits[vid], "C_veh", "C")
-        with np.errstate(over="ignore"):
-            d_lo, d_hi = float(delta * np.exp(-Z95 * sd)), float(delta * np.exp(Z95 * sd))
-        rows.append(
-            {
-                "vehicle": vid,
-                "class": r["class"],
-                "m_veh": m,
-                "c_veh": r["C_veh"] / m,
-                "c_veh_lo": r["C_veh_lo"] / m,
-                "c_veh_hi": r["C_veh_hi"] / m,
-                "delta": delta,
-                "delta_lo": d_lo,
-                "delta_hi": d_hi,
-                "verdict": r["verdict"],
-                "source": r["source"],
-            }
-        )
+        C_veh, C = params["C_veh"], params["C"]
+        c_kind, c_value = _ratio_limit(_part(C_veh), ("point", m))
+        if c_kind == "point":
+            ci = [c / m for c in C_veh["ci95"]]
+            c_veh = quantity(c_value, ci, pem.identification(c_value, ci))
+        else:
+            reason = f"C_veh {_judged(C_veh)['reason']}"
+            judged = {"limit": c_kind, "limit_value": c_value, "reason": reason}
+            c_veh = quantity(math.nan, (math.nan, math.nan), {"identified": False, **judged})
+        d_kind, d_value = _ratio_limit(_part(C_veh), _part(C))
+        if d_kind == "point":
+            sd = _sd_log_ratio(fit, "C_veh", "C")
+            with np.errstate(over="ignore"):
+                ci = (float(d_value * np.exp(-Z95 * sd)), float(d_value * np.exp(Z95 * sd)))
+            delta = quantity(d_value, ci, pem.identification(d_value, ci))
+        else:
+            why = "; ".join(
+                f"{p} {_judged(params[p])['reason']}"
+                for p in ("C", "C_veh")
+                if not _judged(params[p]).get("identified", True)
+            )
+            judged = {"identified": False, "limit": d_kind, "reason": why}
+            judged["limit_value"] = None if d_kind == "none" else d_value
+            delta = quantity(math.nan, (math.nan, math.nan), judged)
+        row = {"vehicle": vid, "class": cls, "m_veh": m}
+        row |= _columns("c_veh", c_veh) | _columns("delta", delta)
+        row |= {"verdict": verdict, "source": source}
+        rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -338,85 +439,113 @@ def table1(
     fits: Mapping[str, Mapping[str, Any]],
 ) -> pd.DataFrame:
     """Table 1: per class, how many vehicles had a static k test, how many of those were
-    steady (usable), how many identification experiments (windows) were available, and how
-    many vehicles' second-order fits could be evaluated (verdict "fit acceptable"); a Sum
-    column. Counted from the configs and the verdicts."""
-    classes = [c for c in CLASS_ORDER if any(v["class"] == c for v in vehicles.values())]
+    steady (usable), how many identification windows the fits used, how many vehicles' C,
+    K_veh and C_veh were all identified, and how many second-order fits could be evaluated
+    (verdict "fit acceptable"); a Sum column. Counted from the configs and the fits."""
+    classes = class_order([v["class"] for v in vehicles.values()])
     counts: dict[str, dict[str, int]] = {}
     for c in classes:
         ids = [vid for vid, v in vehicles.items() if v["class"] == c]
         counts[c] = {
-            "k value measured": sum(kvalues.get(vid) is not None for vid in ids),
+            "vehicles with a k value measured": sum(kvalues.get(vid) is not None for vid in ids),
             "k value usable (steady window)": sum(
                 bool(kvalues.get(vid) and kvalues[vid]["usable"]) for vid in ids
             ),
-            "experiments available": sum(
+            "identification windows fitted": sum(
                 len(vehicles[vid]["windows"]["identification"]) for vid in ids
+            ),
+            "vehicles with C, K_veh, C_veh identified": sum(
+                all(
+                    _judged(fits[vid]["parameters"][p]).get("identified", True)
+                    for p in ("C", "K_veh", "C_veh")
+                )
+                for vid in ids
             ),
             "vehicles evaluated (fit acceptable)": sum(
                 fits[vid]["verdict"] == ACCEPTABLE for vid in ids
             ),
         }
     rows = []
-    for quantity in next(iter(counts.values())) if counts else []:
-        row = {"quantity": quantity}
-        row |= {CLASS_LABEL[c]: counts[c][quantity] for c in classes}
-        row["Sum"] = sum(counts[c][quantity] for c in classes)
+    for name in next(iter(counts.values())) if counts else []:
+        row = {"quantity": name}
+        row |= {CLASS_LABEL.get(c, c): counts[c][name] for c in classes}
+        row["Sum"] = sum(counts[c][name] for c in classes)
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def _bootstrap_mean_ci(values: np.ndarray, seed: int) -> tuple[float, float]:
-    if len(values) < 3:  # two points resample to three distinct means: no interval
-        return math.nan, math.nan
-    res = stats.bootstrap(
-        (values,),
-        np.mean,
-        n_resamples=BOOTSTRAP_RESAMPLES,
-        confidence_level=0.95,
-        method="percentile",
-        rng=np.random.default_rng(seed),
-    )
-    return float(res.confidence_interval.low), float(res.confidence_interval.high)
-
+# --- class statistics for a handful of vehicles ------------------------------------------------
 
 SELECTIONS = {
-    "all vehicles (as the paper)": lambda t3: t3,
+    "every identified value": lambda t3: t3,
     "fit acceptable only": lambda t3: t3[t3["verdict"] == ACCEPTABLE],
 }
 
 
+def _t_interval(x: np.ndarray, positive: bool = False) -> tuple[float, float]:
+    """95 % t interval of the mean of x (n - 1 degrees of freedom); none below n = 2. For a
+    ``positive`` quantity the lower end is clipped at 0 (the interval keeps its coverage)."""
+    if x.size < 2:
+        return math.nan, math.nan
+    from scipy import stats
+
+    half = stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size)
+    lo = float(x.mean() - half)
+    return (max(lo, 0.0) if positive else lo), float(x.mean() + half)
+
+
 def class_summary(t3: pd.DataFrame) -> pd.DataFrame:
-    """Per selection (every vehicle, as the paper; only fits judged acceptable), class and
-    quantity (c_veh, delta): n, mean, median, sample sd, min, max and a percentile bootstrap
-    95 % interval of the mean (10,000 resamples, fixed seed; none for n < 3)."""
+    """Per selection (every identified value; only fits judged acceptable), class and quantity
+    (c_veh, delta): n, mean with its 95 % t interval, the geometric mean with its t interval on
+    the log scale (the natural centre of a ratio such as delta, whose values span decades),
+    median, sample sd, min and max, the vehicles used and those left out because the data do
+    not determine their value. A t interval (n - 1 degrees of freedom) is exact for normal
+    data and honest at n = 2 (wide); a percentile bootstrap of 3 to 5 values returns little
+    more than their range and covers far less than 95 %."""
     rows = []
     for selection, pick in SELECTIONS.items():
         sub = pick(t3)
-        for c in CLASS_ORDER:
+        for c in class_order(sub["class"].tolist()):
             part = sub[sub["class"] == c]
-            if part.empty:
-                continue
             for q in ("c_veh", "delta"):
-                x = part[q].to_numpy(dtype=float)
-                lo, hi = _bootstrap_mean_ci(x, BOOTSTRAP_SEED)
-                rows.append(
-                    {
-                        "selection": selection,
-                        "class": c,
-                        "quantity": q,
-                        "n": len(x),
+                ok = part[f"{q}_status"] == ESTIMATED if f"{q}_status" in part else part[q].notna()
+                x = part.loc[ok, q].to_numpy(dtype=float)
+                left_out = part.loc[~ok, "vehicle"].tolist()
+                row = {"selection": selection, "class": c, "quantity": q, "n": int(x.size)}
+                if x.size:
+                    lo, hi = _t_interval(x, positive=True)
+                    glo, ghi = _t_interval(np.log(x)) if np.all(x > 0) else (math.nan, math.nan)
+                    geo = float(np.exp(np.log(x).mean())) if np.all(x > 0) else math.nan
+                    row |= {
                         "mean": float(x.mean()),
-                        "median": float(np.median(x)),
-                        "sd": float(x.std(ddof=1)) if len(x) > 1 else math.nan,
-                        "min": float(x.min()),
-                        "max": float(x.max()),
                         "mean_ci_lo": lo,
                         "mean_ci_hi": hi,
-                        "vehicles": ";".join(part["vehicle"]),
+                        "geometric_mean": geo,
+                        "geometric_mean_ci_lo": math.exp(glo) if math.isfinite(glo) else math.nan,
+                        "geometric_mean_ci_hi": math.exp(ghi) if math.isfinite(ghi) else math.nan,
+                        "median": float(np.median(x)),
+                        "sd": float(x.std(ddof=1)) if x.size > 1 else math.nan,
+                        "min": float(x.min()),
+                        "max": float(x.max()),
                     }
-                )
-    return pd.DataFrame(rows)
+                row |= {
+                    "vehicles": ";".join(part.loc[ok, "vehicle"]),
+                    "not_identified": ";".join(left_out),
+                }
+                rows.append(row)
+    columns = ["selection", "class", "quantity", "n", "mean", "mean_ci_lo", "mean_ci_hi"]
+    columns += ["geometric_mean", "geometric_mean_ci_lo", "geometric_mean_ci_hi", "median"]
+    columns += ["sd", "min", "max", "vehicles", "not_identified"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def smallest_mann_whitney_p(n_a: int, n_b: int) -> float:
+    """The smallest two-sided p-value the exact Mann-Whitney U test can give for samples of
+    n_a and n_b without ties: every value of one group above every value of the other, 2 of
+    the C(n_a + n_b, n_a) equally likely orderings under the null hypothesis."""
+    if n_a < 1 or n_b < 1:
+        return 1.0
+    return min(1.0, 2.0 / math.comb(n_a + n_b, n_a))
 
 
 def class_test(
@@ -426,14 +555,23 @@ def class_test(
     alpha: float = 0.05,
 ) -> pd.DataFrame:
     """The paper's open question (section 6.3): do metros and regional trains differ in c_veh?
-    Welch's t-test and the Mann-Whitney U test (two-sided, exact for small samples), per
-    selection of vehicles, with the p-values and a plain conclusion at level ``alpha``."""
+    Per selection of vehicles (values the data do not determine left out): Welch's t-test
+    (needs 2 vehicles per group) and the exact two-sided Mann-Whitney U test, each run only
+    when it can reach significance at ``alpha`` - the exact test's smallest attainable p is
+    2 / C(n_a + n_b, n_a) (:func:`smallest_mann_whitney_p`: 0.2 at 3 vs 2), so with fewer
+    vehicles "no significant difference" would be certain before any data; the table says
+    "too few vehicles to test" instead. A plain conclusion from the tests that ran."""
+    from scipy import stats
+
     a_name, b_name = groups
     rows = []
     for selection, pick in SELECTIONS.items():
         sub = pick(t3)
+        if f"{quantity}_status" in sub:
+            sub = sub[sub[f"{quantity}_status"] == ESTIMATED]
         a = sub.loc[sub["class"] == a_name, quantity].to_numpy(dtype=float)
         b = sub.loc[sub["class"] == b_name, quantity].to_numpy(dtype=float)
+        min_p = smallest_mann_whitney_p(len(a), len(b))
         row: dict[str, Any] = {
             "selection": selection,
             "quantity": quantity,
@@ -443,39 +581,38 @@ def class_test(
             "n_b": len(b),
             "mean_a": float(a.mean()) if len(a) else math.nan,
             "mean_b": float(b.mean()) if len(b) else math.nan,
+            "welch_t": math.nan,
+            "welch_p": math.nan,
+            "mannwhitney_U": math.nan,
+            "mannwhitney_p": math.nan,
+            "mannwhitney_min_p": min_p,
         }
+        ran, notes = {}, []
         if len(a) >= 2 and len(b) >= 2:
             welch = stats.ttest_ind(a, b, equal_var=False)
-            mwu = stats.mannwhitneyu(a, b, alternative="two-sided", method="exact")
-            p_w, p_u = float(welch.pvalue), float(mwu.pvalue)
-            significant = [n for n, p in (("Welch", p_w), ("Mann-Whitney", p_u)) if p < alpha]
-            if len(significant) == 2:
-                conclusion = f"differ: both tests significant at {alpha:g}"
-            elif significant:
-                conclusion = (
-                    f"inconclusive: only {significant[0]} significant at {alpha:g} "
-                    f"(n = {len(a)} and {len(b)})"
-                )
-            else:
-                conclusion = (
-                    f"no significant difference at {alpha:g} (n = {len(a)} and {len(b)}): "
-                    "the data cannot show that the classes differ"
-                )
-            row |= {
-                "welch_t": float(welch.statistic),
-                "welch_p": p_w,
-                "mannwhitney_U": float(mwu.statistic),
-                "mannwhitney_p": p_u,
-                "conclusion": conclusion,
-            }
+            row |= {"welch_t": float(welch.statistic), "welch_p": float(welch.pvalue)}
+            ran["Welch"] = float(welch.pvalue)
         else:
-            row |= {
-                "welch_t": math.nan,
-                "welch_p": math.nan,
-                "mannwhitney_U": math.nan,
-                "mannwhitney_p": math.nan,
-                "conclusion": "too few vehicles in a group (fewer than 2) to test",
-            }
+            notes.append("Welch needs 2 vehicles per group")
+        if min_p < alpha:
+            mwu = stats.mannwhitneyu(a, b, alternative="two-sided", method="exact")
+            row |= {"mannwhitney_U": float(mwu.statistic), "mannwhitney_p": float(mwu.pvalue)}
+            ran["Mann-Whitney"] = float(mwu.pvalue)
+        else:
+            notes.append(f"Mann-Whitney cannot go below p = {min_p:.3g}")
+        n = f"n = {len(a)} and {len(b)}"
+        significant = [name for name, p in ran.items() if p < alpha]
+        if not ran:
+            conclusion = f"too few vehicles to test ({n}: {'; '.join(notes)})"
+        elif len(significant) == len(ran):
+            conclusion = f"differ: {' and '.join(ran)} significant at {alpha:g} ({n})"
+        elif significant:
+            conclusion = f"inconclusive: only {significant[0]} significant at {alpha:g} ({n})"
+        else:
+            conclusion = f"no significant difference at {alpha:g} ({n})"
+        if ran and notes:
+            conclusion += f"; not run: {'; '.join(notes)}"
+        row["conclusion"] = conclusion
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -509,7 +646,7 @@ def _plain(x: float, decimals: int, thousands: bool = False) -> str:
     return f"{x:,.{decimals}f}" if thousands else f"{x:.{decimals}f}"
 
 
-UNBOUNDED_FACTOR = 1e3  # an interval limit this far from the value prints as 0 or ∞
+UNBOUNDED_FACTOR = pem.UNBOUNDED_FACTOR  # an interval limit this far prints as 0 or ∞
 
 
 def _delta(x: float, decimals: int = 2) -> str:
@@ -527,10 +664,21 @@ def _limits(x: float, lo: float, hi: float) -> tuple[float, float]:
     return lo, hi
 
 
+def _number(kind: str, x: float, tex: bool) -> str:
+    """A single number as the paper prints its kind."""
+    if kind == "sci":
+        text = _sci(x, tex)[0]
+        return f"${text}$" if tex else text
+    if kind == "delta":
+        return _delta(x)
+    decimals, thousands = {"k": (2, False), "int": (0, True)}[kind]
+    return _plain(x, decimals, thousands)
+
+
 def _value_interval(kind: str, x: float, lo: float, hi: float, tex: bool) -> str:
-    """A value as the paper prints it, its 95 % interval in brackets (one digit more; an
-    interval in the value's power of ten for the 1.8x10^7 kind; 0 and ∞ for limits the data
-    do not set)."""
+    """A value as the paper prints it, its 95 % interval in brackets (an interval in the
+    value's power of ten for the 1.8x10^7 kind; 0 and ∞ for limits the data do not set).
+    k is printed with two decimals, as its interval: u(k) is about 1 % of k."""
     lo, hi = _limits(x, lo, hi)
     if kind == "sci":
         text, e = _sci(x, tex)
@@ -539,12 +687,22 @@ def _value_interval(kind: str, x: float, lo: float, hi: float, tex: bool) -> str
         return f"${text}$".replace("∞", "\\infty") if tex else text
     if kind == "delta":
         return f"{_delta(x)} [{'0' if lo == 0 else _delta(lo, 3)}, {_delta(hi, 3)}]"
-    decimals, thousands = {"k": (1, False), "int": (0, True)}[kind]
-    more = decimals + 1 if kind == "k" else decimals
+    decimals, thousands = {"k": (2, False), "int": (0, True)}[kind]
     return (
         f"{_plain(x, decimals, thousands)} "
-        f"[{'0' if lo == 0 else _plain(lo, more, thousands)}, {_plain(hi, more, thousands)}]"
+        f"[{'0' if lo == 0 else _plain(lo, decimals, thousands)}, "
+        f"{_plain(hi, decimals, thousands)}]"
     )
+
+
+def _not_identified(kind: str, limit: float, limit_kind: str, tex: bool) -> str:
+    """'not identified', with the one-sided limit the data give (≤ for an upper limit)."""
+    if limit_kind not in ("upper", "lower") or not math.isfinite(limit):
+        return "not identified"
+    sign = {"upper": "≤", "lower": "≥"}[limit_kind]
+    if tex:
+        sign = {"upper": "$\\le$", "lower": "$\\ge$"}[limit_kind]
+    return f"not identified ({sign} {_number(kind, limit, tex)})"
 
 
 def _tex_escape(text: str) -> str:
@@ -560,11 +718,16 @@ def _tex_escape(text: str) -> str:
 
 
 def _intervals(df: pd.DataFrame, q: str, kind: str, tex: bool) -> list[str]:
-    """Column ``q`` with its 95 % interval (columns ``q_lo``, ``q_hi``), printed as ``kind``."""
-    return [
-        _value_interval(kind, x, lo, hi, tex)
-        for x, lo, hi in zip(df[q], df[f"{q}_lo"], df[f"{q}_hi"], strict=True)
-    ]
+    """Column ``q`` with its 95 % interval (columns ``q_lo``, ``q_hi``), printed as ``kind``;
+    "not identified" with its limit where ``q_status`` says so."""
+    out = []
+    for _, r in df.iterrows():
+        status = r.get(f"{q}_status", ESTIMATED)
+        if isinstance(status, str) and status.startswith("not identified"):
+            out.append(_not_identified(kind, r[f"{q}_limit"], r[f"{q}_limit_kind"], tex))
+        else:
+            out.append(_value_interval(kind, r[q], r[f"{q}_lo"], r[f"{q}_hi"], tex))
+    return out
 
 
 def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame:
@@ -602,7 +765,18 @@ def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame
     if name == "class_summary":
 
         def num(q, x):
+            if not math.isfinite(x):
+                return "–"
             return _plain(x, 0, True) if q == "c_veh" else _delta(x)
+
+        def centre(r):
+            """c_veh: the mean (the paper's statistic); delta: the geometric mean."""
+            if r.n == 0:
+                return "–"
+            key = "mean" if r.quantity == "c_veh" else "geometric_mean"
+            x, lo, hi = getattr(r, key), getattr(r, f"{key}_ci_lo"), getattr(r, f"{key}_ci_hi")
+            ci = f" [{num(r.quantity, lo)}, {num(r.quantity, hi)}]" if math.isfinite(lo) else ""
+            return f"{num(r.quantity, x)}{ci}"
 
         return pd.DataFrame(
             {
@@ -610,20 +784,15 @@ def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame
                 "class": df["class"].map(esc),
                 "quantity": df["quantity"].map(esc),
                 "n": df["n"].astype(str),
-                "mean": [num(r.quantity, r.mean) for r in df.itertuples()],
-                "95 % CI of the mean (bootstrap)": [
-                    "–"
-                    if not math.isfinite(r.mean_ci_lo)
-                    else f"[{num(r.quantity, r.mean_ci_lo)}, {num(r.quantity, r.mean_ci_hi)}]"
-                    for r in df.itertuples()
-                ],
+                "mean or geometric mean [95 % t interval]": [centre(r) for r in df.itertuples()],
                 "median": [num(r.quantity, r.median) for r in df.itertuples()],
-                "sd": [
-                    "–" if not math.isfinite(r.sd) else num(r.quantity, r.sd)
+                "sd": [num(r.quantity, r.sd) for r in df.itertuples()],
+                "range": [
+                    "–" if r.n == 0 else f"{num(r.quantity, r.min)} – {num(r.quantity, r.max)}"
                     for r in df.itertuples()
                 ],
-                "range": [
-                    f"{num(r.quantity, r.min)} – {num(r.quantity, r.max)}" for r in df.itertuples()
+                "not identified (left out)": [
+                    esc(str(v)) if isinstance(v, str) and v else "–" for v in df["not_identified"]
                 ],
             }
         )
@@ -635,10 +804,15 @@ def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame
                 "groups": [
                     f"{r.group_a} (n={r.n_a}) vs {r.group_b} (n={r.n_b})" for r in df.itertuples()
                 ],
-                "means": [f"{r.mean_a:.0f} vs {r.mean_b:.0f}" for r in df.itertuples()],
-                "Welch p": [f"{p:.3f}" if math.isfinite(p) else "–" for p in df["welch_p"]],
+                "means": [
+                    f"{r.mean_a:.0f} vs {r.mean_b:.0f}"
+                    if math.isfinite(r.mean_a) and math.isfinite(r.mean_b)
+                    else "–"
+                    for r in df.itertuples()
+                ],
+                "Welch p": [f"{p:.3f}" if math.isfinite(p) else "not run" for p in df["welch_p"]],
                 "Mann-Whitney p": [
-                    f"{p:.3f}" if math.isfinite(p) else "–" for p in df["mannwhitney_p"]
+                    f"{p:.3f}" if math.isfinite(p) else "not run" for p in df["mannwhitney_p"]
                 ],
                 "conclusion": df["conclusion"].map(esc),
             }
@@ -680,7 +854,7 @@ def to_latex(name: str, df: pd.DataFrame, caption: str, source: str, label: str)
 # the study's tables as files
 
 CAPTIONS = {
-    "table1": "Table 1. Available and evaluated experiments per vehicle class.",
+    "table1": "Table 1. Vehicles, k tests and identification windows evaluated per class.",
     "table2": (
         "Table 2. Heat transfer coefficient k and heat capacities of the second-order model "
         "(eqs. 7-8) with 95 % intervals."
@@ -692,38 +866,54 @@ CAPTIONS = {
     "class_summary": "Class statistics of c_veh and δ.",
     "class_test": "Do the vehicle classes differ in c_veh? (the paper's open question, §6.3)",
 }
+NOT_IDENTIFIED_NOTE = (
+    "not identified: the data do not determine the value - the estimate sits at a bound of the "
+    "search, or its 95 % interval reaches beyond a factor 1000 of it; what the data do say is "
+    "given as a one-sided limit (≤, ≥). Such a value is left out of every class statistic and "
+    "comparison."
+)
 NOTES = {
     "table1": [
-        "k value measured: vehicles with a static k window; usable: the window passed the "
-        "steady-state test; experiments available: identification windows in the configs; "
-        "evaluated: second-order fits with the verdict 'fit acceptable' (results/vehicles/"
-        "<id>/fit_order2.yaml gives the reasons for the others).",
+        "Vehicles with a k value measured: a static k window in the config; usable: the window "
+        "passed the steady-state test; identification windows fitted: windows of the "
+        "second-order fits (a vehicle may have several); identified: C, K_veh and C_veh all "
+        "determined by the data; evaluated: second-order fits with the verdict 'fit "
+        "acceptable' (results/vehicles/<id>/fit_order2.yaml gives the reasons for the others).",
     ],
     "table2": [
         "k: the static test (eq. 10) with k ± 2 u(k), or kA / A estimated jointly when the "
         "static k was not usable ('k from').",
         "C, K_veh, C_veh: simulation-error PEM (eqs. 15-20); intervals combine the statistical "
-        "(HAC) and the systematic (GUM type B) uncertainty; a limit shown as 0 or ∞ lies beyond "
-        "a factor 1000 of the estimate (the data do not bound it). R²: eq. 21 for T.",
+        "(HAC) and the systematic (GUM type B) uncertainty, each physical error source once "
+        "through both stages. R²: eq. 21 for T.",
+        NOT_IDENTIFIED_NOTE,
         "Verdict: results/vehicles/<id>/fit_order2.yaml lists the reasons.",
     ],
     "table3": [
         "c_veh takes C_veh's interval (the mass m_veh is taken as exact); δ's interval "
-        "accounts for the correlation of C and C_veh and for systematic errors that move both.",
+        "accounts for the correlation of C and C_veh and for systematic errors that move both. "
+        "A ratio with a part the data do not determine is not identified either.",
+        NOT_IDENTIFIED_NOTE,
     ],
     "class_summary": [
-        "Bootstrap: percentile interval of the class mean, 10,000 resamples, fixed seed; none "
-        "for fewer than 3 vehicles. 'all vehicles' includes fits in doubt, as the paper's "
-        "Figure 5 does.",
+        "c_veh: the arithmetic mean (the paper's statistic); δ, a ratio whose values span "
+        "decades: the geometric mean. Their 95 % intervals are t intervals (n - 1 degrees of "
+        "freedom; for δ on the log scale; a lower end below 0 shown as 0), none for a single "
+        "vehicle. With 2 to 5 vehicles a class mean is known only roughly: the intervals say "
+        "how roughly.",
+        "Values the data do not determine are left out and named; 'every identified value' "
+        "also includes fits whose assumptions are in doubt, as the paper's Figure 5 does.",
     ],
     "class_test": [
-        "Welch's t-test and the exact two-sided Mann-Whitney U test at the 5 % level.",
+        "Welch's t-test and the exact two-sided Mann-Whitney U test at the 5 % level, each run "
+        "only when it can reach significance: the exact test's smallest p is "
+        "2 / C(n_a + n_b, n_a) (0.2 at 3 vs 2).",
     ],
 }
 SYNTHETIC_NOTE = (
     "These re-estimates come from the synthetic campaign, whose ground truth was set from the "
-    "paper's published values: they test the method and reproduce the published pattern; "
-    "they are not evidence about real vehicles."
+    "paper's published values: they test the method (does railtherm recover what the data "
+    "were made from?), and they are not evidence about real vehicles."
 )
 
 
@@ -748,14 +938,15 @@ def study_tables(
 def write_study_tables(
     tables: Mapping[str, pd.DataFrame], source: str, paths: Mapping[str, str]
 ) -> None:
-    """Each table as CSV (full precision, a ``source`` column), Markdown and LaTeX (formatted
-    as the paper, the source in the caption); ``paths`` maps "<name>_<csv|md|tex>" to files."""
+    """Each table as CSV (at ``tables.SIGNIFICANT_DIGITS`` significant digits, a ``source``
+    column), Markdown and LaTeX (formatted as the paper from the same rounded numbers, the
+    source in the caption); ``paths`` maps "<name>_<csv|md|tex>" to files."""
     for name, df in tables.items():
-        df = df.copy()
+        df = round_significant(df)
         if "source" not in df.columns:
             df["source"] = source
-        df.to_csv(paths[f"{name}_csv"], index=False)
-        notes = NOTES[name] + ([SYNTHETIC_NOTE] if source == SYNTHETIC_SOURCE else [])
+        write_csv(df, paths[f"{name}_csv"])
+        notes = NOTES[name] + ([SYNTHETIC_NOTE] if "synthetic" in source else [])
         with open(paths[f"{name}_md"], "w", encoding="utf-8") as stream:
             stream.write(to_markdown(name, df, CAPTIONS[name], source, notes))
         with open(paths[f"{name}_tex"], "w", encoding="utf-8") as stream:

@@ -141,6 +141,7 @@ def identify(
     combine_uncertainty(fitted["parameters"], budget)
     if "kA" not in fitted["parameters"]:
         fitted["parameters"]["kA"] = derived_kA(fitted)
+    judge_identification(fitted, {**structure.bounds, **options["bounds"]})
     estimate = {
         "vehicle": vehicle_data["id"],
         "synthetic": bool(vehicle_data.get("synthetic", False)),
@@ -357,6 +358,35 @@ def combine_uncertainty(parameters: dict[str, Any], budget: Mapping[str, Any]) -
                 float(np.exp(log_value - pem.Z95 * sd)),
                 float(np.exp(log_value + pem.Z95 * sd)),
             ]
+
+
+def judge_identification(fitted: dict[str, Any], bounds: Mapping[str, tuple]) -> None:
+    """Mark every estimated parameter of ``fitted`` (a ``FitResult.to_dict()`` with combined
+    intervals) with :func:`railtherm.pem.identification`, and judge the width of the interval
+    a reader sees - the combined one - rather than the fit's statistical one: the
+    ``wide_interval`` flags are replaced by flags on the combined intervals."""
+    pinned = {p for f in fitted["flags"] if f["code"] == "at_bound" for p in f["parameters"]}
+    flags = [f for f in fitted["flags"] if f["code"] != "wide_interval"]
+    for p, entry in fitted["parameters"].items():
+        if not entry.get("estimated"):
+            continue
+        at_bound = None
+        if p in pinned:
+            lo_b, hi_b = (float(b) for b in bounds[p])
+            lower = abs(math.log(entry["value"] / lo_b)) <= abs(math.log(hi_b / entry["value"]))
+            at_bound = ("lower", lo_b) if lower else ("upper", hi_b)
+        entry.update(pem.identification(entry["value"], entry["ci95"], at_bound))
+        lo, hi = entry["ci95"]
+        if not (lo > 0 and hi / lo <= pem.WIDE_RATIO) and p in fitted["free"]:
+            flags.append(
+                pem.Flag(
+                    "wide_interval",
+                    (p,),
+                    f"the combined 95 % interval of {p} spans more than a decade ({lo:.3g} to "
+                    f"{hi:.3g}): the data hardly determine it",
+                ).to_dict()
+            )
+    fitted["flags"] = flags
 
 
 def _series(structure, exps, result) -> pd.DataFrame:

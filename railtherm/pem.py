@@ -51,10 +51,12 @@ __all__ = [
     "equation_error_start",
     "fit",
     "experiment_from_table",
+    "identification",
 ]
 
 Z95 = 1.959963984540054
 WIDE_RATIO = 10.0
+UNBOUNDED_FACTOR = 1e3  # an interval limit this far from the value: the data do not bound it
 CORR_MAX = 0.95
 COND_MAX = 1e8
 _LSMR_ABOVE = 300_000  # Jacobian entries above which the trust-region step uses LSMR
@@ -1010,6 +1012,47 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
         states=tuple(structure.states),
         bandwidths=bandwidths,
     )
+
+
+def identification(
+    value: float, ci95: tuple[float, float], at_bound: tuple[str, float] | None = None
+) -> dict[str, Any]:
+    """Whether the data determine a parameter, and what they do say when they do not.
+
+    Not identified: the estimate sits at a bound of the search (the optimum may lie beyond
+    it), or its combined 95 % interval reaches beyond a factor ``UNBOUNDED_FACTOR`` of the
+    value on a side (Table 2 prints such a limit as 0 or ∞). What is left is a one-sided
+    limit: at the lower bound b the data say "at most about b" (``limit: upper``), at the
+    upper bound "at least about b"; an interval unbounded above leaves its lower end as a
+    lower limit, one unbounded below its upper end as an upper limit, one unbounded both ways
+    nothing (``limit: none``). Returns ``{"identified": True}`` or ``{"identified": False,
+    "limit": "upper" | "lower" | "none", "limit_value": float | None, "reason": str}``."""
+    if at_bound is not None:
+        side, bound = at_bound
+        return {
+            "identified": False,
+            "limit": "upper" if side == "lower" else "lower",
+            "limit_value": float(bound),
+            "reason": f"at its {side} bound {bound:.3g}",
+        }
+    lo, hi = (float(c) for c in ci95)
+    factor = UNBOUNDED_FACTOR
+    open_lo = not (math.isfinite(lo) and lo > value / factor)
+    open_hi = not (math.isfinite(hi) and hi < value * factor)
+    if not (open_lo or open_hi):
+        return {"identified": True}
+    if open_lo and open_hi:
+        limit, limit_value, where = "none", None, "both ways"
+    elif open_hi:
+        limit, limit_value, where = "lower", lo, "above"
+    else:
+        limit, limit_value, where = "upper", hi, "below"
+    return {
+        "identified": False,
+        "limit": limit,
+        "limit_value": limit_value,
+        "reason": f"95 % interval unbounded {where} (beyond a factor {factor:g} of the value)",
+    }
 
 
 def _flags(sol, v, th, free, ci, corr, cond, bnds) -> list[Flag]:

@@ -20,6 +20,7 @@ top panel. ``synthetic=True`` (or :func:`synthetic_note`) adds the footer
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -36,6 +37,7 @@ from matplotlib.layout_engine import ConstrainedLayoutEngine, PlaceHolderLayoutE
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
 
+from railtherm import aggregate, pem
 from railtherm.kvalue import KValue
 
 __all__ = [
@@ -70,7 +72,6 @@ COLORS = {"T": "#c0392b", "T_veh": "#8e44ad", "T_o": "#2471a3", "Q_H": "#4d4d4d"
 IRRADIANCE_COLORS = ("#d68910", "#b9770e", "#7d6608")
 FIGSIZE_FIG5_IN = (3.5, 3.0)  # each of Figure 5 (a) and (b): one paper column
 SYNTHETIC_NOTE = "synthetic data: virtual climatic wind tunnel (not measurements)"
-CLASS_ORDER = ("tram", "metro", "regional", "main-line")  # the paper's order in Figure 5
 DOUBT = "assumptions in doubt"
 # the models of Figure 3: told apart by line style as well as colour (grey print)
 MODEL_LABELS = {1: "first-order model (eq. 9)", 2: "second-order model (eqs. 7-8)"}
@@ -88,6 +89,14 @@ _POINT = {
     False: {"marker": "o", "ms": 3.8, "mew": 0.9, "mec": COLORS["T_veh"], "mfc": COLORS["T_veh"]},
     True: {"marker": "s", "ms": 3.6, "mew": 0.9, "mec": COLORS["T_veh"], "mfc": "none"},
 }
+# Figure 5, a value the data do not determine: an open triangle at its one-sided limit (up:
+# at least, down: at most) with an arrow to the axis edge, or a dotted line over the axis
+_OPEN = {
+    kind: {"marker": m, "ms": 4.2, "mew": 0.9, "mec": "0.35", "mfc": "white"}
+    for kind, m in (("lower", "^"), ("upper", "v"), ("none", "D"))
+}
+_OPEN_ARROW = {"arrowstyle": "->", "color": "0.45", "lw": 0.7, "shrinkA": 3, "shrinkB": 0}
+_OPEN_BAND = {"color": "0.55", "lw": 0.7, "ls": (0, (1, 1.5))}
 _TIME_LABEL = "time since window start (h)"
 _MAX_TICKS = 12.0  # at most about this many time ticks over the whole axis
 _HOUR_STEPS = (0.25, 0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 12.0, 24.0, 48.0, 72.0, 168.0)
@@ -274,12 +283,26 @@ def _settle(fig: Figure, passes: int = 10, tol: float = 1e-6) -> Figure:
     return fig
 
 
-def _finish(fig: Figure, synthetic: bool) -> Figure:
-    """The footer when asked; the settled layout either way."""
-    if synthetic:
-        synthetic_note(fig)
+def _finish(fig: Figure, synthetic: bool, note: str | None = None) -> Figure:
+    """The footer when asked (``note``, else :data:`SYNTHETIC_NOTE`); the settled layout
+    either way."""
+    if synthetic or note:
+        synthetic_note(fig, note or SYNTHETIC_NOTE)
         return fig
     return _settle(fig)
+
+
+def provenance_note(table: pd.DataFrame) -> str | None:
+    """The footer that says what a study figure's data are, from a table's ``source`` and
+    ``vehicle`` columns: the synthetic note when every row is synthetic, which vehicles are
+    measured when the data are mixed, none when every row is measured."""
+    synthetic = table["source"].astype(str).str.startswith("synthetic")
+    if synthetic.all():
+        return SYNTHETIC_NOTE
+    if not synthetic.any():
+        return None
+    measured = ", ".join(table.loc[~synthetic, "vehicle"].astype(str))
+    return f"synthetic data (virtual climatic wind tunnel), except measured: {measured}"
 
 
 # --- windows laid side by side on one time axis -------------------------------------------
@@ -617,12 +640,6 @@ def figure4(
     return _finish(fig, synthetic)
 
 
-def _class_order(classes: Sequence[str]) -> list[str]:
-    """The classes present: the paper's order first, then any other in order of appearance."""
-    present = list(dict.fromkeys(str(c) for c in classes))
-    return [c for c in CLASS_ORDER if c in present] + [c for c in present if c not in CLASS_ORDER]
-
-
 def _spread(n: int, half_width: float = 0.22) -> np.ndarray:
     """Deterministic horizontal offsets of n points inside a box, evenly spread."""
     return np.linspace(-half_width, half_width, n) if n > 1 else np.zeros(n)
@@ -650,26 +667,52 @@ def _limits(values: np.ndarray, log: bool, pad: float = 0.07) -> tuple[float, fl
     return (10.0**lo, 10.0**hi) if log else (float(lo), float(hi))
 
 
+def _identified(table3: pd.DataFrame, quantity: str) -> np.ndarray:
+    """Rows whose ``quantity`` the data determine: Table 3's ``<q>_status``, or for a table
+    without it a finite value with a bounded interval (railtherm.pem.identification)."""
+    values = table3[quantity].to_numpy(dtype=float)
+    ok = np.isfinite(values)
+    if f"{quantity}_status" in table3:
+        return ok & (table3[f"{quantity}_status"].astype(str) == "estimated").to_numpy()
+    intervals = table3[[f"{quantity}_lo", f"{quantity}_hi"]].to_numpy(dtype=float)
+    for i in np.flatnonzero(ok):
+        ok[i] = pem.identification(values[i], intervals[i])["identified"]
+    return ok
+
+
 def _class_figure(
     table3: pd.DataFrame, quantity: str, title: str, ylabel: str, log_if_span: float | None
 ) -> Figure:
-    """Box plot of ``quantity`` per class with each vehicle's point, 95 % interval and name."""
+    """Box plot of ``quantity`` per class with each vehicle's point, 95 % interval and name.
+
+    Boxes, axis range and points come from the values the data determine only. A value they
+    do not determine (``<q>_status`` "not identified") is drawn apart: an open triangle at the
+    one-sided limit the data give (clipped to the axis) with an arrow to the axis edge where
+    the value may lie, or a dotted line over the whole axis where they give no limit."""
+    ok = _identified(table3, quantity)
     values = table3[quantity].to_numpy(dtype=float)
-    finite = values[np.isfinite(values)]
+    finite = values[ok]
     if finite.size == 0:
-        raise ValueError(f"table3 has no finite {quantity}")
+        raise ValueError(f"table3 has no identified {quantity}")
     log = bool(
         log_if_span is not None and finite.min() > 0 and finite.max() / finite.min() > log_if_span
     )
     if log:
         ylabel += ", log scale"
-    bounds = np.r_[finite, table3[f"{quantity}_lo"], table3[f"{quantity}_hi"]].astype(float)
-    ylim = _limits(bounds, log)
+    lo_hi = table3.loc[ok, [f"{quantity}_lo", f"{quantity}_hi"]].to_numpy(dtype=float).ravel()
+    ylim = _limits(np.r_[finite, lo_hi], log)
 
     def frac(y: float) -> float:  # height as a fraction of the axes
         f = np.log10 if log else (lambda z: z)
         return float((f(y) - f(ylim[0])) / (f(ylim[1]) - f(ylim[0])))
 
+    def at(h: float) -> float:  # the data value at a height fraction of the axes
+        if log:
+            return float(10.0 ** (np.log10(ylim[0]) + h * np.log10(ylim[1] / ylim[0])))
+        return float(ylim[0] + h * (ylim[1] - ylim[0]))
+
+    limits = table3.get(f"{quantity}_limit", pd.Series(np.nan, index=table3.index))
+    kinds = table3.get(f"{quantity}_limit_kind", pd.Series("", index=table3.index))
     with matplotlib.rc_context(_RC):
         fig = Figure(figsize=FIGSIZE_FIG5_IN, dpi=DPI, layout="constrained")
         FigureCanvasAgg(fig)
@@ -681,29 +724,56 @@ def _class_figure(
         # a label is about 6 pt high; the axes about 0.55 of the figure height
         sep = 6.5 / (0.55 * 72.0 * fig.get_figheight())
         name_at = transforms.offset_copy(ax.get_xaxis_transform(), fig=fig, x=3.0, units="points")
-        classes = _class_order(table3["class"].tolist())
-        boxes, labels = [], []
+        classes = aggregate.class_order(table3["class"].tolist())
+        boxes, labels, any_open = [], [], False
         for pos, cls in enumerate(classes, start=1):
-            part = table3[table3["class"].astype(str) == cls]
-            v = part[quantity].to_numpy(dtype=float)
-            ok = np.isfinite(v)
-            boxes.append(v[ok])
-            labels.append(f"{cls}\n(n={int(ok.sum())})")
-            order = np.argsort(np.where(ok, v, np.inf), kind="stable")[: int(ok.sum())]
-            heights = _declutter(np.array([frac(v[i]) for i in order]), sep)
+            in_class = (table3["class"].astype(str) == cls).to_numpy()
+            part = table3[in_class]
+            v, good = values[in_class], ok[in_class]
+            boxes.append(v[good])
+            extra = int((~good).sum())
+            labels.append(f"{cls}\n(n={int(good.sum())}" + (f"+{extra})" if extra else ")"))
+            # every vehicle of the class, identified or not, gets a slot and a name
+            shown = np.where(good, v, np.nan)
+            for i in np.flatnonzero(~good):  # at the limit, kept inside so the arrow shows
+                lim = float(limits[in_class].iloc[i])
+                shown[i] = at(min(max(frac(lim), 0.1), 0.9)) if math.isfinite(lim) else at(0.5)
+            order = np.argsort(shown, kind="stable")
+            heights = _declutter(np.array([frac(shown[i]) for i in order]), sep)
             for dx, i, h in zip(_spread(order.size), order, heights, strict=True):
                 row = part.iloc[i]
-                x, y = pos + dx, float(v[i])
-                lo, hi = float(row[f"{quantity}_lo"]), float(row[f"{quantity}_hi"])
-                if np.isfinite(lo) and np.isfinite(hi):
-                    ax.vlines(x, lo, hi, color=COLORS["T_veh"], lw=0.6, alpha=0.8, zorder=2)
-                doubt = str(row["verdict"]) == DOUBT
-                (point,) = ax.plot([x], [y], ls="none", zorder=5, **_POINT[doubt])  # over names
+                x, y = pos + dx, float(shown[i])
+                name = str(row["vehicle"])
+                if good[i]:
+                    lo, hi = float(row[f"{quantity}_lo"]), float(row[f"{quantity}_hi"])
+                    if np.isfinite(lo) and np.isfinite(hi):
+                        ax.vlines(x, lo, hi, color=COLORS["T_veh"], lw=0.6, alpha=0.8, zorder=2)
+                    doubt = str(row["verdict"]) == DOUBT
+                    (point,) = ax.plot([x], [y], ls="none", zorder=5, **_POINT[doubt])
+                else:
+                    any_open = True
+                    kind = str(kinds[in_class].iloc[i])
+                    if kind in ("upper", "lower"):
+                        edge = ylim[1] if kind == "lower" else ylim[0]
+                        ax.annotate(
+                            "",
+                            xy=(x, edge),
+                            xytext=(x, y),
+                            arrowprops={**_OPEN_ARROW},
+                            zorder=3,
+                        )
+                        marker = _OPEN[kind]
+                        lim = float(limits[in_class].iloc[i])
+                        name += f" ({'≥' if kind == 'lower' else '≤'} {lim:.3g})"
+                    else:
+                        ax.vlines(x, *ylim, zorder=2, **_OPEN_BAND)
+                        marker = _OPEN["none"]
+                    (point,) = ax.plot([x], [y], ls="none", zorder=5, **marker)
                 point.set_gid(f"vehicle-{row['vehicle']}")
                 ax.text(
                     x,
                     h,
-                    str(row["vehicle"]),
+                    name,
                     transform=name_at,
                     ha="left",
                     va="center",
@@ -732,7 +802,7 @@ def _class_figure(
         ax.set_ylabel(ylabel)
         ax.set_title(title, loc="left")
         ax.grid(True, axis="y", lw=0.4, alpha=0.5)
-        verdicts = table3["verdict"].astype(str)
+        verdicts = table3.loc[ok, "verdict"].astype(str)
         handles = [
             Line2D([], [], ls="none", label=label, **_POINT[doubt])
             for doubt, label in ((False, "fit acceptable"), (True, DOUBT))
@@ -740,11 +810,17 @@ def _class_figure(
         ]
         bar = {"marker": "|", "ms": 9, "mew": 0.6, "color": COLORS["T_veh"]}
         handles.append(Line2D([], [], ls="none", label="95 % interval", **bar))
+        if any_open:
+            handles.append(
+                Line2D([], [], ls="none", label="not identified: limit", **_OPEN["lower"])
+            )
         _legend_row(fig, grid[1], handles, ncols=2, handlelength=1.2)
     return fig
 
 
-def figure5(table3: pd.DataFrame, *, synthetic: bool = False) -> tuple[Figure, Figure]:
+def figure5(
+    table3: pd.DataFrame, *, synthetic: bool = False, note: str | None = None
+) -> tuple[Figure, Figure]:
     """The paper's Figure 5: (a) c_veh and (b) delta by vehicle class (Table 3).
 
     Box plots per class in the order tram, metro, regional, main-line (then any other class),
@@ -752,8 +828,11 @@ def figure5(table3: pd.DataFrame, *, synthetic: bool = False) -> tuple[Figure, F
     sorted by value), its 95 % interval as a thin bar (left out when a bound is not finite)
     and its name (nudged up or down where names would overlap). Vehicles whose verdict is
     "assumptions in doubt" have a hollow square, the others a filled circle. Tick labels give
-    the class and, below it, the number of vehicles with a value ("tram\n(n=2)"). delta gets
-    a log axis when its values span more than a factor 20 (said in the axis label)."""
+    the class and, below it, the number of vehicles with a value the data determine and of
+    those without ("metro\n(n=4+1)"); the latter are drawn apart, never in a box
+    (:func:`_class_figure`). delta gets a log axis when its values span more than a factor 20
+    (said in the axis label). The footer: ``note`` (e.g. :func:`provenance_note`), or the
+    synthetic note when ``synthetic``."""
     need = ["vehicle", "class", "verdict"]
     need += [f"{q}{s}" for q in ("c_veh", "delta") for s in ("", "_lo", "_hi")]
     missing = [c for c in need if c not in table3]
@@ -763,7 +842,7 @@ def figure5(table3: pd.DataFrame, *, synthetic: bool = False) -> tuple[Figure, F
         raise ValueError("table3 is empty")
     a = _class_figure(table3, "c_veh", "(a) c_veh by vehicle class", "c_veh (J/(kg K))", None)
     b = _class_figure(table3, "delta", "(b) δ by vehicle class", "δ = C_veh / C (1)", 20.0)
-    return _finish(a, synthetic), _finish(b, synthetic)
+    return _finish(a, synthetic, note), _finish(b, synthetic, note)
 
 
 # --- the SINDy cross-check ------------------------------------------------------------------

@@ -101,10 +101,17 @@ def simulate_published(
 
 
 def _row(quantity, label, published, fit_entry, simulated=None) -> dict[str, Any]:
+    """One quantity; a fitted value the data do not determine (railtherm.pem.identification)
+    has no value, no interval and is within nothing: its ``status`` says why."""
     value = np.nan if fit_entry is None else float(fit_entry["value"])
     lo, hi = (np.nan, np.nan)
+    status = "estimated"
     if fit_entry is not None and "ci95" in fit_entry:
         lo, hi = map(float, fit_entry["ci95"])
+        judged = fit_entry if "identified" in fit_entry else pem.identification(value, (lo, hi))
+        if not judged["identified"]:
+            value, lo, hi = np.nan, np.nan, np.nan
+            status = f"not identified: {judged['reason']}"
     published = np.nan if published is None else float(published)
     return {
         "quantity": quantity,
@@ -117,6 +124,7 @@ def _row(quantity, label, published, fit_entry, simulated=None) -> dict[str, Any
         "ratio": value / published if np.isfinite(published) and published else np.nan,
         "within_ci": bool(lo <= published <= hi) if np.isfinite(lo) else None,
         "published_simulated": np.nan if simulated is None else float(simulated),
+        "status": status,
     }
 
 
@@ -184,9 +192,12 @@ def markdown(table: pd.DataFrame, references: list[Mapping[str, Any]], source: s
                 else "–"
             )
             ratio = f"{r.ratio:.3f}" if np.isfinite(r.ratio) else "–"
+            value = _number(r.railtherm, r.quantity)
+            if r.status != "estimated":
+                value = "not identified"
             parts.append(
                 f"| {r.label} | {r.unit} | {_number(r.published, r.quantity)} | "
-                f"{_number(r.railtherm, r.quantity)} | {ci} | {ratio} | "
+                f"{value} | {ci} | {ratio} | "
                 f"{_number(r.published_simulated, r.quantity)} |"
             )
         parts.append("")

@@ -335,9 +335,10 @@ def xticks(fig):
 
 def test_figure5_classes_in_paper_order_with_counts():
     a, b = plots.figure5(table3())
-    for fig in (a, b):
-        labels = [" ".join(x.split()) for x in xticks(fig)]
-        assert labels == ["tram (n=2)", "metro (n=3)", "regional (n=2)", "main-line (n=2)"]
+    labels = [" ".join(x.split()) for x in xticks(a)]
+    assert labels == ["tram (n=2)", "metro (n=3)", "regional (n=2)", "main-line (n=2)"]
+    # Metro2's delta interval is open to infinity: not an estimate, counted apart
+    assert " ".join(xticks(b)[1].split()) == "metro (n=2+1)"
     assert data_axes(a).get_ylabel() == "c_veh (J/(kg K))"
     # only the classes present
     a, _ = plots.figure5(table3()[lambda d: d["class"] != "tram"])
@@ -354,12 +355,48 @@ def test_figure5_hollow_markers_for_assumptions_in_doubt():
             point = points[f"vehicle-{row.vehicle}"]
             hollow = point.get_markerfacecolor() == "none"
             assert hollow == (row.verdict == "assumptions in doubt")
-        shapes = {ln.get_marker() for ln in points.values()}
+        shapes = {ln.get_marker() for ln in points.values() if ln.get_markerfacecolor() != "white"}
         assert len(shapes) == 2  # a different marker, not only a different fill
         names = {t.get_text() for t in ax.texts}
         assert set(t3["vehicle"]) <= names
         legend = [t.get_text() for x in fig.axes if x.get_legend() for t in x.get_legend().texts]
         assert "assumptions in doubt" in legend and "fit acceptable" in legend
+
+
+def test_figure5_draws_a_value_the_data_do_not_determine_apart():
+    """Metro3's delta not identified, at least 1,362 (C at its lower bound): no box, no axis
+    range and no filled point rest on it; an open triangle at the axis edge with an arrow, and
+    the count says so. An interval open to infinity is no estimate either."""
+    t3 = table3()
+    for q in ("c_veh", "delta"):
+        t3[f"{q}_status"], t3[f"{q}_limit"], t3[f"{q}_limit_kind"] = "estimated", np.nan, ""
+    metro3 = t3["vehicle"] == "Metro3"
+    t3.loc[metro3, ["delta", "delta_lo", "delta_hi"]] = np.nan
+    t3.loc[metro3, "delta_status"] = "not identified: C at its lower bound 1e+04"
+    t3.loc[metro3, ["delta_limit", "delta_limit_kind"]] = [1362.0, "lower"]
+    b = plots.figure5(t3)[1]
+    ax = data_axes(b)
+    assert ax.get_ylim()[1] < 100  # 1,362 does not stretch the axis
+    point = next(ln for ln in ax.lines if ln.get_gid() == "vehicle-Metro3")
+    assert point.get_marker() == "^" and point.get_markerfacecolor() == "white"
+    lo, hi = np.log10(ax.get_ylim())
+    assert np.log10(point.get_ydata()[0]) == pytest.approx(lo + 0.9 * (hi - lo))  # near the top
+    assert any(t.arrow_patch is not None for t in ax.texts if hasattr(t, "arrow_patch"))
+    assert "metro (n=2+1)" in [" ".join(x.split()) for x in xticks(b)]
+    assert "Metro3 (≥ 1.36e+03)" in {t.get_text() for t in ax.texts}  # the limit, by name
+    legend = [t.get_text() for x in b.axes if x.get_legend() for t in x.get_legend().texts]
+    assert "not identified: limit" in legend
+
+
+def test_figure5_footer_names_the_measured_vehicles():
+    t3 = table3().assign(source="synthetic: virtual climatic wind tunnel campaign")
+    assert plots.provenance_note(t3) == plots.SYNTHETIC_NOTE
+    t3.loc[t3["vehicle"] == "Regio2", "source"] = "measured"
+    note = plots.provenance_note(t3)
+    assert note.endswith("except measured: Regio2")
+    a, _ = plots.figure5(t3, note=note)
+    assert note in footers(a)
+    assert plots.provenance_note(t3.assign(source="measured")) is None
 
 
 def test_figure5_points_are_spread_deterministically_inside_their_class():

@@ -6,13 +6,24 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import aggregate
+from railtherm import aggregate, pem
 
 
 def fit(
-    C, K_veh, C_veh, *, sd=(0.1, 0.2, 0.1), corr=-0.5, effects=None, verdict=None, kA=None, r2=0.99
+    C,
+    K_veh,
+    C_veh,
+    *,
+    sd=(0.1, 0.2, 0.1),
+    corr=-0.5,
+    effects=None,
+    verdict=None,
+    kA=None,
+    r2=0.99,
+    pinned=None,
 ):
-    """A fit_order2.yaml-like dict; sd_log for (C, K_veh, C_veh), corr of C and C_veh."""
+    """A fit_order2.yaml-like dict; sd_log for (C, K_veh, C_veh), corr of C and C_veh;
+    ``pinned``: {parameter: ("lower" | "upper", bound)} for estimates at a bound."""
     free = ["C", "K_veh", "C_veh"]
     R = np.eye(3)
     R[0, 2] = R[2, 0] = corr
@@ -29,6 +40,7 @@ def fit(
             "sd_log": s,
             "ci95": [v * math.exp(-1.96 * s), v * math.exp(1.96 * s)],
         }
+        params[p] |= pem.identification(v, params[p]["ci95"], (pinned or {}).get(p))
     return {
         "vehicle": "x",
         "order": 2,
@@ -56,12 +68,14 @@ def kv(k, u_k=0.05, usable=True):
     return {"k": k, "u_k": u_k, "usable": usable}
 
 
-def test_table2_k_from_static_test_or_joint_estimate_and_config_order():
-    vehicles = {"B": vehicle("metro"), "A": vehicle("tram", A=250.0)}
-    fits = {"A": fit(1e7, 500, 2e7, kA=750.0), "B": fit(9e6, 200, 1e7)}
-    t2 = aggregate.table2(fits, {"A": None, "B": kv(2.8, 0.05)}, vehicles)
-    assert list(t2["vehicle"]) == ["B", "A"]
-    b, a = t2.iloc[0], t2.iloc[1]
+def test_table2_k_from_static_test_or_joint_estimate_and_rows_by_class():
+    vehicles = {"B": vehicle("metro"), "A": vehicle("tram", A=250.0), "D": vehicle("metro")}
+    fits = {"A": fit(1e7, 500, 2e7, kA=750.0), "B": fit(9e6, 200, 1e7), "D": fit(9e6, 200, 1e7)}
+    t2 = aggregate.table2(fits, {"A": None, "B": kv(2.8, 0.05), "D": kv(2.8)}, vehicles)
+    # by class in the paper's order, the config's order within a class: a vehicle added at
+    # the end of the config (D) lands among its class
+    assert list(t2["vehicle"]) == ["A", "B", "D"]
+    a, b = t2.iloc[0], t2.iloc[1]
     assert (b["k"], b["k_lo"], b["k_hi"]) == pytest.approx((2.8, 2.7, 2.9))  # k +- 2 u(k)
     assert (a["k"], a["k_lo"], a["k_hi"]) == pytest.approx((3.0, 2.7, 3.3))  # kA / A
     assert a["k_source"] == "joint estimation (PEM)"
@@ -109,9 +123,10 @@ def test_table1_counts_per_class_and_sum():
     kvalues = {"T1": kv(3.0), "M1": kv(2.0, usable=False), "M2": None}
     t1 = aggregate.table1(vehicles, kvalues, fits).set_index("quantity")
     assert list(t1.columns) == ["Tram", "Metro", "Sum"]
-    assert t1.loc["k value measured"].tolist() == [1, 1, 2]
+    assert t1.loc["vehicles with a k value measured"].tolist() == [1, 1, 2]
     assert t1.loc["k value usable (steady window)"].tolist() == [1, 0, 1]
-    assert t1.loc["experiments available"].tolist() == [2, 2, 4]
+    assert t1.loc["identification windows fitted"].tolist() == [2, 2, 4]
+    assert t1.loc["vehicles with C, K_veh, C_veh identified"].tolist() == [1, 2, 3]
     assert t1.loc["vehicles evaluated (fit acceptable)"].tolist() == [1, 1, 2]
 
 
@@ -124,44 +139,112 @@ def table3_frame(values):
                     "vehicle": f"{cls}{i}",
                     "class": cls,
                     "c_veh": x,
+                    "c_veh_status": aggregate.ESTIMATED,
                     "delta": x / 100.0,
+                    "delta_status": aggregate.ESTIMATED,
                     "verdict": aggregate.ACCEPTABLE if i < 3 else "assumptions in doubt",
                 }
             )
     return pd.DataFrame(rows)
 
 
-def test_class_summary_statistics_and_bootstrap_only_from_three_vehicles():
+def test_class_summary_t_intervals_and_geometric_mean_of_delta():
     t3 = table3_frame({"tram": [270.0, 330.0], "metro": [300.0, 350.0, 400.0, 700.0]})
     cs = aggregate.class_summary(t3)
-    allv = cs[cs["selection"] == "all vehicles (as the paper)"].set_index(["class", "quantity"])
+    allv = cs[cs["selection"] == "every identified value"].set_index(["class", "quantity"])
     metro = allv.loc[("metro", "c_veh")]
     assert metro["n"] == 4 and metro["mean"] == pytest.approx(437.5)
     assert metro["median"] == pytest.approx(375.0)
-    assert metro["mean_ci_lo"] < 437.5 < metro["mean_ci_hi"]
-    assert 300.0 <= metro["mean_ci_lo"] and metro["mean_ci_hi"] <= 700.0
-    assert math.isnan(allv.loc[("tram", "c_veh")]["mean_ci_lo"])  # n = 2: no interval
+    # t interval, 3 degrees of freedom: 437.5 +- 3.182 * sd / 2
+    half = 3.182446305284263 * np.std([300, 350, 400, 700], ddof=1) / 2.0
+    assert (metro["mean_ci_lo"], metro["mean_ci_hi"]) == pytest.approx((437.5 - half, 437.5 + half))
+    tram = allv.loc[("tram", "c_veh")]  # n = 2: a t interval with 1 degree of freedom, wide
+    half = 12.706204736174698 * np.std([270.0, 330.0], ddof=1) / math.sqrt(2)
+    assert tram["mean_ci_hi"] == pytest.approx(300.0 + half)
+    delta = allv.loc[("metro", "delta")]
+    logs = np.log([3.0, 3.5, 4.0, 7.0])
+    assert delta["geometric_mean"] == pytest.approx(math.exp(logs.mean()))
+    assert delta["geometric_mean_ci_lo"] < delta["geometric_mean"] < delta["geometric_mean_ci_hi"]
     acceptable = cs[cs["selection"] == "fit acceptable only"].set_index(["class", "quantity"])
     assert acceptable.loc[("metro", "c_veh")]["n"] == 3  # the fourth is in doubt
-    again = aggregate.class_summary(t3)
-    pd.testing.assert_frame_equal(cs, again)  # fixed seed: the same interval every run
 
 
-def test_class_test_detects_a_clear_difference_and_not_a_noisy_one():
+def test_class_test_runs_a_test_only_when_it_can_reach_significance():
+    assert aggregate.smallest_mann_whitney_p(3, 2) == pytest.approx(0.2)
+    assert aggregate.smallest_mann_whitney_p(5, 4) == pytest.approx(2 / 126)
     clear = table3_frame({"metro": [300.0, 310.0, 305.0], "regional": [600.0, 610.0, 605.0]})
     r = aggregate.class_test(clear).iloc[0]
-    assert r["welch_p"] < 0.01 and r["conclusion"].startswith("inconclusive")
-    # exact Mann-Whitney with 3 vs 3 cannot go below p = 0.1: the test says so honestly
-    assert r["mannwhitney_p"] == pytest.approx(0.1)
+    # exact Mann-Whitney with 3 vs 3 cannot go below p = 0.1: not run, and said so
+    assert math.isnan(r["mannwhitney_p"]) and r["mannwhitney_min_p"] == pytest.approx(0.1)
+    assert r["welch_p"] < 0.01 and r["conclusion"].startswith("differ: Welch significant")
+    assert "Mann-Whitney cannot go below p = 0.1" in r["conclusion"]
     noisy = table3_frame({"metro": [300.0, 600.0, 450.0], "regional": [350.0, 650.0, 500.0]})
     r = aggregate.class_test(noisy).iloc[0]
     assert r["welch_p"] > 0.05 and r["conclusion"].startswith("no significant difference")
     big = table3_frame({"metro": [300.0, 310, 305, 299, 302, 311], "regional": [600.0] * 5})
     big.loc[big["class"] == "regional", "c_veh"] += np.arange(5.0)
     big["verdict"] = aggregate.ACCEPTABLE
-    assert aggregate.class_test(big).iloc[0]["conclusion"].startswith("differ")
+    r = aggregate.class_test(big).iloc[0]
+    assert r["mannwhitney_p"] == pytest.approx(2 / math.comb(11, 5))
+    assert r["conclusion"].startswith("differ: Welch and Mann-Whitney")
     lonely = table3_frame({"metro": [300.0, 310.0], "regional": [600.0]})
-    assert "too few" in aggregate.class_test(lonely).iloc[0]["conclusion"]
+    r = aggregate.class_test(lonely).iloc[0]
+    assert r["conclusion"].startswith("too few vehicles to test")
+
+
+def test_a_value_at_a_bound_is_never_printed_averaged_or_tested():
+    """Metro3-like: C at its lower bound, K_veh at its upper bound. Table 2 has no value for
+    them (their status and limits instead), delta = C_veh / C is not identified but bounded
+    below by C_veh / 1e4, and the class statistics and test leave it out, by name."""
+    vehicles = {f"M{i}": vehicle("metro", mass=30_000.0) for i in range(3)}
+    vehicles |= {f"R{i}": vehicle("regional", mass=50_000.0) for i in range(3)}
+    fits = {vid: fit(1e7, 500, 1.2e7 + 1e6 * i) for i, vid in enumerate(vehicles)}
+    fits["M0"] = fit(1e4, 1e7, 1.4e7, pinned={"C": ("lower", 1e4), "K_veh": ("upper", 1e7)})
+    tables = aggregate.study_tables(fits, {vid: kv(2.0) for vid in vehicles}, vehicles)
+    t2, t3 = tables["table2"].set_index("vehicle"), tables["table3"].set_index("vehicle")
+    m0 = t2.loc["M0"]
+    assert math.isnan(m0["C"]) and math.isnan(m0["C_lo"]) and math.isnan(m0["K_veh"])
+    assert m0["C_status"].startswith("not identified: at its lower bound")
+    assert (m0["C_limit"], m0["C_limit_kind"]) == (1e4, "upper")
+    assert (m0["K_veh_limit"], m0["K_veh_limit_kind"]) == (1e7, "lower")
+    assert m0["C_veh_status"] == aggregate.ESTIMATED and m0["C_veh"] == 1.4e7
+    d = t3.loc["M0"]
+    assert math.isnan(d["delta"]) and d["delta_status"].startswith("not identified")
+    assert (d["delta_limit"], d["delta_limit_kind"]) == (pytest.approx(1.4e3), "lower")
+    assert d["c_veh_status"] == aggregate.ESTIMATED  # C_veh itself is determined
+    cs = tables["class_summary"].set_index(["selection", "class", "quantity"])
+    metro_delta = cs.loc[("every identified value", "metro", "delta")]
+    assert metro_delta["n"] == 2 and metro_delta["not_identified"] == "M0"
+    assert metro_delta["max"] < 2.0  # the pinned 1,400 is nowhere
+    md = aggregate.to_markdown("table2", tables["table2"], "T2.", "synthetic", [])
+    assert "not identified (≤ 1.0×10⁴)" in md and "not identified (≥ 10,000,000)" in md
+    md3 = aggregate.to_markdown("table3", t3.reset_index(), "T3.", "s", [])
+    assert "not identified (≥ 1,400)" in md3 and "1,400 [" not in md3  # a limit, no estimate
+
+
+def test_an_unbounded_interval_makes_a_value_not_identified():
+    f = fit(1e7, 500, 2e7, sd=(0.1, 4.0, 0.1))  # K_veh: exp(1.96 * 4) > 1000 either way
+    assert f["parameters"]["K_veh"]["identified"] is False
+    assert f["parameters"]["K_veh"]["limit"] == "none"
+    t2 = aggregate.table2({"A": f}, {"A": kv(2.0)}, {"A": vehicle("metro")})
+    assert math.isnan(t2.iloc[0]["K_veh"]) and t2.iloc[0]["K_veh_status"].startswith(
+        "not identified: 95 % interval unbounded both ways"
+    )
+    one_sided = pem.identification(10.0, (5.0, 1e6))
+    assert one_sided["limit"] == "lower" and one_sided["limit_value"] == 5.0
+
+
+def test_recovery_needs_an_identified_estimate():
+    truth = pd.DataFrame(
+        {"vehicle": ["x"], "C": [1e7], "K_veh": [500.0], "C_veh": [2e7], "deviations": [""]}
+    )
+    good = fit(1e7, 500, 2e7) | {"nrmse_fit": 0.9, "flags": []}
+    row = aggregate.fit_table([good], truth).iloc[0]
+    assert row["C_recovered"] and row["K_veh_recovered"] and row["C_veh_recovered"]
+    wide = fit(1e7, 5e4, 2e7, sd=(0.1, 5.0, 0.1)) | {"nrmse_fit": 0.9, "flags": []}
+    row = aggregate.fit_table([wide], truth).iloc[0]
+    assert row["C_recovered"] and not row["K_veh_recovered"]  # [0, inf] holds 500: no matter
+    assert math.isnan(row["K_veh"]) and row["K_veh_status"].startswith("not identified")
 
 
 @pytest.mark.parametrize(
@@ -170,7 +253,7 @@ def test_class_test_detects_a_clear_difference_and_not_a_noisy_one():
         ("sci", 1.8e7, 1.7e7, 2.06e7, "1.8×10⁷ [1.70, 2.06]×10⁷"),
         ("sci", 9.96e6, 9.0e6, 1.1e7, "1.0×10⁷ [0.90, 1.10]×10⁷"),
         ("int", 47_831.0, 40_000.0, 50_000.0, "47,831 [40,000, 50,000]"),
-        ("k", 3.2353, 3.17, 3.30, "3.2 [3.17, 3.30]"),
+        ("k", 3.2353, 3.17, 3.30, "3.24 [3.17, 3.30]"),
         ("delta", 0.554, 0.5, 0.61, "0.55 [0.500, 0.610]"),
         ("int", 1e7, 1e-3, math.inf, "10,000,000 [0, ∞]"),
         ("sci", 1e4, 1e-20, 1e40, "1.0×10⁴ [0, ∞]×10⁴"),
@@ -197,6 +280,7 @@ def test_study_tables_are_written_with_their_source(tmp_path):
         md = (tmp_path / f"{name}.md").read_text(encoding="utf-8")
         assert md.splitlines()[0].endswith(f"Data: {aggregate.SYNTHETIC_SOURCE}.")
         assert "not evidence about real vehicles" in md
+        assert "reproduce the published pattern" not in md
         tex = (tmp_path / f"{name}.tex").read_text(encoding="utf-8")
         assert "\\caption{" in tex and "synthetic" in tex and "\\begin{tabular}" in tex
     measured = {vid: {**v, "synthetic": False} for vid, v in vehicles.items()}
