@@ -1,4 +1,4 @@
-"""Audit of published reference values (the paper's Tables 1-3 and the numbers in its text).
+"""Audit of published reference values (the paper's Tables 1-3 and the claims of its text).
 
 The published values are read as printed (``config/published/paper.yaml``): a number printed as
 ``1.3×10^7`` stands for the interval [1.25, 1.35]×10^7, ``246`` for [245.5, 246.5]. Every
@@ -10,23 +10,37 @@ as severity ``info``, so that the report shows the arithmetic of every check):
 
 - ``consistency``: δ = C_veh / C (eq. 25) recomputed from Table 2; class means, ranges and
   orderings stated in the text recomputed from Table 3; counts across Tables 1-3;
+- ``claims``: the claims of the text tested on the printed rows: the metro/regional
+  difference of c_veh that "cannot be statistically proven" (§6.3) by Welch's t-test and the
+  exact Mann-Whitney U test; "a model with small deviations ... for all vehicles" (§6.2)
+  against R^2 (eqs. 21-23); the §6.3 class means, the δ order and the class test again
+  without the fits whose R^2 is below that level;
 - ``plausibility``: quantities implied by the published values (m_veh = C_veh / c_veh from
   eq. 24, the total specific heat (C + C_veh) / m_veh, the overall heat-loss coefficient
-  kA and time constant (C + C_veh) / kA) against ranges declared in ``config/audit.yaml``;
-- ``fitness``: references from fits with R^2 (eq. 21) below a threshold, or with a coupling
-  K_veh so large that the second state is not identifiable;
+  kA and time constant (C + C_veh) / kA) against limits and ranges of ``config/audit.yaml``;
+- ``fitness``: references from fits with R^2 (eq. 21) below a threshold, or whose fast time
+  constant τ_fast = 1 / (K_veh/C + K_veh/C_veh) is shorter than any sampling interval the paper
+  names (§3.1), so that the second state is not identifiable;
 - ``units``: printed units that do not fit their quantity; inconsistent typography;
-- ``reproduction``: the published value beside the pipeline's re-estimate and its 95 %
-  interval.
+- ``reproduction``: the published value beside this project's re-estimate and its 95 %
+  interval. These are findings about the re-estimation, not about the paper: the report shows
+  them in a section of their own and never counts them with the paper's findings.
+
+Every threshold, limit and range of ``config/audit.yaml`` names its source, starting with its
+kind (:data:`SOURCE_KINDS`). The severity rule: a finding against an ``assumption:`` is at most
+``info`` ("outside the assumed range ... (assumption, not a sourced limit)"); only sourced
+thresholds raise warnings; errors are kept for contradictions and physical impossibilities.
 
 The module knows nothing about Snakemake: rule ``audit`` and ``railtherm audit`` call
-:func:`run` and :func:`write`.
+:func:`run` and :func:`write`. SciPy is imported only by the class test.
 """
 
 from __future__ import annotations
 
+import math
 import re
-from collections.abc import Callable, Mapping, Sequence
+import statistics
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -37,7 +51,9 @@ from railtherm.config import packaged_schema, read_yaml, validate_schema
 from railtherm.errors import ConfigError
 
 SEVERITIES = ("error", "warning", "info")
-FAMILIES = ("consistency", "plausibility", "fitness", "units", "reproduction")
+FAMILIES = ("consistency", "claims", "plausibility", "fitness", "units", "reproduction")
+PAPER_FAMILIES = FAMILIES[:-1]  # findings about the published values; "reproduction" is not
+SOURCE_KINDS = ("published", "physics", "definition", "assumption")
 COLUMNS = (
     "severity",
     "family",
@@ -305,19 +321,54 @@ def load_published(path: str | Path, display: str | None = None) -> Published:
     return pub
 
 
+def _sourced_entries(data: Mapping[str, Any]) -> list[tuple[str, Mapping[str, Any]]]:
+    """Every threshold, limit and range of ``config/audit.yaml`` with its dotted key."""
+    entries = [(f"thresholds.{n}", e) for n, e in data["thresholds"].items()]
+    entries += [(f"limits.{n}", e) for n, e in data["limits"].items()]
+    for quantity, by_class in data["ranges"].items():
+        entries += [(f"ranges.{quantity}.{cls}", e) for cls, e in by_class.items()]
+    return entries
+
+
 def load_ranges(path: str | Path, display: str | None = None) -> dict[str, Any]:
-    """Read and validate the audit's ranges and thresholds (``config/audit.yaml``)."""
+    """Read and validate the audit's thresholds, limits and ranges (``config/audit.yaml``).
+
+    Every entry needs a ``source`` starting with its kind (the schema's pattern); a
+    ``published:`` source must also name where in the paper (Section, §, Table or eq.)."""
     name = display or str(path)
     data = read_yaml(path, display=name)
     validate_schema(name, data, packaged_schema("audit"))
-    for quantity, by_class in data["ranges"].items():
-        for cls, entry in by_class.items():
-            lo, hi = entry["range"]
-            if not lo < hi:
-                raise ConfigError(
-                    name, f"ranges.{quantity}.{cls}.range", entry["range"], "needs low < high"
-                )
+    for key, entry in _sourced_entries(data):
+        if "range" in entry and not entry["range"][0] < entry["range"][1]:
+            raise ConfigError(name, f"{key}.range", entry["range"], "needs low < high")
+        source = entry["source"]
+        if source_kind(entry) == "published" and not re.search(r"Section|§|Table|eq\.", source):
+            raise ConfigError(
+                name, f"{key}.source", source, "a published source names its section or table"
+            )
     return data
+
+
+def source_kind(entry: Mapping[str, Any]) -> str:
+    """The kind a source starts with: one of :data:`SOURCE_KINDS`."""
+    return entry["source"].split(":", 1)[0].strip()
+
+
+def _cap(severity: str, entry: Mapping[str, Any]) -> str:
+    """The severity rule: a finding against an ``assumption:`` is at most info."""
+    return "info" if source_kind(entry) == "assumption" else severity
+
+
+def _cite(entry: Mapping[str, Any]) -> str:
+    """The kind of a source, and for a published one where in the paper: ``published,
+    Section 3.1``."""
+    kind = source_kind(entry)
+    where = re.search(r"(Section|§|Table|eqs?\.)\s*[\d.]*\d", entry["source"])
+    return f"{kind}, {where.group(0)}" if kind == "published" and where else kind
+
+
+def _threshold(ranges: Mapping[str, Any], name: str) -> Mapping[str, Any]:
+    return ranges["thresholds"][name]
 
 
 def _range(ranges: Mapping[str, Any], quantity: str, cls: str) -> tuple[Interval, dict] | None:
@@ -364,13 +415,60 @@ def check_delta_ratio(pub: Published, ranges: Mapping[str, Any] | None = None) -
     return out
 
 
-def _class_rows(pub: Published, quantity: str, cls: str) -> list[tuple[str, Printed]]:
+PARAMETER_QUANTITIES = ("k", "C", "K_veh", "C_veh", "R2")
+
+
+def _class_rows(
+    pub: Published, quantity: str, cls: str, exclude: Collection[str] = ()
+) -> list[tuple[str, Printed]]:
+    """(vehicle, printed value) of ``quantity`` for the vehicles of class ``cls`` (``all``: every
+    vehicle), from Table 2 or Table 3, whichever holds it, in table order; without ``exclude``."""
     classes = pub.classes()
+    table = "parameters" if quantity in PARAMETER_QUANTITIES else "generalised"
     return [
         (vid, row[quantity])
-        for vid, row in pub.table("generalised").items()
-        if quantity in row and (cls == "all" or classes.get(vid) == cls)
+        for vid, row in pub.table(table).items()
+        if quantity in row and (cls == "all" or classes.get(vid) == cls) and vid not in exclude
     ]
+
+
+@dataclass(frozen=True)
+class Order:
+    """Class means of a quantity and whether they increase in the stated order."""
+
+    state: str  # "increase", "overlap" (rounding cannot tell) or "decrease"
+    broken: list[tuple[str, str]]  # neighbouring classes whose means decrease
+    means: list[tuple[str, Interval, list[tuple[str, Printed]]]]
+
+    def listing(self) -> str:
+        return "; ".join(
+            f"{cls} mean {_g(sum(p.value for _, p in rows) / len(rows), 3)} "
+            f"(n = {len(rows)}, with rounding {m.text(3)})"
+            for cls, m, rows in self.means
+        )
+
+    def recomputed(self) -> str:
+        return " < ".join(f"{_g(m.lo, 3)}..{_g(m.hi, 3)}" for _, m, _ in self.means)
+
+
+def _order(
+    pub: Published, quantity: str, classes: Sequence[str], exclude: Collection[str] = ()
+) -> Order:
+    """The class means of ``quantity`` (over the printed rounding) in the order ``classes``."""
+    means = []
+    for cls in classes:
+        rows = _class_rows(pub, quantity, cls, exclude)
+        if rows:
+            means.append((cls, mean([p.interval for _, p in rows]), rows))
+    steps = list(zip(means, means[1:], strict=False))
+    broken = [(a[0], b[0]) for a, b in steps if b[1].hi < a[1].lo]
+    if broken:
+        state = "decrease"
+    elif all(a[1].below(b[1]) for a, b in steps):
+        state = "increase"
+    else:
+        state = "overlap"
+    return Order(state, broken, means)
 
 
 def check_statements(pub: Published, ranges: Mapping[str, Any] | None = None) -> list[Finding]:
@@ -433,26 +531,14 @@ def check_statements(pub: Published, ranges: Mapping[str, Any] | None = None) ->
                 )
             )
         elif kind == "increasing":
-            means = []
-            for cls in st["classes"]:
-                rows = _class_rows(pub, q, cls)
-                if rows:
-                    means.append((cls, mean([p.interval for _, p in rows]), rows))
-            steps = list(zip(means, means[1:], strict=False))
-            certain = all(a[1].below(b[1]) for a, b in steps)
-            broken = [(a, b) for a, b in steps if b[1].hi < a[1].lo]
-            listing = "; ".join(
-                f"{cls} mean {_g(sum(p.value for _, p in rows) / len(rows), 3)} "
-                f"(n = {len(rows)}, with rounding {m.text(3)})"
-                for cls, m, rows in means
-            )
-            if broken:
+            order = _order(pub, q, st["classes"])
+            if order.state == "decrease":
                 severity, verdict = (
                     "error",
                     "contradicted: the class means decrease at "
-                    + (", ".join(f"{a[0]} -> {b[0]}" for a, b in broken)),
+                    + ", ".join(f"{a} -> {b}" for a, b in order.broken),
                 )
-            elif certain:
+            elif order.state == "increase":
                 severity, verdict = "info", "consistent: the class means increase"
             else:
                 severity, verdict = (
@@ -467,8 +553,8 @@ def check_statements(pub: Published, ranges: Mapping[str, Any] | None = None) ->
                     severity,
                     st["location"],
                     " < ".join(st["classes"]),
-                    " < ".join(f"{_g(m.lo, 3)}..{_g(m.hi, 3)}" for _, m, _ in means),
-                    f"{verdict}; {listing}",
+                    order.recomputed(),
+                    f"{verdict}; {order.listing()}",
                 )
             )
     return out
@@ -551,6 +637,395 @@ def check_counts(pub: Published, ranges: Mapping[str, Any] | None = None) -> lis
 
 
 # ---------------------------------------------------------------------------------------------
+# Claims of the text
+
+CONTRADICTED, NOT_CONTRADICTED, TOO_FEW = (
+    "contradicted",
+    "not contradicted",
+    "too few vehicles to test",
+)
+
+
+def smallest_mwu_p(n_a: int, n_b: int) -> float:
+    """The smallest p-value the exact two-sided Mann-Whitney U test can give for n_a against
+    n_b values: 2 / C(n_a + n_b, n_a), reached when every value of one class lies above every
+    value of the other (U = 0 or U = n_a n_b); at most 1."""
+    if n_a < 1 or n_b < 1:
+        return 1.0
+    return min(1.0, 2 / math.comb(n_a + n_b, n_a))
+
+
+@dataclass(frozen=True)
+class ClassTest:
+    """Welch's t-test and the exact two-sided Mann-Whitney U test of two classes.
+
+    A test runs only when its smallest attainable p-value is below α (Welch: at least two
+    values per class; Mann-Whitney: :func:`smallest_mwu_p`). ``verdict`` on a claim that the
+    difference is not significant: ``contradicted`` when both tests ran and both give p < α,
+    ``too few vehicles to test`` when neither could run, else ``not contradicted``."""
+
+    verdict: str
+    welch_p: float | None  # None: not run
+    mwu_p: float | None
+    u: float | None
+    text: str  # the arithmetic
+
+    def recomputed(self) -> str:
+        def p(x):
+            return "not run" if x is None else _g(x, 3)
+
+        return f"Welch p = {p(self.welch_p)}; Mann-Whitney p = {p(self.mwu_p)}"
+
+
+def class_test(
+    a: Sequence[float], b: Sequence[float], names: tuple[str, str], alpha: float
+) -> ClassTest:
+    """Welch's t-test (unequal variances) and the exact two-sided Mann-Whitney U test of the
+    values ``a`` of class ``names[0]`` against ``b`` of ``names[1]`` at level ``alpha``."""
+    from scipy import stats  # only here: the module stays cheap to import
+
+    na, nb = len(a), len(b)
+    name_a, name_b = names
+    parts = []
+    # Welch: t = (mean_a - mean_b) / sqrt(s_a²/n_a + s_b²/n_b), Welch-Satterthwaite ν
+    welch_p = None
+    if na < 2 or nb < 2:
+        parts.append(
+            f"Welch: too few vehicles to test (it needs at least 2 per class; n = {na} and {nb}: "
+            "no p-value is attainable)"
+        )
+    else:
+        ma, mb = statistics.fmean(a), statistics.fmean(b)
+        sa, sb = statistics.stdev(a), statistics.stdev(b)
+        if sa == 0 and sb == 0:
+            parts.append("Welch: not run (no variance within either class)")
+        else:
+            res = stats.ttest_ind(a, b, equal_var=False)
+            welch_p = float(res.pvalue)
+            parts.append(
+                f"Welch: t = ({_g(ma)} - {_g(mb)}) / √({_g(sa)}²/{na} + {_g(sb)}²/{nb}) "
+                f"= {_g(float(res.statistic))} with ν = {_g(float(res.df), 3)} degrees of "
+                f"freedom, two-sided p = {_g(welch_p, 3)}"
+            )
+    # Mann-Whitney: exact distribution of U over all C(n_a + n_b, n_a) splits
+    mwu_p = u = None
+    splits = math.comb(na + nb, na)
+    floor = smallest_mwu_p(na, nb)
+    floor_text = f"2 / C({na + nb}, {na}) = 2/{splits} = {_g(floor, 3)}"
+    if floor >= alpha:
+        parts.append(
+            f"Mann-Whitney: too few vehicles to test (the smallest two-sided p it can give for "
+            f"{na} against {nb} is {floor_text} ≥ α = {alpha})"
+        )
+    else:
+        ties = len(set(a) | set(b)) < na + nb
+        if not ties:
+            res = stats.mannwhitneyu(a, b, alternative="two-sided", method="exact")
+            u, mwu_p, how = float(res.statistic), float(res.pvalue), "exact"
+        elif splits <= 10**6:
+
+            def statistic(x, y):
+                return stats.mannwhitneyu(x, y, method="asymptotic").statistic
+
+            res = stats.permutation_test(
+                (list(a), list(b)), statistic, n_resamples=math.inf, alternative="two-sided"
+            )
+            u, mwu_p = float(statistic(a, b)), float(res.pvalue)
+            how = f"exact over all {splits} splits, ties at midranks"
+        else:
+            res = stats.mannwhitneyu(a, b, alternative="two-sided", method="asymptotic")
+            u, mwu_p = float(res.statistic), float(res.pvalue)
+            how = "normal approximation: ties, and too many splits to enumerate"
+        if u == 0:
+            ordering = f"all {nb} {name_b} above all {na} {name_a}"
+        elif u == na * nb:
+            ordering = f"all {na} {name_a} above all {nb} {name_b}"
+        else:
+            ordering = f"{name_a} above {name_b} in {_g(u)} of the {na * nb} pairs"
+        p_text = floor_text if u in (0, na * nb) and not ties else _g(mwu_p, 3)
+        parts.append(
+            f"Mann-Whitney ({how}): U = {_g(u)} of n_a n_b = {na} × {nb} = {na * nb} "
+            f"({ordering}), two-sided p = {p_text}"
+        )
+    ran = [p for p in (welch_p, mwu_p) if p is not None]
+    if not ran:
+        verdict = TOO_FEW
+    elif len(ran) == 2 and all(p < alpha for p in ran):
+        verdict = CONTRADICTED
+    else:
+        verdict = NOT_CONTRADICTED
+    return ClassTest(verdict, welch_p, mwu_p, u, "; ".join(parts))
+
+
+def _groups(
+    pub: Published, st: Mapping[str, Any], exclude: Collection[str] = ()
+) -> tuple[list[tuple[str, Printed]], list[tuple[str, Printed]]]:
+    cls_a, cls_b = st["classes"]
+    return (
+        _class_rows(pub, st["quantity"], cls_a, exclude),
+        _class_rows(pub, st["quantity"], cls_b, exclude),
+    )
+
+
+def _describe(cls: str, rows: Sequence[tuple[str, Printed]]) -> str:
+    return f"{cls} (n = {len(rows)}: {', '.join(p.text for _, p in rows)})"
+
+
+def _class_test_message(test: ClassTest, alpha: Mapping[str, Any]) -> str:
+    level = f"α = {alpha['value']} ({_cite(alpha)})"
+    if test.verdict == CONTRADICTED:
+        worst = max(test.welch_p, test.mwu_p)
+        return (
+            f"both p below {level}: the difference is significant at any level above "
+            f"{_g(worst, 3)}, where the text says it cannot be statistically proven"
+        )
+    if test.verdict == TOO_FEW:
+        return f"neither test can reach {level}"
+    ran = {"Welch": test.welch_p, "Mann-Whitney": test.mwu_p}
+    missing = [name for name, p in ran.items() if p is None]
+    if missing:
+        return (
+            f"only {' and '.join(n for n, p in ran.items() if p is not None)} could run; a "
+            f"contradiction needs both tests below {level}"
+        )
+    above = [f"{name} p = {_g(p, 3)}" for name, p in ran.items() if p >= alpha["value"]]
+    return f"{', '.join(above)} not below {level}"
+
+
+def check_class_test(pub: Published, ranges: Mapping[str, Any]) -> list[Finding]:
+    """A difference between two classes the text calls not significant (§6.3), tested on the
+    printed rows by Welch's t-test and the exact two-sided Mann-Whitney U test."""
+    out = []
+    alpha = _threshold(ranges, "alpha")
+    for st in pub.data.get("statements") or []:
+        if st["statistic"] != "not_significant":
+            continue
+        (cls_a, cls_b), q = st["classes"], st["quantity"]
+        rows_a, rows_b = _groups(pub, st)
+        if not rows_a or not rows_b:
+            continue
+        test = class_test(
+            [p.value for _, p in rows_a],
+            [p.value for _, p in rows_b],
+            (cls_a, cls_b),
+            alpha["value"],
+        )
+        out.append(
+            _finding(
+                "claims",
+                "class_test",
+                st["id"],
+                _cap("warning", alpha) if test.verdict == CONTRADICTED else "info",
+                st["location"],
+                "not significant",
+                test.recomputed(),
+                f"{test.verdict}: {q} of {_describe(cls_a, rows_a)} against "
+                f"{_describe(cls_b, rows_b)}; {test.text}; {_class_test_message(test, alpha)}",
+            )
+        )
+    return out
+
+
+def _poor_fits(pub: Published, ranges: Mapping[str, Any]) -> dict[str, Printed]:
+    """Vehicles whose printed R^2 (its whole rounding interval) lies below ``r2_min``."""
+    r2_min = _threshold(ranges, "r2_min")["value"]
+    return {vid: p for vid, p in _class_rows(pub, "R2", "all") if p.interval.hi < r2_min}
+
+
+def _r2_arithmetic(r2: Printed) -> str:
+    return f"SS_res = (1 - R^2) SS_tot = {_g(1 - r2.value, 3)} SS_tot"
+
+
+def check_small_deviations(pub: Published, ranges: Mapping[str, Any]) -> list[Finding]:
+    """The claim of §6.2, "a model with small deviations ... for all vehicles", against R^2
+    (eq. 21): by eqs. 21-23, R^2 < 0.5 means SS_res > SS_tot / 2, the residual sum of squares
+    exceeds the part of the total the model reproduces (SS_tot - SS_res)."""
+    out = []
+    entry = _threshold(ranges, "r2_min")
+    r2_min = entry["value"]
+    poor = _poor_fits(pub, ranges)
+    for st in pub.data.get("statements") or []:
+        if st["statistic"] != "small_deviations":
+            continue
+        rows = _class_rows(pub, "R2", st["class"])
+        if not rows:
+            continue
+        below = sorted(((v, p) for v, p in rows if v in poor), key=lambda r: r[1].value)
+        level = (
+            f"R^2 = {r2_min} ({source_kind(entry)}: R^2 = 1 - SS_res / SS_tot, eqs. 21-23, so "
+            f"below {r2_min} SS_res > {_g(1 - r2_min)} SS_tot, more than the part SS_tot - "
+            "SS_res the model reproduces)"
+        )
+        if below:
+            listing = "; ".join(
+                f"{v} R^2 = {p.text}: SS_res = {_g(1 - p.value, 3)} SS_tot, {1 - p.value:.1%} "
+                "of the variance of the indoor temperature left unexplained"
+                for v, p in below
+            )
+            severity = _cap("warning", entry)
+            message = (
+                f"contradicted: {len(below)} of {len(rows)} fits lie below {level}, their "
+                f"deviations larger than what the model reproduces: {listing}"
+            )
+        else:
+            lowest = min(rows, key=lambda r: r[1].value)
+            severity = "info"
+            message = (
+                f"consistent: all {len(rows)} fits reach {level}; lowest "
+                f"{lowest[0]} R^2 = {lowest[1].text}"
+            )
+        out.append(
+            _finding(
+                "claims",
+                "small_deviations",
+                st["id"],
+                severity,
+                st["location"],
+                "all vehicles",
+                f"{len(below)} of {len(rows)} below {r2_min}",
+                message,
+            )
+        )
+    return out
+
+
+def check_without_poor_fits(pub: Published, ranges: Mapping[str, Any]) -> list[Finding]:
+    """The stated class means, the stated order and the class test of the text, recomputed
+    without the fits whose R^2 is below ``r2_min``, beside the values from every row.
+
+    Severity info, unless leaving those fits out turns a claim into its contradiction (an
+    order that holds on every row decreases, or a class test not contradicted on every row is
+    contradicted): then warning, since the claim rests on fits the paper's own R^2 shows to be
+    poor. A mean's shift is set beside the standard error of the reduced mean; no sourced
+    threshold says how large a shift matters."""
+    entry = _threshold(ranges, "r2_min")
+    if not _class_rows(pub, "R2", "all"):
+        return []
+    poor = _poor_fits(pub, ranges)
+    out = []
+    where = f"without R^2 < {entry['value']}"
+    for st in pub.data.get("statements") or []:
+        kind, q, subject = st["statistic"], st["quantity"], st["id"]
+        location = f"{st['location']} {where}"
+        if kind == "mean":
+            full = _class_rows(pub, q, st["class"])
+            reduced = _class_rows(pub, q, st["class"], poor)
+            if not full:
+                continue
+            dropped = [f"{v} (R^2 = {poor[v].text})" for v, _ in full if v in poor]
+            m_full = statistics.fmean(p.value for _, p in full)
+            stated = Printed.parse(st["printed"], subject)
+            unit = f" {st['unit']}" if st.get("unit", "1") != "1" else ""
+            if not dropped:
+                message = f"unchanged: no {st['class']} fit below R^2 = {entry['value']}"
+                recomputed = _g(m_full)
+            elif not reduced:
+                message = f"no {st['class']} vehicle left without {', '.join(dropped)}"
+                recomputed = "-"
+            else:
+                values = [p.value for _, p in reduced]
+                m_red = statistics.fmean(values)
+                shift = m_red - m_full
+                message = (
+                    f"without {', '.join(dropped)}: mean {q} of the {len(reduced)} remaining "
+                    f"{st['class']} rows = ({' + '.join(p.text for _, p in reduced)}) / "
+                    f"{len(reduced)} = {_g(m_red)}; with all {len(full)} rows {_g(m_full)}, "
+                    f"stated {stated.text}; shift {shift:+.4g}{unit} ({shift / m_full:+.0%})"
+                )
+                if len(values) >= 2:
+                    s = statistics.stdev(values)
+                    se = s / math.sqrt(len(values))
+                    message += (
+                        f", beside the standard error of the reduced mean s / √n = "
+                        f"{_g(s)} / √{len(values)} = {_g(se)}"
+                    )
+                recomputed = _g(m_red)
+            out.append(
+                _finding(
+                    "claims",
+                    "without_poor_fits",
+                    subject,
+                    "info",
+                    location,
+                    stated.text,
+                    recomputed,
+                    message,
+                )
+            )
+        elif kind == "increasing":
+            full = _order(pub, q, st["classes"])
+            reduced = _order(pub, q, st["classes"], poor)
+            dropped = sorted(
+                v for v in poor if any(v == r for _, _, rows in full.means for r, _ in rows)
+            )
+            verdicts = {
+                "increase": "the class means still increase",
+                "overlap": "neighbouring class means overlap within rounding",
+                "decrease": "the class means decrease at "
+                + ", ".join(f"{a} -> {b}" for a, b in reduced.broken),
+            }
+            single = [cls for cls, _, rows in reduced.means if len(rows) == 1]
+            severity = (
+                _cap("warning", entry)
+                if reduced.state == "decrease" and full.state != "decrease"
+                else "info"
+            )
+            message = (
+                f"without {', '.join(dropped) or 'no fit'}: {verdicts[reduced.state]}; "
+                f"{reduced.listing()}; with every row: {full.listing()}"
+            )
+            if single:
+                message += f"; only one vehicle left in {', '.join(single)}"
+            out.append(
+                _finding(
+                    "claims",
+                    "without_poor_fits",
+                    subject,
+                    severity,
+                    location,
+                    " < ".join(st["classes"]),
+                    reduced.recomputed(),
+                    message,
+                )
+            )
+        elif kind == "not_significant":
+            alpha = _threshold(ranges, "alpha")
+            rows_a, rows_b = _groups(pub, st, poor)
+            full_a, full_b = _groups(pub, st)
+            if not full_a or not full_b:
+                continue
+            dropped = [v for v, _ in full_a + full_b if v in poor]
+            names = tuple(st["classes"])
+            test = class_test(
+                [p.value for _, p in rows_a], [p.value for _, p in rows_b], names, alpha["value"]
+            )
+            before = class_test(
+                [p.value for _, p in full_a], [p.value for _, p in full_b], names, alpha["value"]
+            )
+            severity = (
+                _cap("warning", alpha)
+                if test.verdict == CONTRADICTED and before.verdict != CONTRADICTED
+                else "info"
+            )
+            out.append(
+                _finding(
+                    "claims",
+                    "without_poor_fits",
+                    subject,
+                    severity,
+                    location,
+                    "not significant",
+                    test.recomputed(),
+                    f"{test.verdict} without {', '.join(dropped) or 'no fit'}: {q} of "
+                    f"{_describe(names[0], rows_a)} against {_describe(names[1], rows_b)}; "
+                    f"{test.text}; {_class_test_message(test, alpha)}; with every row: "
+                    f"{before.verdict} ({before.recomputed()})",
+                )
+            )
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
 # Plausibility
 
 
@@ -572,13 +1047,20 @@ def _implied_mass(pub: Published, vid: str) -> tuple[Interval, str, float] | Non
 def _outside(
     value: Interval, bounds: Interval, entry: Mapping[str, Any], quantity: str, arithmetic: str
 ) -> tuple[str, str]:
+    """Severity and message of ``value`` against a range; by the severity rule, outside an
+    ``assumption:`` range is info, outside a sourced range a warning."""
     ok = value.overlaps(bounds)
-    verb = "plausible" if ok else "implausible"
-    message = (
-        f"{verb}: {arithmetic}; typical {quantity} {_g(bounds.lo)}-{_g(bounds.hi)} "
-        f"{entry['unit']} (config: ranges)"
-    )
-    return ("info" if ok else "warning"), message
+    kind = source_kind(entry)
+    span = f"{quantity} {_g(bounds.lo)}-{_g(bounds.hi)} {entry['unit']}"
+    if ok:
+        what = "the assumed range" if kind == "assumption" else f"the range ({kind})"
+        return "info", f"within {what} {span}: {arithmetic}"
+    if kind == "assumption":
+        return (
+            "info",
+            f"outside the assumed range {span}: {arithmetic} (assumption, not a sourced limit)",
+        )
+    return "warning", f"implausible: {arithmetic}; outside {span} ({kind} source)"
 
 
 def check_implied_mass(pub: Published, ranges: Mapping[str, Any]) -> list[Finding]:
@@ -628,14 +1110,14 @@ def check_total_specific_heat(pub: Published, ranges: Mapping[str, Any]) -> list
             f"{'possible' if ok else 'impossible'}: {mass_text}; (C + C_veh) / m_veh = "
             f"({C.text} + {C_veh.text}) / m_veh = {_g(point, 4)} J/(kg K) "
             f"(with rounding {total.text()}); limit {limit['value']} {limit['unit']} "
-            "(config: limits)"
+            f"({source_kind(limit)}: config limits)"
         )
         out.append(
             _finding(
                 "plausibility",
                 "total_specific_heat",
                 vid,
-                "info" if ok else "error",
+                "info" if ok else _cap("error", limit),
                 f"{pub.location('parameters')} and {pub.location('generalised')}",
                 "-",
                 f"{_g(point, 4)} J/(kg K)",
@@ -646,7 +1128,8 @@ def check_total_specific_heat(pub: Published, ranges: Mapping[str, Any]) -> list
 
 
 def check_published_in_range(pub: Published, ranges: Mapping[str, Any]) -> list[Finding]:
-    """Printed k (Table 2) and c_veh (Table 3) against their class-typical ranges."""
+    """Printed k (Table 2) and c_veh (Table 3) against their class-typical ranges, where
+    ``config/audit.yaml`` declares one."""
     out = []
     classes = pub.classes()
     for table, q in (("parameters", "k"), ("generalised", "c_veh")):
@@ -720,58 +1203,107 @@ def check_time_constant(pub: Published, ranges: Mapping[str, Any]) -> list[Findi
 
 
 def check_r2(pub: Published, ranges: Mapping[str, Any]) -> list[Finding]:
-    """Values from fits with R^2 (eq. 21) below ``r2_min`` should not serve as references."""
+    """Fits whose R^2 (eq. 21) lies below ``r2_min`` should not serve as references: by
+    eqs. 21-23, R^2 < 0.5 means SS_res > SS_tot / 2, deviations larger than the part of the
+    indoor temperature's variation the model reproduces. The optional ``r2_note`` adds a
+    stricter level (info when it is an assumption)."""
     out = []
-    r2_min = ranges["r2_min"]
+    entry = _threshold(ranges, "r2_min")
+    note = ranges["thresholds"].get("r2_note")
+    r2_min = entry["value"]
     for vid, row in pub.table("parameters").items():
         if "R2" not in row:
             continue
-        ok = row["R2"].value >= r2_min
-        message = f"R^2 = {row['R2'].text} {'>=' if ok else '<'} r2_min = {r2_min}"
-        if not ok:
-            unexplained = 1 - row["R2"].value
-            message += (
-                f"; the model leaves {unexplained:.0%} of the variance of the indoor "
-                "temperature unexplained, yet its parameters are offered as reference values"
+        r2 = row["R2"]
+        unexplained = (
+            f"{_r2_arithmetic(r2)}: the model leaves {1 - r2.value:.0%} of the variance of the "
+            "indoor temperature unexplained"
+        )
+        if r2.interval.hi < r2_min:
+            severity = _cap("warning", entry)
+            message = (
+                f"fit too poor for a reference: R^2 = {r2.text} < r2_min = {r2_min} "
+                f"({source_kind(entry)}); {unexplained}, more than the part it reproduces, "
+                "yet its parameters are offered as reference values"
             )
+        elif note is not None and r2.interval.hi < note["value"]:
+            severity = _cap("warning", note)
+            if source_kind(note) == "assumption":
+                message = (
+                    f"outside the assumed range R^2 >= {note['value']}: R^2 = {r2.text}; "
+                    f"{unexplained} (assumption, not a sourced limit)"
+                )
+            else:
+                message = (
+                    f"fit below r2_note: R^2 = {r2.text} < {note['value']} "
+                    f"({source_kind(note)}); {unexplained}"
+                )
+        else:
+            message = f"fit usable: R^2 = {r2.text} >= r2_min = {r2_min} ({source_kind(entry)})"
+            severity = "info"
         out.append(
             _finding(
                 "fitness",
                 "r2",
                 vid,
-                "info" if ok else "warning",
+                severity,
                 pub.location("parameters"),
-                row["R2"].text,
+                r2.text,
                 "-",
-                ("fit usable: " if ok else "fit too poor for a reference: ") + message,
+                message,
             )
         )
     return out
 
 
 def check_coupling(pub: Published, ranges: Mapping[str, Any]) -> list[Finding]:
-    """K_veh / kA above ``coupling_ratio_max`` even for the largest plausible kA: T and T_veh
-    move as one node and C, C_veh cannot be told apart from T."""
+    """The fast time constant of eq. 14 against the sampling intervals of §3.1.
+
+    Air and body equalise at the rate K_veh/C + K_veh/C_veh; the fast eigenvalue of A (eq. 14)
+    is at least that fast for any kA >= 0, so τ_fast = 1 / (K_veh/C + K_veh/C_veh) bounds the
+    fast time constant from above without knowing A. Below the finest sampling interval the
+    paper names, no sample sees the fast mode: T then measures C + C_veh, not C and C_veh apart,
+    and the second state is not identifiable. K_veh / kA (kA over the class-typical surface,
+    an assumption) is shown for information."""
     out = []
-    limit = ranges["coupling_ratio_max"]
+    entry = _threshold(ranges, "sampling_interval")
+    finest, coarsest = entry["range"]  # min
     for vid, row in pub.table("parameters").items():
-        kA = _kA(pub, ranges, vid)
-        if kA is None or not {"K_veh", "C", "C_veh"} <= set(row):
+        if not {"K_veh", "C", "C_veh"} <= set(row):
             continue
-        K = row["K_veh"]
-        ratio = K.interval / kA[0]
-        tau_fast = 1 / (K.value / row["C"].value + K.value / row["C_veh"].value)
-        if ratio.lo > limit:
-            severity, verdict = "warning", "second state not identifiable"
-        elif ratio.hi > limit:
-            severity, verdict = "info", "second state identifiable unless A is near its largest"
+        K, C, C_veh = row["K_veh"], row["C"], row["C_veh"]
+        rate = K.interval / C.interval + K.interval / C_veh.interval  # 1/s
+        tau = Interval(1 / rate.hi, 1 / rate.lo).scale(1 / 60)  # min
+        point = 1 / (K.value / C.value + K.value / C_veh.value) / 60
+        if tau.hi < finest:
+            severity = _cap("warning", entry)
+            verdict = (
+                f"second state not identifiable: τ_fast is shorter than the finest sampling "
+                f"interval the paper names ({_g(finest)} min), so no sample resolves it"
+            )
+        elif tau.lo < coarsest:
+            severity = "info"
+            verdict = (
+                "second state identifiable only with sampling intervals shorter than τ_fast, at "
+                f"the fine end of the {_g(finest)}-{_g(coarsest)} min the paper names (which "
+                "interval was used is not stated)"
+            )
         else:
-            severity, verdict = "info", "second state identifiable"
+            severity = "info"
+            verdict = "second state identifiable at every sampling interval the paper names"
         message = (
-            f"{kA[1]}; K_veh / kA = {K.text} / kA = {_g(ratio.lo, 3)}-{_g(ratio.hi, 3)} "
-            f"(limit {limit}); air and body equalise with τ_fast = 1 / (K_veh/C + K_veh/C_veh) "
-            f"= {_g(tau_fast / 60, 3)} min"
+            f"{verdict}; τ_fast = 1 / (K_veh/C + K_veh/C_veh) = 1 / ({K.text}/{C.text} + "
+            f"{K.text}/{C_veh.text}) = {_g(point * 60, 3)} s = {_g(point, 3)} min (with "
+            f"rounding {_g(tau.lo, 3)}-{_g(tau.hi, 3)} min); sampling {_g(finest)}-"
+            f"{_g(coarsest)} min ({_cite(entry)})"
         )
+        kA = _kA(pub, ranges, vid)
+        if kA is not None:
+            ratio = K.interval / kA[0]
+            message += (
+                f"; for information, {kA[1]}; K_veh / kA = {K.text} / kA = "
+                f"{_g(ratio.lo, 3)}-{_g(ratio.hi, 3)}"
+            )
         out.append(
             _finding(
                 "fitness",
@@ -780,8 +1312,8 @@ def check_coupling(pub: Published, ranges: Mapping[str, Any]) -> list[Finding]:
                 severity,
                 pub.location("parameters"),
                 K.text,
-                f"{_g(ratio.lo, 3)}-{_g(ratio.hi, 3)}",
-                f"{verdict}: {message}",
+                f"τ_fast {_g(point, 3)} min",
+                message,
             )
         )
     return out
@@ -867,19 +1399,64 @@ def check_separators(pub: Published, ranges: Mapping[str, Any] | None = None) ->
 
 
 # ---------------------------------------------------------------------------------------------
-# Reproduction
+# Reproduction: findings about this project's re-estimation, not about the paper
+
+REESTIMATED = ("k", "C", "K_veh", "C_veh", "c_veh", "delta")
+# An interval reaching below x / UNBOUNDED or above UNBOUNDED x is printed 0 and ∞ in the
+# re-estimates' Table 2: the data do not bound the value, and it cannot be compared.
+UNBOUNDED = 1000.0
+AGREES, DIFFERS, NOT_COMPARABLE = "agrees", "differs", "not comparable"
+REESTIMATE_VERDICTS = (DIFFERS, NOT_COMPARABLE, AGREES)  # the report's order
+
+
+def _number(value: Any) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def compare_reestimate(
+    published: Printed, x: Any, lo: Any, hi: Any, status: Any = None
+) -> tuple[str, Interval | None]:
+    """``agrees``, ``differs`` or ``not comparable: <reason>``, and the interval compared.
+
+    ``agrees`` needs an identified re-estimate (``status`` missing or ``estimated``) with a
+    finite, bounded 95 % interval [lo, hi] (lo > x / 1000 and hi < 1000 x) that meets the
+    printed interval of the published value."""
+    status = "" if status is None or pd.isna(status) else str(status).strip()
+    x, lo, hi = _number(x), _number(lo), _number(hi)
+    if status.startswith("not identified"):
+        return f"{NOT_COMPARABLE}: {status}", None
+    if status not in ("", "estimated"):
+        return f"{NOT_COMPARABLE}: status '{status}'", None
+    if not math.isfinite(x):
+        return f"{NOT_COMPARABLE}: no re-estimate", None
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return f"{NOT_COMPARABLE}: the 95 % interval is not finite", None
+    if x <= 0:
+        return f"{NOT_COMPARABLE}: the re-estimate {_g(x)} is not positive", None
+    if lo <= x / UNBOUNDED or hi >= UNBOUNDED * x:
+        return (
+            f"{NOT_COMPARABLE}: the 95 % interval is unbounded (it reaches x/{_g(UNBOUNDED)} or "
+            f"{_g(UNBOUNDED)} x, printed 0 or ∞): the data do not determine the value"
+        ), None
+    interval = Interval(min(lo, x), max(hi, x))
+    return (AGREES if interval.overlaps(published.interval) else DIFFERS), interval
 
 
 def check_reproduction(
     pub: Published, ranges: Mapping[str, Any], estimates: pd.DataFrame | None
 ) -> list[Finding]:
-    """Published values beside the pipeline's re-estimates (columns ``vehicle``, ``q``,
-    ``q_lo``, ``q_hi``, ``source``): agreement when the printed interval meets the 95 %
-    interval."""
+    """Published values beside this project's re-estimates (columns ``vehicle``, ``q``,
+    ``q_lo``, ``q_hi``, optionally ``q_status``, ``verdict``, ``source``), compared by
+    :func:`compare_reestimate`. Severity info when the re-estimates are synthetic (their
+    ``source`` says so): they test the method, not the paper; otherwise a difference is a
+    warning about the re-estimation."""
     if estimates is None or estimates.empty:
         return []
     out = []
-    est = estimates.set_index("vehicle")
+    est = estimates.drop_duplicates("vehicle").set_index("vehicle")
     params = pub.table("parameters")
     published = {vid: dict(row) for vid, row in params.items()}
     for vid, row in pub.table("generalised").items():
@@ -887,36 +1464,46 @@ def check_reproduction(
     for vid, row in published.items():
         if vid not in est.index:
             continue
-        source = str(est.loc[vid].get("source", "re-estimate"))
-        verdict = str(est.loc[vid].get("verdict", "-"))
-        for q in ("k", "C", "K_veh", "C_veh", "c_veh", "delta"):
-            if q not in row or f"{q}_lo" not in est.columns or pd.isna(est.loc[vid, q]):
+        line = est.loc[vid]
+        source = str(line.get("source", "re-estimate"))
+        synthetic = "synthetic" in source
+        verdict_of_fit = str(line.get("verdict", "-"))
+        for q in REESTIMATED:
+            if q not in row or q not in est.columns:
                 continue
-            x, lo, hi = (float(est.loc[vid, c]) for c in (q, f"{q}_lo", f"{q}_hi"))
-            interval = Interval(min(lo, x), max(hi, x))
-            ok = interval.overlaps(row[q].interval)
+            x, lo, hi = (line.get(c) for c in (q, f"{q}_lo", f"{q}_hi"))
+            verdict, interval = compare_reestimate(row[q], x, lo, hi, line.get(f"{q}_status"))
+            if interval is not None:
+                shown = f"{_g(_number(x), 4)} with 95 % interval {interval.text()}"
+                recomputed = f"{_g(_number(x), 3)} {interval.text(3)}"
+            else:
+                shown = (
+                    f"{_g(_number(x), 4)} with 95 % interval "
+                    f"[{_g(_number(lo), 4)}, {_g(_number(hi), 4)}]"
+                )
+                recomputed = "-"
+            severity = "warning" if verdict == DIFFERS and not synthetic else "info"
             out.append(
                 _finding(
                     "reproduction",
                     "reestimate",
                     f"{vid} {q}",
-                    "info" if ok else "warning",
-                    pub.location(
-                        "parameters" if q in pub.table("parameters").get(vid, {}) else "generalised"
-                    ),
+                    severity,
+                    pub.location("parameters" if q in params.get(vid, {}) else "generalised"),
                     row[q].text,
-                    f"{_g(x, 3)} {interval.text(3)}",
-                    f"{'agrees' if ok else 'differs'}: published {row[q].text} "
-                    f"({row[q].interval.text()}); re-estimate {_g(x, 4)} with 95 % interval "
-                    f"{interval.text()}; re-estimate's verdict: {verdict} ({source})",
+                    recomputed,
+                    f"{verdict}: published {row[q].text} ({row[q].interval.text()}); "
+                    f"re-estimate {shown}; re-estimate's verdict: {verdict_of_fit} ({source})",
                 )
             )
     return out
 
 
 def read_estimates(tables: str | Path) -> pd.DataFrame | None:
-    """The pipeline's Table 2 and Table 3 (``table2.csv``, ``table3.csv`` in ``tables``)
-    joined per vehicle; None if there are none."""
+    """This project's Table 2 and Table 3 (``table2.csv``, ``table3.csv`` in ``tables``)
+    joined per vehicle; None if there are none. The ``{q}_status`` columns ("estimated" or
+    "not identified: ...") are kept when present; without them every value present counts as
+    estimated."""
     tables = Path(tables)
     t2, t3 = tables / "table2.csv", tables / "table3.csv"
     if not t2.is_file():
@@ -936,6 +1523,9 @@ CHECKS: tuple[Callable[[Published, Mapping[str, Any]], list[Finding]], ...] = (
     check_delta_ratio,
     check_statements,
     check_counts,
+    check_class_test,
+    check_small_deviations,
+    check_without_poor_fits,
     check_implied_mass,
     check_total_specific_heat,
     check_published_in_range,
@@ -947,11 +1537,17 @@ CHECKS: tuple[Callable[[Published, Mapping[str, Any]], list[Finding]], ...] = (
 )
 
 
+def _verdict(message: str) -> str:
+    return next(v for v in REESTIMATE_VERDICTS if message.startswith(v))
+
+
 def run(
     pub: Published, ranges: Mapping[str, Any], estimates: pd.DataFrame | None = None
 ) -> pd.DataFrame:
-    """Every check on ``pub``; one row per finding, errors first, then warnings, then info
-    (within a severity in the order of the families and of the document)."""
+    """Every check on ``pub``; one row per finding. The findings about the published values
+    first, errors, then warnings, then info (within a severity in the order of the families
+    and of the document); then the re-estimation (family ``reproduction``), by severity and
+    verdict (differs, not comparable, agrees)."""
     findings: list[Finding] = []
     for check in CHECKS:
         findings += check(pub, ranges)
@@ -959,33 +1555,69 @@ def run(
     df = pd.DataFrame([asdict(f) for f in findings], columns=list(COLUMNS))
     rank = {s: i for i, s in enumerate(SEVERITIES)}
     fam = {f: i for i, f in enumerate(FAMILIES)}
-    order = sorted(
-        range(len(df)),
-        key=lambda i: (rank[df.at[i, "severity"]], fam[df.at[i, "family"]], i),
-    )
-    return df.iloc[order].reset_index(drop=True)
+    verdict = {v: i for i, v in enumerate(REESTIMATE_VERDICTS)}
+
+    def key(i: int) -> tuple:
+        family = df.at[i, "family"]
+        if family == "reproduction":
+            return (1, rank[df.at[i, "severity"]], verdict[_verdict(df.at[i, "message"])], i)
+        return (0, rank[df.at[i, "severity"]], fam[family], i)
+
+    return df.iloc[sorted(range(len(df)), key=key)].reset_index(drop=True)
 
 
 def _ranges_section(ranges: Mapping[str, Any], file: str) -> list[str]:
     lines = [
-        f"## Ranges and thresholds used (`{file}`)",
+        f"## Thresholds, limits and ranges used (`{file}`)",
         "",
-        f"- r2_min = {ranges['r2_min']}: {ranges['r2_min_source'].strip()}",
-        f"- coupling_ratio_max = {ranges['coupling_ratio_max']}: "
-        f"{ranges['coupling_source'].strip()}",
+        "Each names its source, starting with its kind (published, physics, definition, "
+        "assumption). A finding against an assumption is at most info; only sourced thresholds "
+        "raise warnings; errors are kept for contradictions and physical impossibilities.",
+        "",
     ]
-    for name, entry in ranges["limits"].items():
-        lines.append(
-            f"- limit {name} = {entry['value']} {entry['unit']}: {entry['source'].strip()}"
-        )
-    for quantity, by_class in ranges["ranges"].items():
-        for cls, entry in by_class.items():
+    for key, entry in _sourced_entries(ranges):
+        if "range" in entry:
             lo, hi = entry["range"]
-            lines.append(
-                f"- {quantity} ({cls}): {_g(lo)}-{_g(hi)} {entry['unit']}: "
-                f"{entry['source'].strip()}"
-            )
+            value = f"{_g(lo)}-{_g(hi)}"
+        else:
+            value = _g(entry["value"])
+        unit = "" if entry["unit"] == "1" else f" {entry['unit']}"
+        lines.append(f"- {key} = {value}{unit}: {entry['source'].strip()}")
     return lines + [""]
+
+
+def _reestimation_section(findings: pd.DataFrame, note: str | None) -> list[str]:
+    rows = findings[findings["family"] == "reproduction"]
+    lines = ["## Re-estimation (not findings about the published values)", ""]
+    lines += [
+        "The published values beside this project's re-estimates. These findings are about the "
+        "re-estimation and are not counted with the findings about the paper above. A value the "
+        "data do not determine (not identified, or a 95 % interval that is not finite or reaches "
+        "x/1000 or 1000 x) is not comparable; agreement needs a bounded interval that meets the "
+        "printed one.",
+        "",
+    ]
+    if note:
+        lines += [note, ""]
+    if rows.empty:
+        return lines
+    verdicts = rows["message"].map(_verdict)
+    lines += [
+        "| verdict | count |",
+        "| --- | --- |",
+        *(f"| {v} | {int((verdicts == v).sum())} |" for v in REESTIMATE_VERDICTS),
+        "",
+    ]
+    for v in REESTIMATE_VERDICTS:
+        part = rows[verdicts == v]
+        if part.empty:
+            continue
+        lines += [f"### {v} ({len(part)})", ""]
+        for r in part.itertuples():
+            tag = "" if r.severity == "info" else f" [{r.severity}]"
+            lines.append(f"- **{r.subject}** ({r.location}){tag}: {r.message}")
+        lines.append("")
+    return lines
 
 
 def report(
@@ -995,7 +1627,11 @@ def report(
     ranges: Mapping[str, Any] | None = None,
     ranges_file: str = "config/audit.yaml",
 ) -> str:
-    """audit.md: a summary, then every finding grouped by severity with its arithmetic."""
+    """audit.md: a summary of the findings about the published values, every such finding
+    grouped by severity with its arithmetic, then the re-estimation in a section of its own
+    (never counted in the paper's totals), then the thresholds with their sources."""
+    paper = findings[findings["family"] != "reproduction"]
+    n_reest = int((findings["family"] == "reproduction").sum())
     lines = [
         f"# Audit of published reference values: {pub.document}",
         "",
@@ -1006,26 +1642,38 @@ def report(
         "never reported as inconsistent.",
         "",
     ]
-    if estimates_note:
-        lines += [estimates_note, ""]
-    counts = findings.groupby(["family", "severity"]).size().unstack(fill_value=0)
-    counts = counts.reindex(index=list(FAMILIES), columns=list(SEVERITIES), fill_value=0)
+    counts = paper.groupby(["family", "severity"]).size().unstack(fill_value=0)
+    counts = counts.reindex(index=list(PAPER_FAMILIES), columns=list(SEVERITIES), fill_value=0)
     lines += ["| family | error | warning | info |", "| --- | --- | --- | --- |"]
     for family, row in counts.iterrows():
         lines.append(f"| {family} | {row['error']} | {row['warning']} | {row['info']} |")
-    lines.append("")
+    total = counts.sum()
+    lines.append(
+        f"| **total (the paper)** | {total['error']} | {total['warning']} | {total['info']} |"
+    )
+    lines += [
+        "",
+        f"Re-estimation: {n_reest} comparisons with this project's re-estimates, in their "
+        "own section after the findings; they are not findings about the published values "
+        "and are not counted above."
+        if n_reest
+        else "Re-estimation: none (see its section after the findings).",
+        "",
+    ]
     titles = {
         "error": "Errors: the published numbers contradict each other or physics",
-        "warning": "Warnings: implausible, unfit as a reference, or mislabelled",
-        "info": "Info: checks passed (with their arithmetic) and typography",
+        "warning": "Warnings: claims contradicted, fits unfit as references, or mislabelled "
+        "(against sourced thresholds)",
+        "info": "Info: checks passed (with their arithmetic), notes against assumed ranges, "
+        "and typography",
     }
     for severity in SEVERITIES:
-        part = findings[findings["severity"] == severity]
+        part = paper[paper["severity"] == severity]
         lines += [f"## {titles[severity]} ({len(part)})", ""]
         if part.empty:
             lines += ["None.", ""]
             continue
-        for family in FAMILIES:
+        for family in PAPER_FAMILIES:
             rows = part[part["family"] == family]
             if rows.empty:
                 continue
@@ -1033,6 +1681,7 @@ def report(
             for r in rows.itertuples():
                 lines.append(f"- **{r.check}**, {r.subject} ({r.location}): {r.message}")
             lines.append("")
+    lines += _reestimation_section(findings, estimates_note)
     if ranges is not None:
         lines += _ranges_section(ranges, ranges_file)
     return "\n".join(lines)
@@ -1053,13 +1702,13 @@ def write(findings: pd.DataFrame, markdown: str, out_dir: str | Path) -> tuple[P
 def estimates_note(estimates: pd.DataFrame | None, tables: str | None) -> str:
     if estimates is None:
         return (
-            "Reproduction: no re-estimates given (`--estimates DIR` with table2.csv and "
-            "table3.csv), so the reproduction family did not run."
+            "No re-estimates given (`--estimates DIR` with table2.csv and table3.csv), so the "
+            "reproduction family did not run."
         )
     sources = sorted(set(estimates.get("source", pd.Series(["re-estimate"])).astype(str)))
-    note = f"Reproduction: re-estimates from `{tables}` ({'; '.join(sources)})."
+    note = f"Re-estimates from `{tables}` ({'; '.join(sources)})."
     if any("synthetic" in s for s in sources):
-        note += " " + SYNTHETIC_CAVEAT
+        note += " " + SYNTHETIC_CAVEAT + " Their findings are therefore info."
     return note
 
 

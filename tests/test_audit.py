@@ -1,9 +1,12 @@
 """The audit of published values: every check family on hand-built passing and failing cases,
-printed-rounding arithmetic (property-based), the paper's own numbers, and the command line."""
+printed-rounding arithmetic (property-based), the claims of the text, the sources of the
+thresholds and the severity rule, the re-estimation, the paper's own numbers, and the command
+line."""
 
 from __future__ import annotations
 
 import copy
+import itertools
 import math
 import subprocess
 import sys
@@ -243,14 +246,247 @@ def test_tables_listing_different_vehicles_are_inconsistent():
 
 
 # ---------------------------------------------------------------------------------------------
+# Claims of the text
+
+METRO = [533, 304, 175, 487, 360]  # Table 3, c_veh
+REGIONAL = [664, 577, 595, 703]
+
+
+def test_the_class_test_on_the_published_table_3_contradicts_section_6_3(ranges):
+    """§6.3: the metro/regional difference of c_veh "cannot be statistically proven".
+
+    Means 1859 / 5 = 371.8 and 2539 / 4 = 634.75; s² = 82,722.8 / 4 = 20,680.7 and
+    10,428.75 / 3 = 3,476.25; Welch: t = -262.95 / √(20,680.7/5 + 3,476.25/4) = -262.95 / 70.75
+    = -3.717, ν = 5005.2² / (4136.1²/4 + 869.1²/3) = 5.53, p ≈ 0.011. All four regional lie
+    above all five metro: U = 0, the most extreme of the C(9, 4) = 126 splits at either end,
+    exact two-sided p = 2/126 = 0.0159. Both below α = 0.05: the claim is contradicted."""
+    test = audit.class_test(METRO, REGIONAL, ("metro", "regional"), 0.05)
+    assert test.welch_p == pytest.approx(0.0115, abs=5e-4)
+    assert test.mwu_p == pytest.approx(2 / 126) and test.u == 0
+    assert test.verdict == audit.CONTRADICTED
+    (f,) = audit.check_class_test(audit.load_published(PAPER), ranges)
+    assert f.family == "claims" and f.check == "class_test"
+    assert f.subject == "metro_regional_c_veh_not_significant" and f.location == "Section 6.3"
+    assert f.severity == "warning" and f.message.startswith("contradicted")
+    for text in (
+        "t = (371.8 - 634.8)",
+        "= -3.717",
+        "ν = 5.53",
+        "p = 0.0115",
+        "U = 0 of n_a n_b = 5 × 4 = 20",
+        "all 4 regional above all 5 metro",
+        "2 / C(9, 5) = 2/126 = 0.0159",
+        "α = 0.05",
+    ):
+        assert text in f.message, text
+
+
+def test_smallest_attainable_p_decides_whether_a_test_runs():
+    # exact two-sided Mann-Whitney: 2 / C(n_a + n_b, n_a)
+    assert audit.smallest_mwu_p(3, 2) == pytest.approx(2 / 10)  # C(5, 3) = 10: 0.2
+    assert audit.smallest_mwu_p(4, 3) == pytest.approx(2 / 35)  # 0.057 > 0.05
+    assert audit.smallest_mwu_p(5, 4) == pytest.approx(2 / 126)
+    assert audit.smallest_mwu_p(1, 1) == 1.0 and audit.smallest_mwu_p(0, 3) == 1.0
+    t = audit.class_test([1.0, 2.0, 3.0], [10.0, 11.0], ("a", "b"), 0.05)
+    assert t.mwu_p is None and t.u is None
+    assert "Mann-Whitney: too few vehicles to test" in t.text
+    assert "2 / C(5, 3) = 2/10 = 0.2 ≥ α = 0.05" in t.text
+    assert t.welch_p is not None  # Welch needs two per class, no more
+    assert t.verdict == audit.NOT_CONTRADICTED  # a contradiction needs both tests
+    t = audit.class_test([1.0], [10.0, 11.0], ("a", "b"), 0.05)
+    assert (t.verdict, t.welch_p, t.mwu_p) == (audit.TOO_FEW, None, None)
+    assert "Welch: too few vehicles to test" in t.text
+
+
+def test_overlapping_classes_do_not_contradict_the_claim():
+    t = audit.class_test([1.0, 5.0, 2.0, 6.0, 3.0], [4.0, 2.5, 5.5, 3.5], ("a", "b"), 0.05)
+    assert t.verdict == audit.NOT_CONTRADICTED and t.welch_p > 0.05 and t.mwu_p > 0.05
+
+
+def test_mann_whitney_with_ties_is_exact_over_every_split():
+    """a = 1, 2, 2, 3 against b = 2, 4, 5: U = 2 (ties count 1/2). Over all C(7, 4) = 35 splits
+    of the pooled values, counted here by hand: two-sided p = 2 min(P(U <= 2), P(U >= 2)), the
+    convention of the exact test without ties."""
+    a, b = [1.0, 2.0, 2.0, 3.0], [2.0, 4.0, 5.0]
+    pooled = a + b
+
+    def u(x, y):
+        return sum((xi > yi) + 0.5 * (xi == yi) for xi in x for yi in y)
+
+    splits = list(itertools.combinations(range(7), 4))
+    us = [
+        u([pooled[i] for i in idx], [pooled[i] for i in range(7) if i not in idx]) for idx in splits
+    ]
+    low = sum(v <= 2.0 for v in us) / len(us)
+    high = sum(v >= 2.0 for v in us) / len(us)
+    t = audit.class_test(a, b, ("a", "b"), 0.5)
+    assert t.u == u(a, b) == 2.0
+    assert t.mwu_p == pytest.approx(min(1.0, 2 * min(low, high)))
+    assert "ties at midranks" in t.text
+
+
+def class_sheet(statement_kw, **rows):
+    """The sheet with extra regional vehicles: name -> (R2, c_veh, delta)."""
+    pub = sheet(statements=statement(**statement_kw))
+    for vid, (r2, c_veh, delta) in rows.items():
+        pub.data["classes"]["of"][vid] = "regional"
+        pub.data["parameters"]["rows"][vid] = {"R2": r2}
+        pub.data["generalised"]["rows"][vid] = {"c_veh": c_veh, "delta": delta}
+    return pub
+
+
+def test_the_class_test_with_too_few_vehicles_is_a_note(ranges):
+    claim = {"statistic": "not_significant", "classes": ["metro", "regional"]}
+    pub = class_sheet(claim, B1=("0.990", "900", "2.0"))
+    (f,) = audit.check_class_test(pub, ranges)
+    assert f.severity == "info" and f.message.startswith("too few vehicles to test")
+    assert "2 / C(3, 2) = 2/3 = 0.667" in f.message  # 2 metros against 1 regional
+
+
+def test_small_deviations_claimed_for_all_vehicles_against_r2(ranges):
+    """§6.2 "a model with small deviations ... for all vehicles": R^2 < 0.5 means
+    SS_res > SS_tot / 2. Regio3 0.126 (87.4 % unexplained), Metro3 0.132 (86.8 %), Main1 0.494
+    (50.6 %)."""
+    (f,) = audit.check_small_deviations(audit.load_published(PAPER), ranges)
+    assert f.severity == "warning" and f.location == "Section 6.2"
+    assert f.message.startswith("contradicted: 3 of 13 fits lie below R^2 = 0.5")
+    names = ["Regio3 R^2 = 0.126", "Metro3 R^2 = 0.132", "Main1 R^2 = 0.494"]
+    positions = [f.message.index(n) for n in names]
+    assert positions == sorted(positions)
+    for text in ("87.4%", "86.8%", "50.6%", "SS_res = 0.874 SS_tot", "eqs. 21-23"):
+        assert text in f.message, text
+    good = sheet(
+        statements=statement(statistic="small_deviations", quantity="R2", **{"class": "all"})
+    )
+    (ok,) = audit.check_small_deviations(good, ranges)
+    assert ok.severity == "info" and "lowest A2 R^2 = 0.970" in ok.message
+    assumed = with_threshold(ranges, "r2_min", source="assumption: a guess")
+    (f,) = audit.check_small_deviations(audit.load_published(PAPER), assumed)
+    assert f.severity == "info"
+
+
+def test_the_claims_without_the_poor_fits(ranges):
+    """Without Metro3, Regio3 and Main1 (R^2 < 0.5): metro (533 + 304 + 487 + 360) / 4 = 421
+    instead of 371.8; regional (664 + 577 + 703) / 3 = 648 instead of 634.75; δ: tram
+    (0.56 + 0.55) / 2 = 0.555, metro (2.05 + 1.04 + 2.89 + 2.05) / 4 = 2.0075, regional
+    (0.11 + 4.88 + 2.88) / 3 = 2.623, main-line 9.35 alone: still increasing. The class test on
+    4 metros against 3 regionals: Mann-Whitney cannot reach 0.05 (2/35 = 0.057)."""
+    found = {
+        f.subject: f for f in audit.check_without_poor_fits(audit.load_published(PAPER), ranges)
+    }
+    assert {f.family for f in found.values()} == {"claims"}
+    assert {f.severity for f in found.values()} == {"info"}
+    metro = found["metro_mean_c_veh"]
+    assert "without Metro3 (R^2 = 0.132)" in metro.message
+    assert "(533 + 304 + 487 + 360) / 4 = 421" in metro.message
+    assert "with all 5 rows 371.8, stated 372" in metro.message
+    assert (metro.published, metro.recomputed) == ("372", "421")
+    regional = found["regional_mean_c_veh"]
+    assert "(664 + 577 + 703) / 3 = 648" in regional.message
+    assert "with all 4 rows 634.8, stated 603" in regional.message
+    order = found["delta_increases_by_class"]
+    assert "without Main1, Metro3, Regio3: the class means still increase" in order.message
+    for text in (
+        "metro mean 2.01 (n = 4",
+        "regional mean 2.62 (n = 3",
+        "main-line mean 9.35 (n = 1",
+    ):
+        assert text in order.message, text
+    assert "only one vehicle left in main-line" in order.message
+    test = found["metro_regional_c_veh_not_significant"]
+    assert test.message.startswith("not contradicted without Metro3, Regio3")
+    assert "2 / C(7, 4) = 2/35 = 0.0571 ≥ α = 0.05" in test.message
+    assert "with every row: contradicted" in test.message
+    reduced = audit.class_test([533, 304, 487, 360], [664, 577, 703], ("metro", "regional"), 0.05)
+    assert reduced.mwu_p is None and reduced.welch_p < 0.05
+
+
+def test_an_order_that_only_poor_fits_hold_up_is_a_warning(ranges):
+    """Metro δ 1.5 and 1.5; regional B1 3.0 (R^2 0.2) and B2 1.0: with every row the regional
+    mean (3.0 + 1.0) / 2 = 2.0 lies above 1.5; without B1 it is 1.0, below."""
+    claim = {"statistic": "increasing", "quantity": "delta", "classes": ["metro", "regional"]}
+    pub = class_sheet(claim, B1=("0.200", "500", "3.0"), B2=("0.990", "500", "1.0"))
+    assert severities(audit.check_statements(pub)) == ["info"]
+    (f,) = audit.check_without_poor_fits(pub, ranges)
+    assert f.severity == "warning" and "the class means decrease at metro -> regional" in f.message
+
+
+# ---------------------------------------------------------------------------------------------
+# Sources of the thresholds
+
+
+def test_every_threshold_limit_and_range_names_the_kind_of_its_source(ranges):
+    entries = audit._sourced_entries(ranges)
+    assert len(entries) >= 10
+    for key, entry in entries:
+        assert audit.source_kind(entry) in audit.SOURCE_KINDS, key
+    kinds = {key: audit.source_kind(entry) for key, entry in entries}
+    assert kinds["thresholds.r2_min"] == "definition"
+    assert kinds["thresholds.sampling_interval"] == "published"
+    assert kinds["limits.total_specific_heat_max"] == "physics"
+    assert ranges["thresholds"]["sampling_interval"]["range"] == [1, 10]
+    assert ranges["thresholds"]["alpha"]["value"] == 0.05
+
+
+def ranges_file(tmp_path, edit) -> Path:
+    data = yaml.safe_load(RANGES.read_text(encoding="utf-8"))
+    edit(data)
+    path = tmp_path / "audit.yaml"
+    path.write_text(yaml.safe_dump(data, allow_unicode=True), encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(
+    "key, edit",
+    [
+        ("ranges.k.all.source", lambda d: d["ranges"]["k"]["all"].update(source="vehicles")),
+        ("thresholds.alpha.source", lambda d: d["thresholds"]["alpha"].update(source="usual")),
+        (
+            "limits.total_specific_heat_max.source",
+            lambda d: d["limits"]["total_specific_heat_max"].update(source="Physics: water"),
+        ),
+        ("thresholds.r2_min.source", lambda d: d["thresholds"]["r2_min"].pop("source")),
+        (
+            "thresholds.sampling_interval.source",
+            lambda d: d["thresholds"]["sampling_interval"].update(source="published: the paper"),
+        ),
+    ],
+)
+def test_a_threshold_without_a_sourced_kind_is_a_config_error_naming_the_key(tmp_path, key, edit):
+    with pytest.raises(ConfigError) as err:
+        audit.load_ranges(ranges_file(tmp_path, edit))
+    assert "audit.yaml" in str(err.value) and key in str(err.value)
+
+
+def test_the_audit_module_does_not_import_scipy():
+    code = "import sys, railtherm.audit; print('scipy' in sys.modules)"
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "False"
+
+
+# ---------------------------------------------------------------------------------------------
 # Plausibility
 
 
-def test_implied_mass_passes_and_fails(ranges):
+def with_source(ranges, source: str):
+    """The ranges with every class range's source replaced (the metro mass range included)."""
+    out = copy.deepcopy(ranges)
+    for by_class in out["ranges"].values():
+        for entry in by_class.values():
+            entry["source"] = source
+    return out
+
+
+def test_implied_mass_outside_an_assumed_range_is_only_a_note(ranges):
     assert severities(audit.check_implied_mass(sheet(), ranges)) == ["info", "info"]
     pub = edited(sheet(), "generalised.rows.A1.c_veh", "4000")  # 1.5e7 / 4000 = 3.75 t
     finding = audit.check_implied_mass(pub, ranges)[0]
-    assert finding.severity == "warning" and "= 3.75 t" in finding.message
+    assert finding.severity == "info" and "= 3.75 t" in finding.message
+    assert finding.message.startswith("outside the assumed range mass 20-130 t")
+    assert finding.message.endswith("(assumption, not a sourced limit)")
+    sourced = with_source(ranges, "published: Table 9 of a hypothetical catalogue")
+    assert audit.check_implied_mass(pub, sourced)[0].severity == "warning"
 
 
 def test_total_specific_heat_passes_and_fails(ranges):
@@ -261,38 +497,88 @@ def test_total_specific_heat_passes_and_fails(ranges):
     assert finding.severity == "error" and "5733 J/(kg K)" in finding.message
 
 
-def test_printed_values_against_class_ranges(ranges):
+def test_a_threshold_whose_source_is_an_assumption_yields_no_warning(ranges):
+    """k = 9.0 lies outside the assumed 0.8-4.5 W/(m² K): a note, not a warning; the same
+    range with a sourced kind makes it a warning."""
     assert set(severities(audit.check_published_in_range(sheet(), ranges))) == {"info"}
     pub = edited(sheet(), "parameters.rows.A2.k", "9.0")
-    bad = [f for f in audit.check_published_in_range(pub, ranges) if f.severity != "info"]
-    assert [(f.check, f.subject) for f in bad] == [("k_range", "A2")]
+    findings = audit.check_published_in_range(pub, ranges)
+    assert set(severities(findings)) == {"info"}
+    (a2,) = [f for f in findings if f.subject == "A2"]
+    assert "outside the assumed range k 0.8-4.5" in a2.message
+    assert "(assumption, not a sourced limit)" in a2.message
+    sourced = with_source(ranges, "physics: a hypothetical bound")
+    bad = [f for f in audit.check_published_in_range(pub, sourced) if f.severity != "info"]
+    assert [(f.check, f.subject, f.severity) for f in bad] == [("k_range", "A2", "warning")]
 
 
-def test_time_constant_passes_and_fails(ranges):
+def test_the_invented_c_veh_floor_is_gone(ranges):
+    """The paper gives steel ~477 and aluminium ~896 J/(kg K) but no floor for c_veh."""
+    assert "c_veh" not in ranges["ranges"]
+    pub = edited(sheet(), "generalised.rows.A1.c_veh", "100")
+    assert [
+        f for f in audit.check_published_in_range(pub, ranges) if f.check == "c_veh_range"
+    ] == []
+
+
+def test_time_constant_outside_the_assumed_range_is_a_note(ranges):
     assert set(severities(audit.check_time_constant(sheet(), ranges))) == {"info"}
     pub = edited(sheet(), "parameters.rows.A1.C", "1.0×10^4")
     pub = edited(pub, "parameters.rows.A1.C_veh", "1.0×10^4")  # minutes, not hours
-    assert audit.check_time_constant(pub, ranges)[0].severity == "warning"
+    finding = audit.check_time_constant(pub, ranges)[0]
+    assert finding.severity == "info" and "outside the assumed range" in finding.message
 
 
 # ---------------------------------------------------------------------------------------------
 # Fitness
 
 
-def test_r2_below_the_threshold_is_unfit_as_a_reference(ranges):
+def with_threshold(ranges, name: str, **entry):
+    out = copy.deepcopy(ranges)
+    out["thresholds"][name] = {**out["thresholds"][name], **entry}
+    return out
+
+
+def test_r2_below_the_definitional_half_is_unfit_as_a_reference(ranges):
+    """R^2 = 0.40: SS_res = 0.6 SS_tot > SS_tot / 2 (eqs. 21-23), a warning; R^2 = 0.80 is
+    only below the assumed 0.9, a note."""
+    assert ranges["thresholds"]["r2_min"]["value"] == 0.5
+    assert ranges["thresholds"]["r2_min"]["source"].startswith("definition:")
     assert severities(audit.check_r2(sheet(), ranges)) == ["info", "info"]
-    pub = edited(sheet(), "parameters.rows.A2.R2", "0.5")
+    pub = edited(sheet(), "parameters.rows.A2.R2", "0.40")
     finding = audit.check_r2(pub, ranges)[1]
-    assert finding.severity == "warning" and "50% of the variance" in finding.message
-    looser = dict(ranges, r2_min=0.4)
+    assert finding.severity == "warning" and "60% of the variance" in finding.message
+    assert "0.6 SS_tot" in finding.message
+    pub = edited(sheet(), "parameters.rows.A2.R2", "0.80")
+    note = audit.check_r2(pub, ranges)[1]
+    assert note.severity == "info"
+    assert "outside the assumed range R^2 >= 0.9" in note.message
+    assert "(assumption, not a sourced limit)" in note.message
+    # "0.5" stands for [0.45, 0.55]: not certainly below 0.5
+    pub = edited(sheet(), "parameters.rows.A2.R2", "0.5")
+    assert audit.check_r2(pub, ranges)[1].severity == "info"
+    looser = with_threshold(ranges, "r2_min", value=0.3)
+    pub = edited(sheet(), "parameters.rows.A2.R2", "0.40")
     assert audit.check_r2(pub, looser)[1].severity == "info"
+    assumed = with_threshold(ranges, "r2_min", source="assumption: a guess")
+    assert audit.check_r2(pub, assumed)[1].severity == "info"
 
 
-def test_a_coupling_far_above_the_loss_to_outdoors_is_not_identifiable(ranges):
+def test_a_fast_time_constant_below_any_named_sampling_is_not_identifiable(ranges):
+    """A1: C = 1.0e7, C_veh = 1.5e7. K_veh = 900,000: τ_fast = 1 / (9e5/1e7 + 9e5/1.5e7)
+    = 1 / 0.15 = 6.67 s, below the 1 min the paper names (§3.1): warning. K_veh = 90,000:
+    66.7 s = 1.11 min, inside 1-10 min: a note. K_veh = 400: 1 / (4e-5 + 2.667e-5) = 1.5e4 s."""
     assert severities(audit.check_coupling(sheet(), ranges)) == ["info", "info"]
+    assert "second state identifiable at every" in audit.check_coupling(sheet(), ranges)[0].message
+    pub = edited(sheet(), "parameters.rows.A1.K_veh", "900,000")
+    finding = audit.check_coupling(pub, ranges)[0]
+    assert finding.severity == "warning" and "second state not identifiable" in finding.message
+    assert "= 6.67 s = 0.111 min" in finding.message
+    assert "K_veh / kA = 900,000 / kA" in finding.message  # kept, for information
     pub = edited(sheet(), "parameters.rows.A1.K_veh", "90,000")
     finding = audit.check_coupling(pub, ranges)[0]
-    assert finding.severity == "warning" and "not identifiable" in finding.message
+    assert finding.severity == "info" and "= 66.7 s = 1.11 min" in finding.message
+    assert "only with sampling intervals shorter than τ_fast" in finding.message
 
 
 # ---------------------------------------------------------------------------------------------
@@ -312,6 +598,15 @@ def test_a_coupling_far_above_the_loss_to_outdoors_is_not_identifiable(ranges):
 )
 def test_dimension_of_printed_units(unit, dims):
     assert audit.dimension(unit) == dims
+
+
+def test_the_paper_units_c_veh_read_as_printed_in_the_text_k_veh_initial_is_wrong():
+    """Table 3's "/(kg K)" is an artefact of the text extraction; the initial K_veh = 20 J/K of
+    §5.3 is a real error of the paper."""
+    pub = audit.load_published(PAPER)
+    assert pub.section("generalised")["units"]["c_veh"] == "J/(kg K)"
+    bad = [f.subject for f in audit.check_units(pub) if f.severity != "info"]
+    assert bad == ["initial K_veh = 20"]
 
 
 def test_units_pass_and_fail():
@@ -336,25 +631,106 @@ def test_mixed_thousands_separators_are_noted():
 # Reproduction
 
 
-def estimates(k_lo: float, k_hi: float) -> pd.DataFrame:
+SYNTHETIC = "synthetic: virtual climatic wind tunnel campaign (not measurements)"
+
+
+def estimates(k_lo: float, k_hi: float, k=None, source=SYNTHETIC, **extra) -> pd.DataFrame:
     return pd.DataFrame(
         {
             "vehicle": ["A1"],
-            "k": [(k_lo + k_hi) / 2],
+            "k": [(k_lo + k_hi) / 2 if k is None else k],
             "k_lo": [k_lo],
             "k_hi": [k_hi],
             "verdict": ["fit acceptable"],
-            "source": ["synthetic: virtual climatic wind tunnel campaign (not measurements)"],
+            "source": [source],
+            **{name: [value] for name, value in extra.items()},
         }
     )
 
 
 def test_reproduction_agrees_and_differs(ranges):
+    """Published k = 2.5 stands for [2.45, 2.55]."""
     (agree,) = audit.check_reproduction(sheet(), ranges, estimates(2.4, 2.6))
-    assert agree.severity == "info" and "synthetic" in agree.message
+    assert agree.severity == "info" and agree.message.startswith("agrees")
+    assert "synthetic" in agree.message
     (differ,) = audit.check_reproduction(sheet(), ranges, estimates(2.6, 2.8))
-    assert differ.severity == "warning" and differ.subject == "A1 k"
+    assert differ.message.startswith("differs") and differ.subject == "A1 k"
+    assert differ.severity == "info"  # synthetic re-estimates test the method, not the paper
+    (measured,) = audit.check_reproduction(sheet(), ranges, estimates(2.6, 2.8, source="CWT"))
+    assert measured.severity == "warning" and measured.message.startswith("differs")
     assert audit.check_reproduction(sheet(), ranges, None) == []
+
+
+@pytest.mark.parametrize(
+    "frame, reason",
+    [
+        # the value at a bound of the search: q, q_lo, q_hi empty, the status says why
+        (
+            estimates(
+                math.nan, math.nan, k=math.nan, k_status="not identified: at the lower bound 1e+04"
+            ),
+            "not comparable: not identified: at the lower bound 1e+04",
+        ),
+        # a status saying not identified wins even over numbers that would agree
+        (estimates(2.4, 2.6, k_status="not identified: flat likelihood"), "not identified"),
+        # 2.5 / 1000 = 0.0025 >= 0.001: printed 0 .. ∞, meets everything, determines nothing
+        (estimates(0.001, 3.0, k=2.5), "unbounded"),
+        (estimates(2.4, 2600.0, k=2.5), "unbounded"),
+        (estimates(2.4, math.inf, k=2.5), "not finite"),
+        (estimates(math.nan, 2.6, k=2.5), "not finite"),
+        (estimates(2.4, 2.6, k=math.nan), "no re-estimate"),
+    ],
+)
+def test_a_value_the_data_do_not_determine_never_agrees(ranges, frame, reason):
+    for source in (SYNTHETIC, "CWT measurements"):
+        frame = frame.assign(source=source)
+        (finding,) = audit.check_reproduction(sheet(), ranges, frame)
+        assert finding.message.startswith("not comparable: ") and reason in finding.message
+        assert finding.severity == "info"
+
+
+def test_an_estimated_status_with_a_bounded_interval_can_agree(ranges):
+    (f,) = audit.check_reproduction(sheet(), ranges, estimates(2.4, 2.6, k_status="estimated"))
+    assert f.message.startswith("agrees")
+
+
+def test_read_estimates_with_and_without_status_columns(tmp_path):
+    t2 = pd.DataFrame(
+        {
+            "vehicle": ["A1", "A2"],
+            "k": [2.5, 2.9],
+            "k_lo": [2.4, 2.8],
+            "k_hi": [2.6, 3.0],
+            "C": [1.0e7, None],
+            "C_lo": [0.9e7, None],
+            "C_hi": [1.1e7, None],
+            "source": [SYNTHETIC, SYNTHETIC],
+        }
+    )
+    t3 = pd.DataFrame({"vehicle": ["A1", "A2"], "delta": [1.5, 1.5], "delta_lo": [1.4, 1.4]})
+    t3["delta_hi"] = [1.6, 1.6]
+    plain, with_status = tmp_path / "plain", tmp_path / "status"
+    for folder in (plain, with_status):
+        folder.mkdir()
+    t2.to_csv(plain / "table2.csv", index=False)
+    t3.to_csv(plain / "table3.csv", index=False)
+    t2.assign(
+        k_status="estimated", C_status=["estimated", "not identified: at the upper bound 1e+09"]
+    ).to_csv(with_status / "table2.csv", index=False)
+    t3.assign(delta_status="estimated").to_csv(with_status / "table3.csv", index=False)
+    for folder in (plain, with_status):
+        est = audit.read_estimates(folder)
+        assert list(est.vehicle) == ["A1", "A2"] and "delta" in est.columns
+    est = audit.read_estimates(with_status)
+    assert est.loc[1, "C_status"].startswith("not identified") and math.isnan(est.loc[1, "C"])
+    pub = sheet()
+    plain_f = audit.check_reproduction(pub, {}, audit.read_estimates(plain))
+    status_f = audit.check_reproduction(pub, {}, est)
+    verdicts = {f.subject: f.message.split(":")[0] for f in status_f}
+    assert verdicts["A1 k"] == "agrees" and verdicts["A2 C"] == "not comparable"
+    assert "at the upper bound" in next(f.message for f in status_f if f.subject == "A2 C")
+    assert {f.subject: f.message.split(":")[0] for f in plain_f}["A2 C"] == "not comparable"
+    assert audit.read_estimates(tmp_path / "none") is None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -386,13 +762,17 @@ def test_the_paper_audit_finds_what_a_reader_can_verify_by_hand(paper_findings):
         == "info"
     )  # 371.8 -> 372
     units = f[(f.family == "units") & (f.severity == "warning")]
-    assert set(units.subject) == {"c_veh column", "initial K_veh = 20"}
+    assert set(units.subject) == {"initial K_veh = 20"}
+    # R^2 below 0.5: SS_res > SS_tot / 2 (eqs. 21-23)
     unfit = set(f.loc[(f.check == "r2") & (f.severity == "warning"), "subject"])
-    assert unfit == {"Metro3", "Metro4", "Regio1", "Regio3", "Main1", "Main2"}
-    assert set(f.loc[(f.check == "coupling") & (f.severity == "warning"), "subject"]) == {
-        "Metro3",
-        "Main1",
-    }
+    assert unfit == {"Metro3", "Regio3", "Main1"}
+    # Main1: τ_fast = 1 / (93,627/7.2e5 + 93,627/3.9e6) = 1 / (0.1300 + 0.0240) = 6.49 s < 1 min;
+    # Metro3: 1 / (47,831/8.0e6 + 47,831/5.7e6) = 1 / (0.00598 + 0.00839) = 69.6 s = 1.16 min
+    assert set(f.loc[(f.check == "coupling") & (f.severity == "warning"), "subject"]) == {"Main1"}
+    (metro3,) = f.loc[(f.check == "coupling") & (f.subject == "Metro3"), "message"]
+    assert "1.16 min" in metro3
+    # no warning rests on an assumption
+    assert not f.loc[f.severity != "info", "message"].str.contains("assum").any()
     # every delta of Table 3 is consistent with Table 2 within the printed rounding
     assert (f.loc[f.check == "delta_ratio", "severity"] == "info").all()
     assert len(f.loc[f.check == "delta_ratio"]) == 13
@@ -401,15 +781,37 @@ def test_the_paper_audit_finds_what_a_reader_can_verify_by_hand(paper_findings):
 def test_the_paper_audit_is_honest_about_the_reproduction(paper_findings, tmp_path):
     rep = paper_findings[paper_findings.family == "reproduction"]
     assert len(rep) > 0 and rep.message.str.contains("synthetic").all()
+    assert (rep.severity == "info").all()  # synthetic: about the method, not the paper
     audit.audit(PAPER, RANGES, REPO / "results/tables", tmp_path)
     text = (tmp_path / "audit.md").read_text(encoding="utf-8")
     assert "test the method" in text.replace("tests the method", "test the method")
     assert "not the published measurements" in text
 
 
-def test_findings_are_ordered_by_severity(paper_findings):
-    rank = paper_findings.severity.map({"error": 0, "warning": 1, "info": 2})
+def test_findings_are_ordered_by_severity_and_the_reestimation_comes_last(paper_findings):
+    f = paper_findings
+    is_rep = f.family == "reproduction"
+    assert is_rep.is_monotonic_increasing  # False ... False True ... True
+    rank = f[~is_rep].severity.map({"error": 0, "warning": 1, "info": 2})
     assert rank.is_monotonic_increasing
+
+
+def test_the_reestimation_has_its_own_section_and_is_not_counted_with_the_paper(ranges):
+    """Measured (not synthetic) re-estimates that differ are warnings about the
+    re-estimation: shown after the paper's findings, absent from the paper's totals."""
+    pub = sheet()
+    est = estimates(2.6, 2.8, source="CWT measurements")
+    findings = audit.run(pub, ranges, est)
+    assert findings.iloc[-1].family == "reproduction"
+    assert findings.iloc[-1].severity == "warning"
+    text = audit.report(findings, pub, audit.estimates_note(est, "tables"), ranges)
+    head, section = text.split("## Re-estimation (not findings about the published values)")
+    assert "## Info" in head and "A1 k" not in head
+    assert "### differs (1)" in section and "**A1 k**" in section and "[warning]" in section
+    total = next(line for line in head.splitlines() if line.startswith("| **total"))
+    assert total.split("|")[2:4] == [" 0 ", " 0 "]  # no error, no warning about the paper
+    assert "## Warnings" in head and "## Warnings: claims contradicted, fits unfit as " in head
+    assert "(0)\n\nNone." in head.split("## Info")[0]
 
 
 # ---------------------------------------------------------------------------------------------
