@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from railtherm import pem
+from railtherm.smallsample import t_interval, two_class_test
 from railtherm.synth import DEVIATION_EFFECT_ON_K
 from railtherm.tables import round_significant, write_csv
 
@@ -482,18 +483,6 @@ SELECTIONS = {
 }
 
 
-def _t_interval(x: np.ndarray, positive: bool = False) -> tuple[float, float]:
-    """95 % t interval of the mean of x (n - 1 degrees of freedom); none below n = 2. For a
-    ``positive`` quantity the lower end is clipped at 0 (the interval keeps its coverage)."""
-    if x.size < 2:
-        return math.nan, math.nan
-    from scipy import stats
-
-    half = stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size)
-    lo = float(x.mean() - half)
-    return (max(lo, 0.0) if positive else lo), float(x.mean() + half)
-
-
 def class_summary(t3: pd.DataFrame) -> pd.DataFrame:
     """Per selection (every identified value; only fits judged acceptable), class and quantity
     (c_veh, delta): n, mean with its 95 % t interval, the geometric mean with its t interval on
@@ -513,8 +502,8 @@ def class_summary(t3: pd.DataFrame) -> pd.DataFrame:
                 left_out = part.loc[~ok, "vehicle"].tolist()
                 row = {"selection": selection, "class": c, "quantity": q, "n": int(x.size)}
                 if x.size:
-                    lo, hi = _t_interval(x, positive=True)
-                    glo, ghi = _t_interval(np.log(x)) if np.all(x > 0) else (math.nan, math.nan)
+                    lo, hi = t_interval(x, positive=True)
+                    glo, ghi = t_interval(np.log(x)) if np.all(x > 0) else (math.nan, math.nan)
                     geo = float(np.exp(np.log(x).mean())) if np.all(x > 0) else math.nan
                     row |= {
                         "mean": float(x.mean()),
@@ -539,15 +528,6 @@ def class_summary(t3: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=columns)
 
 
-def smallest_mann_whitney_p(n_a: int, n_b: int) -> float:
-    """The smallest two-sided p-value the exact Mann-Whitney U test can give for samples of
-    n_a and n_b without ties: every value of one group above every value of the other, 2 of
-    the C(n_a + n_b, n_a) equally likely orderings under the null hypothesis."""
-    if n_a < 1 or n_b < 1:
-        return 1.0
-    return min(1.0, 2.0 / math.comb(n_a + n_b, n_a))
-
-
 def class_test(
     t3: pd.DataFrame,
     quantity: str = "c_veh",
@@ -558,11 +538,9 @@ def class_test(
     Per selection of vehicles (values the data do not determine left out): Welch's t-test
     (needs 2 vehicles per group) and the exact two-sided Mann-Whitney U test, each run only
     when it can reach significance at ``alpha`` - the exact test's smallest attainable p is
-    2 / C(n_a + n_b, n_a) (:func:`smallest_mann_whitney_p`: 0.2 at 3 vs 2), so with fewer
+    2 / C(n_a + n_b, n_a) (railtherm.smallsample: 0.2 at 3 vs 2), so with fewer
     vehicles "no significant difference" would be certain before any data; the table says
     "too few vehicles to test" instead. A plain conclusion from the tests that ran."""
-    from scipy import stats
-
     a_name, b_name = groups
     rows = []
     for selection, pick in SELECTIONS.items():
@@ -571,7 +549,8 @@ def class_test(
             sub = sub[sub[f"{quantity}_status"] == ESTIMATED]
         a = sub.loc[sub["class"] == a_name, quantity].to_numpy(dtype=float)
         b = sub.loc[sub["class"] == b_name, quantity].to_numpy(dtype=float)
-        min_p = smallest_mann_whitney_p(len(a), len(b))
+        test = two_class_test(a, b, alpha)
+        nan = math.nan
         row: dict[str, Any] = {
             "selection": selection,
             "quantity": quantity,
@@ -579,39 +558,26 @@ def class_test(
             "group_b": b_name,
             "n_a": len(a),
             "n_b": len(b),
-            "mean_a": float(a.mean()) if len(a) else math.nan,
-            "mean_b": float(b.mean()) if len(b) else math.nan,
-            "welch_t": math.nan,
-            "welch_p": math.nan,
-            "mannwhitney_U": math.nan,
-            "mannwhitney_p": math.nan,
-            "mannwhitney_min_p": min_p,
+            "mean_a": float(a.mean()) if len(a) else nan,
+            "mean_b": float(b.mean()) if len(b) else nan,
+            "welch_t": nan if test.welch_t is None else test.welch_t,
+            "welch_p": nan if test.welch_p is None else test.welch_p,
+            "mannwhitney_U": nan if test.mwu_u is None else test.mwu_u,
+            "mannwhitney_p": nan if test.mwu_p is None else test.mwu_p,
+            "mannwhitney_min_p": test.mwu_min_p,
         }
-        ran, notes = {}, []
-        if len(a) >= 2 and len(b) >= 2:
-            welch = stats.ttest_ind(a, b, equal_var=False)
-            row |= {"welch_t": float(welch.statistic), "welch_p": float(welch.pvalue)}
-            ran["Welch"] = float(welch.pvalue)
-        else:
-            notes.append("Welch needs 2 vehicles per group")
-        if min_p < alpha:
-            mwu = stats.mannwhitneyu(a, b, alternative="two-sided", method="exact")
-            row |= {"mannwhitney_U": float(mwu.statistic), "mannwhitney_p": float(mwu.pvalue)}
-            ran["Mann-Whitney"] = float(mwu.pvalue)
-        else:
-            notes.append(f"Mann-Whitney cannot go below p = {min_p:.3g}")
-        n = f"n = {len(a)} and {len(b)}"
+        ran, n = test.ran, f"n = {len(a)} and {len(b)}"
         significant = [name for name, p in ran.items() if p < alpha]
         if not ran:
-            conclusion = f"too few vehicles to test ({n}: {'; '.join(notes)})"
+            conclusion = f"too few vehicles to test ({n}: {'; '.join(test.not_run)})"
         elif len(significant) == len(ran):
             conclusion = f"differ: {' and '.join(ran)} significant at {alpha:g} ({n})"
         elif significant:
             conclusion = f"inconclusive: only {significant[0]} significant at {alpha:g} ({n})"
         else:
             conclusion = f"no significant difference at {alpha:g} ({n})"
-        if ran and notes:
-            conclusion += f"; not run: {'; '.join(notes)}"
+        if ran and test.not_run:
+            conclusion += f"; not run: {'; '.join(test.not_run)}"
         row["conclusion"] = conclusion
         rows.append(row)
     return pd.DataFrame(rows)

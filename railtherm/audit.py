@@ -49,6 +49,7 @@ import pandas as pd
 
 from railtherm.config import packaged_schema, read_yaml, validate_schema
 from railtherm.errors import ConfigError
+from railtherm.smallsample import two_class_test
 
 SEVERITIES = ("error", "warning", "info")
 FAMILIES = ("consistency", "claims", "plausibility", "fitness", "units", "reproduction")
@@ -646,23 +647,15 @@ CONTRADICTED, NOT_CONTRADICTED, TOO_FEW = (
 )
 
 
-def smallest_mwu_p(n_a: int, n_b: int) -> float:
-    """The smallest p-value the exact two-sided Mann-Whitney U test can give for n_a against
-    n_b values: 2 / C(n_a + n_b, n_a), reached when every value of one class lies above every
-    value of the other (U = 0 or U = n_a n_b); at most 1."""
-    if n_a < 1 or n_b < 1:
-        return 1.0
-    return min(1.0, 2 / math.comb(n_a + n_b, n_a))
-
-
 @dataclass(frozen=True)
 class ClassTest:
     """Welch's t-test and the exact two-sided Mann-Whitney U test of two classes.
 
     A test runs only when its smallest attainable p-value is below α (Welch: at least two
-    values per class; Mann-Whitney: :func:`smallest_mwu_p`). ``verdict`` on a claim that the
-    difference is not significant: ``contradicted`` when both tests ran and both give p < α,
-    ``too few vehicles to test`` when neither could run, else ``not contradicted``."""
+    values per class; Mann-Whitney: railtherm.smallsample.smallest_mann_whitney_p).
+    ``verdict`` on a claim that the difference is not significant: ``contradicted`` when both
+    tests ran and both give p < α, ``too few vehicles to test`` when neither could run, else
+    ``not contradicted``."""
 
     verdict: str
     welch_p: float | None  # None: not run
@@ -681,80 +674,55 @@ def class_test(
     a: Sequence[float], b: Sequence[float], names: tuple[str, str], alpha: float
 ) -> ClassTest:
     """Welch's t-test (unequal variances) and the exact two-sided Mann-Whitney U test of the
-    values ``a`` of class ``names[0]`` against ``b`` of ``names[1]`` at level ``alpha``."""
-    from scipy import stats  # only here: the module stays cheap to import
-
+    values ``a`` of class ``names[0]`` against ``b`` of ``names[1]`` at level ``alpha``
+    (railtherm.smallsample.two_class_test), with their arithmetic."""
+    test = two_class_test(a, b, alpha)
     na, nb = len(a), len(b)
     name_a, name_b = names
     parts = []
-    # Welch: t = (mean_a - mean_b) / sqrt(s_a²/n_a + s_b²/n_b), Welch-Satterthwaite ν
-    welch_p = None
-    if na < 2 or nb < 2:
+    if test.welch_p is None:
         parts.append(
-            f"Welch: too few vehicles to test (it needs at least 2 per class; n = {na} and {nb}: "
-            "no p-value is attainable)"
+            f"Welch: too few vehicles to test ({test.welch_why}: no p-value is attainable)"
+            if na < 2 or nb < 2
+            else f"Welch: not run ({test.welch_why})"
         )
     else:
         ma, mb = statistics.fmean(a), statistics.fmean(b)
         sa, sb = statistics.stdev(a), statistics.stdev(b)
-        if sa == 0 and sb == 0:
-            parts.append("Welch: not run (no variance within either class)")
-        else:
-            res = stats.ttest_ind(a, b, equal_var=False)
-            welch_p = float(res.pvalue)
-            parts.append(
-                f"Welch: t = ({_g(ma)} - {_g(mb)}) / √({_g(sa)}²/{na} + {_g(sb)}²/{nb}) "
-                f"= {_g(float(res.statistic))} with ν = {_g(float(res.df), 3)} degrees of "
-                f"freedom, two-sided p = {_g(welch_p, 3)}"
-            )
-    # Mann-Whitney: exact distribution of U over all C(n_a + n_b, n_a) splits
-    mwu_p = u = None
+        parts.append(
+            f"Welch: t = ({_g(ma)} - {_g(mb)}) / √({_g(sa)}²/{na} + {_g(sb)}²/{nb}) "
+            f"= {_g(test.welch_t)} with ν = {_g(test.welch_df, 3)} degrees of "
+            f"freedom, two-sided p = {_g(test.welch_p, 3)}"
+        )
     splits = math.comb(na + nb, na)
-    floor = smallest_mwu_p(na, nb)
-    floor_text = f"2 / C({na + nb}, {na}) = 2/{splits} = {_g(floor, 3)}"
-    if floor >= alpha:
+    floor_text = f"2 / C({na + nb}, {na}) = 2/{splits} = {_g(test.mwu_min_p, 3)}"
+    if test.mwu_p is None:
         parts.append(
             f"Mann-Whitney: too few vehicles to test (the smallest two-sided p it can give for "
             f"{na} against {nb} is {floor_text} ≥ α = {alpha})"
         )
     else:
-        ties = len(set(a) | set(b)) < na + nb
-        if not ties:
-            res = stats.mannwhitneyu(a, b, alternative="two-sided", method="exact")
-            u, mwu_p, how = float(res.statistic), float(res.pvalue), "exact"
-        elif splits <= 10**6:
-
-            def statistic(x, y):
-                return stats.mannwhitneyu(x, y, method="asymptotic").statistic
-
-            res = stats.permutation_test(
-                (list(a), list(b)), statistic, n_resamples=math.inf, alternative="two-sided"
-            )
-            u, mwu_p = float(statistic(a, b)), float(res.pvalue)
-            how = f"exact over all {splits} splits, ties at midranks"
-        else:
-            res = stats.mannwhitneyu(a, b, alternative="two-sided", method="asymptotic")
-            u, mwu_p = float(res.statistic), float(res.pvalue)
-            how = "normal approximation: ties, and too many splits to enumerate"
+        u = test.mwu_u
         if u == 0:
             ordering = f"all {nb} {name_b} above all {na} {name_a}"
         elif u == na * nb:
             ordering = f"all {na} {name_a} above all {nb} {name_b}"
         else:
             ordering = f"{name_a} above {name_b} in {_g(u)} of the {na * nb} pairs"
-        p_text = floor_text if u in (0, na * nb) and not ties else _g(mwu_p, 3)
+        exact = test.mwu_method == "exact"
+        p_text = floor_text if u in (0, na * nb) and exact else _g(test.mwu_p, 3)
         parts.append(
-            f"Mann-Whitney ({how}): U = {_g(u)} of n_a n_b = {na} × {nb} = {na * nb} "
-            f"({ordering}), two-sided p = {p_text}"
+            f"Mann-Whitney ({test.mwu_method}): U = {_g(u)} of n_a n_b = {na} × {nb} = "
+            f"{na * nb} ({ordering}), two-sided p = {p_text}"
         )
-    ran = [p for p in (welch_p, mwu_p) if p is not None]
+    ran = list(test.ran.values())
     if not ran:
         verdict = TOO_FEW
     elif len(ran) == 2 and all(p < alpha for p in ran):
         verdict = CONTRADICTED
     else:
         verdict = NOT_CONTRADICTED
-    return ClassTest(verdict, welch_p, mwu_p, u, "; ".join(parts))
+    return ClassTest(verdict, test.welch_p, test.mwu_p, test.mwu_u, "; ".join(parts))
 
 
 def _groups(

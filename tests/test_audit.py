@@ -18,7 +18,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from railtherm import audit
+from railtherm import audit, smallsample
 from railtherm.audit import Interval, Printed, Published
 from railtherm.errors import ConfigError
 
@@ -283,10 +283,13 @@ def test_the_class_test_on_the_published_table_3_contradicts_section_6_3(ranges)
 
 def test_smallest_attainable_p_decides_whether_a_test_runs():
     # exact two-sided Mann-Whitney: 2 / C(n_a + n_b, n_a)
-    assert audit.smallest_mwu_p(3, 2) == pytest.approx(2 / 10)  # C(5, 3) = 10: 0.2
-    assert audit.smallest_mwu_p(4, 3) == pytest.approx(2 / 35)  # 0.057 > 0.05
-    assert audit.smallest_mwu_p(5, 4) == pytest.approx(2 / 126)
-    assert audit.smallest_mwu_p(1, 1) == 1.0 and audit.smallest_mwu_p(0, 3) == 1.0
+    assert smallsample.smallest_mann_whitney_p(3, 2) == pytest.approx(2 / 10)  # C(5, 3) = 10: 0.2
+    assert smallsample.smallest_mann_whitney_p(4, 3) == pytest.approx(2 / 35)  # 0.057 > 0.05
+    assert smallsample.smallest_mann_whitney_p(5, 4) == pytest.approx(2 / 126)
+    assert (
+        smallsample.smallest_mann_whitney_p(1, 1) == 1.0
+        and smallsample.smallest_mann_whitney_p(0, 3) == 1.0
+    )
     t = audit.class_test([1.0, 2.0, 3.0], [10.0, 11.0], ("a", "b"), 0.05)
     assert t.mwu_p is None and t.u is None
     assert "Mann-Whitney: too few vehicles to test" in t.text

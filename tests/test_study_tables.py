@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import aggregate, pem
+from railtherm import aggregate, pem, smallsample
 
 
 def fit(
@@ -170,14 +170,14 @@ def test_class_summary_t_intervals_and_geometric_mean_of_delta():
 
 
 def test_class_test_runs_a_test_only_when_it_can_reach_significance():
-    assert aggregate.smallest_mann_whitney_p(3, 2) == pytest.approx(0.2)
-    assert aggregate.smallest_mann_whitney_p(5, 4) == pytest.approx(2 / 126)
+    assert smallsample.smallest_mann_whitney_p(3, 2) == pytest.approx(0.2)
+    assert smallsample.smallest_mann_whitney_p(5, 4) == pytest.approx(2 / 126)
     clear = table3_frame({"metro": [300.0, 310.0, 305.0], "regional": [600.0, 610.0, 605.0]})
     r = aggregate.class_test(clear).iloc[0]
     # exact Mann-Whitney with 3 vs 3 cannot go below p = 0.1: not run, and said so
     assert math.isnan(r["mannwhitney_p"]) and r["mannwhitney_min_p"] == pytest.approx(0.1)
     assert r["welch_p"] < 0.01 and r["conclusion"].startswith("differ: Welch significant")
-    assert "Mann-Whitney cannot go below p = 0.1" in r["conclusion"]
+    assert "Mann-Whitney cannot go below p = 2 / C(6, 3) = 0.1" in r["conclusion"]
     noisy = table3_frame({"metro": [300.0, 600.0, 450.0], "regional": [350.0, 650.0, 500.0]})
     r = aggregate.class_test(noisy).iloc[0]
     assert r["welch_p"] > 0.05 and r["conclusion"].startswith("no significant difference")
