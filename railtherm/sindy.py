@@ -34,6 +34,7 @@ eq. 14 lacks (or drops that eq. 14 needs), with its interval excluding zero; oth
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -295,7 +296,11 @@ def cross_check(
 
 
 def _param(fit: Mapping[str, Any], name: str) -> tuple[float, float, float]:
+    """(value, lo, hi) of a fit parameter; NaN throughout for one the data do not determine
+    (railtherm.pem.identification), so no coefficient is implied from it."""
     entry = fit["parameters"][name]
+    if entry.get("identified", True) is False:
+        return math.nan, math.nan, math.nan
     lo, hi = entry.get("ci95") or (entry["value"], entry["value"])
     return float(entry["value"]), float(lo), float(hi)
 
@@ -315,8 +320,9 @@ def grey_box_from_fit(fit: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray, n
                 for cv in Cv[1:]
             ]
         )
-    lo, hi = np.nanmin(corners, axis=0), np.nanmax(corners, axis=0)
-    unbounded = np.isnan(corners).any(axis=0)  # 0 x inf: the interval says nothing
+    unbounded = np.isnan(corners).any(axis=0)  # 0 x inf, or not identified: says nothing
+    filled = np.where(np.isnan(corners), 0.0, corners)
+    lo, hi = filled.min(axis=0), filled.max(axis=0)
     return xi, np.where(unbounded, -np.inf, lo), np.where(unbounded, np.inf, hi)
 
 
@@ -340,7 +346,10 @@ def for_vehicle(
         for term, (i, j) in zip(out["terms"], np.ndindex(2, 4), strict=True):
             term["grey_box_ci95"] = [float(g_lo[i, j]), float(g_hi[i, j])]
             lo, hi = term["ci95"]
-            term["agrees_with_grey_box"] = bool(lo <= g_hi[i, j] and g_lo[i, j] <= hi)
+            # an unbounded grey-box interval agrees with anything: no comparison then
+            bounded = np.isfinite(g_lo[i, j]) and np.isfinite(g_hi[i, j])
+            agrees = bool(lo <= g_hi[i, j] and g_lo[i, j] <= hi) if bounded else None
+            term["agrees_with_grey_box"] = agrees
     return out
 
 

@@ -171,3 +171,20 @@ def test_without_the_stage_pysindy_is_never_imported():
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     assert run.stdout.strip() == "False"
+
+
+def test_no_coefficient_is_implied_from_a_parameter_the_data_do_not_determine():
+    """K_veh at its upper bound: K_veh/C and K_veh/C_veh are not implied (NaN, unbounded), and
+    kA/C, 1/C still are."""
+    fit = {
+        "parameters": {
+            "kA": {"value": 900.0, "estimated": False},
+            "C": {"value": 1e7, "ci95": [0.9e7, 1.1e7], "identified": True},
+            "K_veh": {"value": 1e7, "ci95": [0.0, float("inf")], "identified": False},
+            "C_veh": {"value": 2e7, "ci95": [1.8e7, 2.2e7], "identified": True},
+        }
+    }
+    xi, lo, hi = sindy.grey_box_from_fit(fit)
+    assert np.isnan(xi[0, 1]) and np.isnan(xi[1, 0])  # dT/dt: T_veh, dT_veh/dt: T
+    assert lo[1, 0] == -np.inf and hi[1, 0] == np.inf
+    assert np.isfinite(xi[0, 2]) and np.isfinite(xi[0, 3])  # kA/C and 1/C
