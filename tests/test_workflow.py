@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from compare_outputs import assert_outputs_agree
 from matplotlib.image import imread
 from snakemake_run import snakemake
 
@@ -207,19 +208,18 @@ def png_is_a_picture(data: bytes, min_px: int = 400) -> None:
 
 
 @pytest.mark.slow
-def test_full_study_reproduces_the_committed_tables_byte_for_byte(tmp_path):
+def test_full_study_reproduces_the_committed_tables(tmp_path):
     """The README's main command, from clean, in a scratch copy: the same tables and audit as
-    committed under results/tables and results/audit (the reader's copy), and every figure a
-    real picture."""
+    committed under results/tables and results/audit (the reader's copy), the text identical
+    and the numbers within the tolerance of compare_outputs (another CPU moves the last
+    digits), and every figure a real picture."""
     study = make_study(tmp_path)
     run = snakemake(study)
     assert run.returncode == 0, run.stderr[-3000:]
     committed = sorted((REPO / "results" / "tables").glob("*"))
     committed += sorted((REPO / "results" / "audit").glob("*"))
     assert len(committed) >= 17 + 2
-    for path in committed:
-        fresh = study / path.relative_to(REPO)
-        assert fresh.read_bytes() == path.read_bytes(), path.name
+    assert_outputs_agree(study, REPO, [p.relative_to(REPO) for p in committed])
     figures = sorted((study / "results").rglob("*.png"))
     assert len(figures) >= 4 + 13 + 26
     for png in figures:

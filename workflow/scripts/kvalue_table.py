@@ -5,7 +5,7 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-from railtherm import aggregate, logs
+from railtherm import aggregate, logs, tables
 
 log = logs.to_file(snakemake.log[0])
 results = {
@@ -13,5 +13,5 @@ results = {
     for vid, path in zip(snakemake.params.vehicles, snakemake.input.results, strict=True)
 }
 truth = pd.read_csv(snakemake.input.truth) if snakemake.input.truth else None
-aggregate.kvalue_table(results, truth).to_csv(snakemake.output[0], index=False)
+tables.write_csv(aggregate.kvalue_table(results, truth), snakemake.output[0])
 log.info("k table of %d vehicles", len(results))

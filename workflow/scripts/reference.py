@@ -5,7 +5,7 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-from railtherm import aggregate, ingest, logs, reference
+from railtherm import aggregate, ingest, logs, reference, tables
 
 log = logs.to_file(snakemake.log[0])
 refs, parts, vehicles = [], [], {}
@@ -18,12 +18,12 @@ for path, fit_file, vehicle, windows in zip(
 ):
     ref = reference.load_reference(path)
     fit = yaml.safe_load(Path(fit_file).read_text(encoding="utf-8"))
-    tables = {w: ingest.read_tidy(p) for w, p in windows.items()}
-    parts.append(reference.compare(ref, fit, tables, vehicle))
+    windows_data = {w: ingest.read_tidy(p) for w, p in windows.items()}
+    parts.append(reference.compare(ref, fit, windows_data, vehicle))
     refs.append(ref)
     vehicles[vehicle["id"]] = vehicle
     log.info("%s: %s/%s", path, ref["vehicle"], ref["model"])
 table = pd.concat(parts, ignore_index=True)
 source = aggregate.data_source(vehicles)
-table.to_csv(snakemake.output.csv, index=False, lineterminator="\n")
+tables.write_csv(table, snakemake.output.csv)
 Path(snakemake.output.md).write_text(reference.markdown(table, refs, source), encoding="utf-8")

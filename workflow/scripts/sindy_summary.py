@@ -4,7 +4,7 @@ from pathlib import Path
 
 import yaml
 
-from railtherm import aggregate, logs, plots, sindy
+from railtherm import aggregate, logs, plots, sindy, tables
 
 log = logs.to_file(snakemake.log[0])
 results = {
@@ -13,7 +13,7 @@ results = {
 }
 source = aggregate.data_source(snakemake.params.data)
 table = sindy.summary_table(results, source)
-table.to_csv(snakemake.output.csv, index=False, lineterminator="\n")
+tables.write_csv(table, snakemake.output.csv)
 Path(snakemake.output.md).write_text(sindy.summary_markdown(table, source), encoding="utf-8")
 synthetic = any(v.get("synthetic", False) for v in snakemake.params.data.values())
 figure = plots.sindy_figure(results, synthetic=synthetic)
