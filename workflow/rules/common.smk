@@ -1,5 +1,6 @@
 # Shared set-up: load and validate every vehicle before any job starts, and helpers for rules.
 import hashlib
+import os
 import re
 from pathlib import Path
 
@@ -13,6 +14,8 @@ from railtherm.config import load_study
 from railtherm.errors import RailthermError
 
 RAILTHERM_DIR = Path(railtherm.__file__).parent
+# where a conda job's post-deploy script finds the repository to install railtherm from
+os.environ.setdefault("RAILTHERM_REPO", str(Path(workflow.basedir).resolve()))
 
 try:
     STUDY = load_study(config, workdir=".")
@@ -29,11 +32,29 @@ wildcard_constraints:
     vehicle="[A-Za-z][A-Za-z0-9_-]*",
 
 
+_IMPORT = re.compile(r"^\s*(?:from railtherm(?:\.(\w+))? import ([\w, ]+)|import railtherm\.(\w+))", re.M)
+
+
+def railtherm_modules(*modules):
+    """The railtherm source files ``modules`` and every railtherm module they import, in turn."""
+    seen, todo = [], list(modules)
+    while todo:
+        name = todo.pop(0)
+        if name in seen or not (RAILTHERM_DIR / name).is_file():
+            continue
+        seen.append(name)
+        for sub, names, plain in _IMPORT.findall((RAILTHERM_DIR / name).read_text()):
+            found = [sub or plain] if (sub or plain) else [n.strip() for n in names.split(",")]
+            todo += [f"{m}.py" for m in found if m]
+    return sorted(seen)
+
+
 def code_digest(*modules):
-    """Digest of railtherm source files, passed as a param so that code edits rerun the jobs."""
+    """Digest of railtherm source files and of what they import from railtherm, passed as a
+    param so that code edits rerun the jobs that run that code."""
     h = hashlib.sha256()
-    for name in modules:
-        h.update((RAILTHERM_DIR / name).read_bytes())
+    for name in railtherm_modules(*modules):
+        h.update(name.encode() + (RAILTHERM_DIR / name).read_bytes())
     return h.hexdigest()[:16]
 
 
