@@ -51,7 +51,7 @@ def main() -> None:
             n_tables = len(list((study / "results" / "tables").glob("*")))
             print(
                 f"round {r + 1}: full regeneration {full:6.1f} s with --cores {args.cores} "
-                f"({full / 180:.2f} of the 3-minute limit); dry run {dry:4.1f} s; "
+                f"({full / 180:.2f} of 3 minutes); dry run {dry:4.1f} s; "
                 f"{n_tables} table files, {n_png} PNG figures"
             )
 
