@@ -3,8 +3,8 @@
     python benchmarks/bench_regenerate.py [--cores 2] [--rounds 1]
 
 The scratch directory holds only ``config/`` (the Snakefile is the repo's), so nothing is
-reused: synthesis, cleaning, k values, every fit, check, table and figure run. The reference
-for the figure is the issue's limit of 3 minutes with ``--cores 2``; the script also prints
+reused: synthesis, cleaning, k values, every fit, check, table and figure run. The figure is
+set beside 3 minutes with ``--cores 2``; the script also prints
 the time of one ``snakemake --dry-run`` (DAG building and config validation alone) in the same
 process, as the fixed cost inside that figure.
 """
