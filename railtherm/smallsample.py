@@ -16,6 +16,7 @@ modules that use this one never test anything.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -96,7 +97,9 @@ def two_class_test(a: Sequence[float], b: Sequence[float], alpha: float = 0.05) 
     elif np.std(a) == 0 and np.std(b) == 0:
         welch_why = "Welch: no variance within either class"
     else:
-        res = stats.ttest_ind(a, b, equal_var=False)
+        with warnings.catch_warnings():  # a class of equal values: var 0, no precision lost
+            warnings.simplefilter("ignore", RuntimeWarning)
+            res = stats.ttest_ind(a, b, equal_var=False)
         welch_t, welch_p, welch_df = float(res.statistic), float(res.pvalue), float(res.df)
     floor = smallest_mann_whitney_p(na, nb)
     mwu_u = mwu_p = None

@@ -61,7 +61,7 @@ def test_ties_are_handled_by_an_exact_permutation():
 
 
 @settings(max_examples=40, deadline=None)
-@given(  # whole numbers: scipy warns on values equal but for rounding, not the point here
+@given(
     st.lists(st.integers(0, 1000).map(float), min_size=1, max_size=6),
     st.lists(st.integers(0, 1000).map(float), min_size=1, max_size=6),
 )
