@@ -149,6 +149,30 @@ _UniqueKeyLoader.add_constructor(
 )
 
 
+MAX_YAML_VALUES = 100_000  # a vehicle config has a few hundred; checked before expansion
+
+
+def _expanded_size(node: yaml.Node | None, memo: dict[int, int]) -> int:
+    """How many values a YAML node stands for once every alias is expanded, counted on the
+    composed node graph (an alias is the same node object, so each node is visited once):
+    a document of nested aliases ("billion laughs") is refused in milliseconds, before it is
+    built."""
+    if node is None:
+        return 0
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    memo[key] = 1  # a recursive alias counts once
+    if isinstance(node, yaml.MappingNode):
+        size = 1 + sum(_expanded_size(k, memo) + _expanded_size(v, memo) for k, v in node.value)
+    elif isinstance(node, yaml.SequenceNode):
+        size = 1 + sum(_expanded_size(v, memo) for v in node.value)
+    else:
+        size = 1
+    memo[key] = size
+    return size
+
+
 def _timestamps_to_text(value: Any) -> Any:
     """YAML turns unquoted timestamps into datetime objects; give them back as ISO strings."""
     if isinstance(value, dict):
@@ -175,7 +199,21 @@ def read_yaml(path: str | os.PathLike[str], display: str | None = None) -> Any:
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(name, "(file)", str(path), f"cannot read the file: {exc}") from None
     try:
-        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+        loader = _UniqueKeyLoader(text)
+        try:
+            node = loader.get_single_node()
+            size = _expanded_size(node, {})
+            if size > MAX_YAML_VALUES:
+                raise ConfigError(
+                    name,
+                    "(file)",
+                    f"{size:,} values",
+                    f"its aliases (*name) expand to more than {MAX_YAML_VALUES:,} values, far "
+                    "beyond any config (an alias bomb?); write the values out",
+                )
+            data = loader.construct_document(node) if node is not None else None
+        finally:
+            loader.dispose()
     except yaml.YAMLError as exc:
         problem_mark = getattr(exc, "problem_mark", None)
         context_mark = getattr(exc, "context_mark", None)

@@ -751,3 +751,26 @@ def test_bad_study_default_names_config_file(repo):
         load_study(config)
     assert "config/config.yaml" in str(exc.value)
     assert exc.value.key == "defaults.instruments.power_u_rel" and exc.value.value == -0.1
+
+
+BILLION_LAUGHS = "\n".join(
+    ["a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]"]
+    + [f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 9)}]" for i in range(8)]
+    + ["bomb: *i"]
+)
+
+
+def test_an_alias_bomb_is_refused_before_it_is_built(tmp_path):
+    """Nine levels of nine aliases stand for 9^9 = 387 million values: refused with the file
+    named, without expanding them (it takes milliseconds, not minutes and all memory)."""
+    path = tmp_path / "bomb.yaml"
+    path.write_text(BILLION_LAUGHS, encoding="utf-8")
+    with pytest.raises(ConfigError, match="aliases .* expand to more than 100,000 values") as err:
+        read_yaml(path, display="config/vehicles/bomb.yaml")
+    assert err.value.file == "config/vehicles/bomb.yaml"
+
+
+def test_ordinary_anchors_and_aliases_still_work(tmp_path):
+    path = tmp_path / "ok.yaml"
+    path.write_text("base: &b {C: 1.0e+4, K_veh: 20}\nmodel: {initial: *b}\n", encoding="utf-8")
+    assert read_yaml(path)["model"]["initial"] == {"C": 1.0e4, "K_veh": 20}
