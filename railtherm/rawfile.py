@@ -7,6 +7,8 @@ checks) or, for files the virtual climatic wind tunnel has not written yet, from
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 from dataclasses import dataclass
 
@@ -125,3 +127,55 @@ def parse_times(
         row = int(bad.argmax())
         raise DataError(path, time_column, text.iloc[row], f"line {row + 2}: not {expected}")
     return times
+
+
+class DigestCache:
+    """Content digests of raw files (sha256 of the bytes), kept in a JSON file and reused while
+    a file's size, mtime, ctime and inode are unchanged.
+
+    A workflow that reruns on file times alone misses a raw file replaced by other content
+    with the same mtime (a copy with ``cp -p``, a restored backup); the digest does not. The
+    ctime cannot be set back by a user, so a replaced file is hashed again even when its size
+    and mtime are the old ones."""
+
+    def __init__(self, path: str | os.PathLike[str] | None = None):
+        self.path = None if path is None else os.fspath(path)
+        self.entries: dict[str, list] = {}
+        if self.path and os.path.isfile(self.path):
+            try:
+                with open(self.path, encoding="utf-8") as stream:
+                    self.entries = json.load(stream)
+            except (OSError, ValueError):
+                self.entries = {}  # a broken cache is only a cache
+
+    def digest(self, file: str | os.PathLike[str]) -> str:
+        """``sha256:<hex>`` of the file's bytes; ``missing`` for a file that does not exist."""
+        name = os.path.abspath(file)
+        try:
+            st = os.stat(name)
+        except FileNotFoundError:
+            return "missing"
+        key = [st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino]
+        cached = self.entries.get(name)
+        if cached and cached[:4] == key:
+            return cached[4]
+        h = hashlib.sha256()
+        with open(name, "rb") as stream:
+            for block in iter(lambda: stream.read(1 << 20), b""):
+                h.update(block)
+        value = f"sha256:{h.hexdigest()}"
+        self.entries[name] = [*key, value]
+        self._save()
+        return value
+
+    def _save(self) -> None:
+        if not self.path:
+            return
+        try:
+            os.makedirs(os.path.dirname(self.path) or ".", exist_ok=True)
+            tmp = f"{self.path}.{os.getpid()}.tmp"
+            with open(tmp, "w", encoding="utf-8") as stream:
+                json.dump(self.entries, stream)
+            os.replace(tmp, self.path)
+        except OSError:
+            pass  # an unwritable cache costs time, not correctness

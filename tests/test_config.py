@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from railtherm.config import Vehicle, load_study, load_vehicle, read_yaml
 from railtherm.errors import ConfigError, DataError
-from railtherm.rawfile import RawLayout, read_layout
+from railtherm.rawfile import DigestCache, RawLayout, read_layout
 
 VEHICLE_FILE = "config/vehicles/V1.yaml"
 RAW_FILE = "data/V1.csv"
@@ -774,3 +774,20 @@ def test_ordinary_anchors_and_aliases_still_work(tmp_path):
     path = tmp_path / "ok.yaml"
     path.write_text("base: &b {C: 1.0e+4, K_veh: 20}\nmodel: {initial: *b}\n", encoding="utf-8")
     assert read_yaml(path)["model"]["initial"] == {"C": 1.0e4, "K_veh": 20}
+
+
+def test_digest_cache_sees_new_content_behind_an_old_mtime(tmp_path):
+    """Raw files rerun their jobs on content (rule clean's param), whatever their mtime."""
+    raw, store = tmp_path / "raw.csv", tmp_path / "cache" / "digests.json"
+    raw.write_text("time,T\n0,20.0\n")
+    cache = DigestCache(store)
+    first = cache.digest(raw)
+    assert first.startswith("sha256:") and store.is_file()
+    assert DigestCache(store).digest(raw) == first  # from the cache, the file unchanged
+    st = raw.stat()
+    raw.write_text("time,T\n0,21.0\n")  # same size
+    os.utime(raw, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert DigestCache(store).digest(raw) != first
+    assert cache.digest(tmp_path / "gone.csv") == "missing"
+    store.write_text("not json")
+    assert DigestCache(store).digest(raw).startswith("sha256:")  # a broken cache is rebuilt

@@ -4,6 +4,7 @@ reference comparison (railtherm.reference) is honest about its inputs."""
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -246,3 +247,26 @@ def test_reference_to_a_fit_not_in_the_study_stops_the_run(tmp_path):
     err = run.stdout + run.stderr
     assert "config/published/pysip_armadillo.yaml" in err and "'interior_envelope'" in err
     assert "Armadillo" in err and not (study / "results").exists()
+
+
+@pytest.mark.workflow
+def test_new_raw_content_with_the_old_mtime_reruns_its_jobs(tmp_path):
+    """A measured raw file replaced by other content with the same size class and the old
+    mtime (cp -p, a restored backup): the content digest of the file reruns its clean job,
+    where file times alone would say "Nothing to be done"."""
+    study = tmp_path / "validation"
+    shutil.copytree(VALIDATION / "config", study / "config")
+    shutil.copytree(REPO / "data", tmp_path / "data")
+    raw = tmp_path / "data" / "armadillo" / "armadillo_data_H2.csv"
+    target = "results/vehicles/Armadillo/clean/h2.csv"
+    assert snakemake(study, target).returncode == 0
+    assert "Nothing to be done" in (r := snakemake(study, target, "-n")).stdout + r.stderr
+    before = raw.stat()
+    lines = raw.read_text().splitlines(keepends=True)
+    lines[5], lines[6] = lines[6], lines[5]  # same bytes, other order: other data
+    raw.write_text("".join(lines))
+    os.utime(raw, ns=(before.st_atime_ns, before.st_mtime_ns))
+    assert raw.stat().st_mtime_ns == before.st_mtime_ns and raw.stat().st_size == before.st_size
+    again = snakemake(study, target, "-n")
+    assert again.returncode == 0
+    assert "rule clean:" in again.stdout and "Nothing to be done" not in again.stdout

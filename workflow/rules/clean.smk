@@ -8,6 +8,7 @@ rule clean:
         "results/vehicles/{vehicle}/clean/{window}.csv",
     params:
         vehicle=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data,
+        raw=raw_digest,
         code=code_digest("ingest.py"),
     log:
         "logs/clean/{vehicle}/{window}.log",

@@ -12,6 +12,7 @@ from railtherm import reference as rt_reference
 from railtherm import ingest, synth
 from railtherm.config import load_study
 from railtherm.errors import RailthermError
+from railtherm.rawfile import DigestCache
 
 RAILTHERM_DIR = Path(railtherm.__file__).parent
 # where a conda job's post-deploy script finds the repository to install railtherm from
@@ -89,6 +90,19 @@ def window_raw_file(wildcards):
     vehicle = STUDY.vehicles[wildcards.vehicle]
     key, _, _ = ingest.window_spec(vehicle.data, wildcards.window)
     return vehicle.raw_files[key]
+
+
+RAW_DIGESTS = DigestCache(".snakemake/railtherm/raw-digests.json")
+
+
+def raw_digest(wildcards):
+    """Content digest of a window's raw file, passed as a param so that new content reruns
+    its jobs whatever the file's mtime. Files the workflow writes itself (the virtual
+    campaign's) follow their own rule and are not hashed."""
+    path = window_raw_file(wildcards)
+    if Path(path).is_relative_to(CAMPAIGN_ROOT):
+        return "written by rule synthesize"
+    return RAW_DIGESTS.digest(path)
 
 
 def kvalue_vehicles():
