@@ -292,17 +292,31 @@ def _channels(vehicle_data: Mapping[str, Any], group: str) -> list[dict[str, Any
 
 
 def _numeric(file: str, raw: pd.DataFrame, column: str) -> np.ndarray:
-    """A channel column as float; :class:`DataError` naming the first value that is no number."""
+    """A channel column as float, empty cells NaN (gaps); :class:`DataError` naming the first
+    value that is no number, or not a finite one: "inf" or "-inf" is a logger's overflow or
+    fault, not a measurement, and would otherwise spread through every mean it enters."""
     series = raw[column]
     if pd.api.types.is_numeric_dtype(series.dtype):
-        return series.to_numpy(dtype=float, na_value=np.nan)
-    text = series.astype("string")
-    values = pd.to_numeric(text, errors="coerce").to_numpy(dtype=float, na_value=np.nan)
-    blank = (text.isna() | text.str.strip().eq("")).to_numpy(dtype=bool, na_value=True)
-    bad = np.isnan(values) & ~blank
-    if bad.any():
-        i = int(bad.argmax())
-        raise DataError(file, column, str(text.iloc[i]), f"line {i + 2}: not a number")
+        values = series.to_numpy(dtype=float, na_value=np.nan)
+        text = series.astype("string")
+    else:
+        text = series.astype("string")
+        values = pd.to_numeric(text, errors="coerce").to_numpy(dtype=float, na_value=np.nan)
+        blank = (text.isna() | text.str.strip().eq("")).to_numpy(dtype=bool, na_value=True)
+        bad = np.isnan(values) & ~blank
+        if bad.any():
+            i = int(bad.argmax())
+            raise DataError(file, column, str(text.iloc[i]), f"line {i + 2}: not a number")
+    infinite = np.isinf(values)
+    if infinite.any():
+        i = int(infinite.argmax())
+        raise DataError(
+            file,
+            column,
+            str(text.iloc[i]),
+            f"line {i + 2}: not a finite measurement (a logger's overflow or fault); empty "
+            "the cell to mark a gap, which is interpolated up to cleaning.max_gap_s",
+        )
     return values
 
 

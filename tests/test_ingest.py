@@ -344,6 +344,19 @@ def test_text_in_a_channel_is_an_error(tmp_path):
 
 
 @pytest.mark.parametrize(
+    ("column", "value", "shown"),
+    [("Ti1", "inf", "inf"), ("P1", "-inf", "-inf"), ("To1", "Infinity", "inf")],
+)
+def test_an_infinite_value_is_an_error_naming_its_line(tmp_path, column, value, shown):
+    """A single inf in an indoor channel once spread through the mean and left a fit on a
+    sixth of its rows; -inf power became empty Q_H. Now it stops the cleaning, named."""
+    df = _simple_frame(np.arange(4) * 60.0).astype({column: object})
+    df.loc[2, column] = value
+    with pytest.raises(DataError, match=rf"column '{column}' = '{shown}': line 4: not a finite"):
+        _clean(tmp_path, df, _vehicle(SIMPLE))
+
+
+@pytest.mark.parametrize(
     ("start", "end", "key"),
     [
         ("2023-12-31T23:59:00", "2024-01-01T00:03:00", "start"),
