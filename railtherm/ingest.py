@@ -320,6 +320,39 @@ def _numeric(file: str, raw: pd.DataFrame, column: str) -> np.ndarray:
     return values
 
 
+TEMPERATURE_RANGE_DEGC = (-80.0, 120.0)
+
+
+def _check_temperatures(file, groups, t, region, cleaning, labels) -> None:
+    """Every temperature the window uses lies in ``cleaning.temperature_range_degC`` (default
+    -80 to 120 degC: beyond the coldest and hottest climatic wind tunnels, and beyond any
+    indoor air): a value outside is a sensor's fault code (-999), a spike, or a unit mistake
+    (kelvin declared as degC), never a temperature to fit. :class:`DataError` naming the
+    file, column, value, time and the likely cause."""
+    lo, hi = map(float, cleaning.get("temperature_range_degC") or TEMPERATURE_RANGE_DEGC)
+    used = (t >= region[0]) & (t <= region[1])
+    for group in TEMPERATURE_GROUPS:
+        for column, _, values in groups.get(group, []):
+            wrong = used & np.isfinite(values) & ((values < lo) | (values > hi))
+            if not wrong.any():
+                continue
+            i = int(wrong.argmax())
+            v = float(values[i])
+            if 200.0 <= v <= 400.0:
+                cause = "kelvin declared as degC? (give the channel unit: K)"
+            elif v <= -99.0 and float(v).is_integer():
+                cause = "a logger's fault code for a missing value? (empty the cell)"
+            else:
+                cause = "a spike or a faulty sensor? (empty the cell, or drop the channel)"
+            raise DataError(
+                file,
+                column,
+                round(v, 6),
+                f"at {labels.one(t[i])}: outside the physical range {lo:g} to {hi:g} degC "
+                f"(cleaning.temperature_range_degC): {cause}",
+            )
+
+
 def _complete_axis(t: np.ndarray, dt_log: float) -> tuple[np.ndarray, np.ndarray]:
     """The time axis with missing rows inserted: ``(t_full, positions of the raw rows)``.
 
@@ -596,6 +629,7 @@ def tidy(
     # per-channel gap filling on the completed time axis
     t_full, rows = _complete_axis(t, dt_log)
     region = (grid[0] - step / 2.0, grid[-1] + step)
+    _check_temperatures(file, groups, t, region, cleaning, labels)
     filled_parts: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for group, found in groups.items():
         if found:

@@ -592,7 +592,7 @@ def test_schema_defaults_are_filled(repo):
         "decimal": ".",
         "power_timing": "instant",
     }
-    assert vehicle.data["cleaning"] == {"max_gap_s": 900}
+    assert vehicle.data["cleaning"] == {"max_gap_s": 900, "temperature_range_degC": [-80, 120]}
     assert vehicle.data["kvalue"]["force"] is False
     assert vehicle.synthetic is False
     assert (

@@ -357,6 +357,33 @@ def test_an_infinite_value_is_an_error_naming_its_line(tmp_path, column, value, 
 
 
 @pytest.mark.parametrize(
+    ("column", "value", "cause"),
+    [
+        ("Ti1", 293.4, "kelvin declared as degC"),
+        ("To1", -999.0, "fault code"),
+        ("Ti1", 850.0, "a spike or a faulty sensor"),
+    ],
+)
+def test_a_temperature_outside_the_physical_range_is_named_with_its_likely_cause(
+    tmp_path, column, value, cause
+):
+    """Spikes of 850 degC, a sensor stuck at -999 or kelvin declared as degC were fitted
+    ("in doubt" at best, k = 0.198 "usable" for kelvin) without a word about the values."""
+    df = _simple_frame(np.arange(4) * 60.0)
+    df.loc[2, column] = value
+    with pytest.raises(DataError, match=rf"column '{column}' = {value!r}: at .*{cause}"):
+        _clean(tmp_path, df, _vehicle(SIMPLE))
+
+
+def test_the_temperature_range_is_checked_only_where_the_window_reads(tmp_path):
+    df = _simple_frame(np.arange(10) * 60.0)
+    df.loc[9, "Ti1"] = -999.0  # after the window: not the window's business
+    window = {"start": "2024-01-01T00:00:00", "end": "2024-01-01T00:05:00"}
+    table = _clean(tmp_path, df, _vehicle(SIMPLE), window=window)
+    assert table["T"].between(-80, 120).all()
+
+
+@pytest.mark.parametrize(
     ("start", "end", "key"),
     [
         ("2023-12-31T23:59:00", "2024-01-01T00:03:00", "start"),
@@ -556,7 +583,8 @@ def test_property_right_table_or_clear_error(tmp_path, case):
     df = df.drop(index=case["missing_rows"])
     if case["time_format"] == "seconds" and case["decimal"] == ",":
         df[time_col] = df[time_col].str.replace(".", ",")
-    cleaning = {"max_gap_s": case["max_gap"]}
+    # linear test signals may leave the physical range of temperatures: not the point here
+    cleaning = {"max_gap_s": case["max_gap"], "temperature_range_degC": [-1e4, 1e4]}
     if case["ratio"]:
         cleaning["step_s"] = case["ratio"] * dt
     data = _vehicle(channels, cleaning=cleaning)
