@@ -150,6 +150,8 @@ def identify(
         "structure": structure.name,
         "k_source": k_source,
         "A": float(vehicle_data["surface_m2"]),
+        "mass_kg": float(vehicle_data["mass_kg"]) if "mass_kg" in vehicle_data else None,
+        "volume_m3": float(vehicle_data["volume_m3"]) if "volume_m3" in vehicle_data else None,
         "outputs": list(outputs),
         "windows": list(tables),
         "notes": notes,
@@ -428,6 +430,60 @@ def _cross_validate(structure, exps, options) -> list[dict[str, Any]]:
     return rows
 
 
+RHO_CP_AIR = 1.2 * 1005.0  # J/(m^3 K): air at about 20 degC
+C_WATER = 4186.0  # J/(kg K): the highest specific heat of any common material
+
+
+def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
+    """Physical plausibility of a fit's numbers, each failure a sentence for the verdict
+    (a unit mistake in a channel leaves every other check silent):
+
+    - k = kA / A inside ``k_range_W_m2K`` (default 0.1-10 W/(m^2 K): from a well-insulated
+      envelope to bare single glazing in wind); W logged as kW puts it 1000 times too high;
+    - the stored heat per kg, (sum of the capacities) / mass, at most that of water (4186 J/(kg
+      K)): no vehicle stores more;
+    - the air node's capacity (C, or C_bar) at least half that of the air in ``volume_m3``
+      (rho c_p = 1206 J/(m^3 K)): the node holds the air and what is in equilibrium with it.
+
+    A parameter the data do not determine is not judged here (its flag already is)."""
+    par = estimate["fit"]["parameters"]
+    out = []
+
+    def value(p):
+        entry = par.get(p)
+        if entry is None or entry.get("identified", True) is False:
+            return None
+        return float(entry["value"])
+
+    kA = value("kA")
+    lo, hi = (float(x) for x in thresholds.get("k_range_W_m2K", (0.1, 10.0)))
+    if kA is not None and not lo <= kA / estimate["A"] <= hi:
+        out.append(
+            f"k = kA / A = {kA / estimate['A']:.4g} W/(m² K) lies outside the physical range "
+            f"{lo:g}-{hi:g} W/(m² K) (check.k_range_W_m2K): are the units of the power and "
+            "temperature channels right (W or kW, degC or K), and A the whole surface?"
+        )
+    capacities = [value(p) for p in ("C_bar", "C", "C_veh", "C_e") if p in par]
+    if capacities and None not in capacities and estimate.get("mass_kg"):
+        per_kg = sum(capacities) / estimate["mass_kg"]
+        if per_kg > C_WATER:
+            out.append(
+                f"the capacities store {per_kg:.4g} J/(kg K) of the mass {estimate['mass_kg']:g} "
+                f"kg, more than water ({C_WATER:g} J/(kg K)): a unit mistake (power in W "
+                "declared kW?) or the wrong mass"
+            )
+    air = value("C") if "C" in par else value("C_bar")
+    if air is not None and estimate.get("volume_m3"):
+        floor = 0.5 * RHO_CP_AIR * estimate["volume_m3"]
+        if air < floor:
+            out.append(
+                f"the air node's capacity {air:.4g} J/K is below half that of the air in "
+                f"{estimate['volume_m3']:g} m³ ({floor:.4g} J/K): a unit mistake (power in kW "
+                "declared W, time in minutes declared seconds?) or the wrong volume"
+            )
+    return out
+
+
 # Flags that describe the data's information but do not invalidate the fit: the combined
 # intervals already carry them. Every other flag puts the model's assumptions in doubt.
 NOTE_ONLY_FLAGS = ("high_correlation",)
@@ -475,6 +531,7 @@ def check(
                 thresholds={"min_effective_samples": thresholds["min_effective_samples"]},
             )
             reasons += coloured
+    reasons += plausibility(estimate, thresholds)
     reasons += estimate["notes"]
     notes = [f["message"] for f in fit["flags"] if f["code"] in NOTE_ONLY_FLAGS]
     return {

@@ -29,6 +29,8 @@ def vehicle(**model) -> dict:
         "id": "V",
         "synthetic": True,
         "surface_m2": A,
+        "mass_kg": 30_030.0,
+        "volume_m3": 120.0,
         "channels": {
             "indoor_air": [{"column": "a"}] * 4,
             "surface": [{"column": "s"}] * 4,
@@ -172,3 +174,33 @@ def test_without_surface_sensors_the_fit_uses_T_and_still_cross_validates():
     assert estimate["outputs"] == ["T"]
     assert "offset_T_veh" not in estimate["systematic"]["sources"]
     assert [cv["r2_T"] for cv in estimate["cross_validation"]] == pytest.approx([1.0, 1.0])
+
+
+@pytest.mark.parametrize(
+    ("factor", "reasons"),
+    [
+        (1000.0, ("outside the physical range",)),  # W logged, kW declared: C at its bound
+        (1e-3, ("outside the physical range", "below half that of the air")),  # the reverse
+    ],
+)
+def test_a_unit_mistake_in_the_power_is_never_fit_acceptable(factor, reasons):
+    """Power in W declared kW once gave k = 2003 W/(m^2 K) and C_bar = 5e9 J/K, 'fit
+    acceptable': every number scaled, every fit measure perfect. Plausibility says so; the
+    stored heat per kg is judged where the capacities are identified (test below)."""
+    tables = {n: t.assign(Q_H=t["Q_H"] * factor) for n, t in TABLES.items()}
+    k = k_result()
+    k["k"], k["Q_H_mean"] = k["k"] * factor, k["Q_H_mean"] * factor
+    estimate, series = identify.identify(tables, vehicle(), k, 2)
+    result = identify.check(estimate, series, section_defaults("check"))
+    assert result["verdict"] == "assumptions in doubt"
+    for text in reasons:
+        assert any(text in r for r in result["reasons"]), (text, result["reasons"])
+    ok, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
+    assert identify.plausibility(ok, section_defaults("check")) == []
+
+
+def test_capacities_that_store_more_than_water_are_implausible():
+    estimate, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
+    light = {**estimate, "mass_kg": 5_000.0}  # (1.8e7 + 1e7) / 5 t = 5600 J/(kg K)
+    reasons = identify.plausibility(light, section_defaults("check"))
+    assert len(reasons) == 1 and "5600 J/(kg K)" in reasons[0] and "more than water" in reasons[0]
