@@ -38,7 +38,7 @@ from jsonschema.exceptions import ValidationError, best_match
 
 from railtherm.errors import ConfigError, DataError
 from railtherm.ingest import irradiance_names
-from railtherm.rawfile import RawLayout, read_columns, read_layout
+from railtherm.rawfile import MAX_ROWS, MIN_WINDOW_STEPS, RawLayout, read_columns, read_layout
 
 __all__ = [
     "Study",
@@ -597,6 +597,7 @@ def _layout(
         time_format=layout.time_format,
         t_first=layout.t_first,
         t_last=layout.t_last,
+        step_s=layout.step_s,
     )
 
 
@@ -692,6 +693,52 @@ def _check_windows(file: str, data: dict[str, Any], layouts: dict[str, RawLayout
             raise ConfigError(file, f"{key}.start", window["start"], f"outside the data: {span}")
         if end > layout.t_last:
             raise ConfigError(file, f"{key}.end", window["end"], f"outside the data: {span}")
+        duration = layout.seconds(end) - layout.seconds(start)
+        _check_window_size(file, key, window, layout, duration, data.get("cleaning") or {})
+        _check_record_size(file, layout)
+
+
+def _check_window_size(
+    file: str, key: str, window, layout: RawLayout, duration: float, cleaning: dict
+) -> None:
+    """A window spans at least MIN_WINDOW_STEPS logger steps, and its tidy table (at
+    ``cleaning.step_s``, else the logger's step) at most MAX_ROWS rows."""
+    step = cleaning.get("step_s")
+    if step and duration / float(step) > MAX_ROWS:
+        raise ConfigError(
+            file,
+            "cleaning.step_s",
+            step,
+            f"{key} would become {duration / float(step):,.0f} rows at this step, more than "
+            f"{MAX_ROWS:,}; the logger's step in {layout.path} is {layout.step_s:g} s",
+        )
+    if not layout.step_s or layout.step_s <= 0:
+        return
+    if duration < MIN_WINDOW_STEPS * layout.step_s:
+        raise ConfigError(
+            file,
+            f"{key}.end",
+            window["end"],
+            f"the window lasts {duration:g} s, fewer than {MIN_WINDOW_STEPS} logger steps of "
+            f"{layout.step_s:g} s in {layout.path}: too short to fit or test anything",
+        )
+
+
+def _check_record_size(file: str, layout: RawLayout) -> None:
+    """The raw record completed to its logger step holds at most MAX_ROWS rows: a span of
+    years at a step of seconds is a typo in a timestamp, refused before it is allocated."""
+    if not layout.step_s or layout.step_s <= 0:
+        return
+    span = layout.seconds(layout.t_last)
+    if span / layout.step_s > MAX_ROWS:
+        raise ConfigError(
+            file,
+            "raw_files",
+            layout.path,
+            f"its rows run from {_fmt_time(layout.t_first)} to {_fmt_time(layout.t_last)} at a "
+            f"step of {layout.step_s:g} s: {span / layout.step_s:,.0f} rows to complete, more "
+            f"than {MAX_ROWS:,}; a typo in a timestamp (the year?) or the wrong time format?",
+        )
 
 
 def _window_time(file: str, key: str, value: Any, time_format: str, layout: RawLayout) -> Any:

@@ -12,6 +12,7 @@ import json
 import os
 from dataclasses import dataclass
 
+import numpy as np
 import pandas as pd
 
 from railtherm.errors import DataError
@@ -22,7 +23,8 @@ class RawLayout:
     """Columns and time span of one raw CSV file.
 
     ``t_first``/``t_last`` are ``pandas.Timestamp`` for ``time_format == "iso"`` and float
-    seconds for ``time_format == "seconds"``.
+    seconds for ``time_format == "seconds"``; ``step_s`` the logger's median step in seconds
+    (None where unknown).
     """
 
     path: str
@@ -31,6 +33,20 @@ class RawLayout:
     time_format: str
     t_first: pd.Timestamp | float
     t_last: pd.Timestamp | float
+    step_s: float | None = None
+
+    def seconds(self, t: pd.Timestamp | float) -> float:
+        """A time of this file as seconds since its first row."""
+        if self.time_format == "iso":
+            return float((t - self.t_first).total_seconds())
+        return float(t) - float(self.t_first)
+
+
+# Rows of a tidy table (or of a raw record completed to its logger step) beyond which a window
+# or a file is taken for a mistake (a step of 0.01 s, a year typo in a timestamp) and refused
+# before anything is allocated: a year at one second is 3e7 rows.
+MAX_ROWS = 5_000_000
+MIN_WINDOW_STEPS = 3  # a window needs at least this many logger steps: a fit and its tests
 
 
 _ISO_DATE = r"^\s*\d{4}-\d{2}-\d{2}"
@@ -92,6 +108,11 @@ def read_layout(
     if raw.empty:
         raise DataError(path, time_column, None, "the file has a header but no data rows")
     times = parse_times(path, raw, time_column, time_format, decimal)
+    if time_format == "iso":
+        seconds = (times - times.iloc[0]).dt.total_seconds().to_numpy(dtype=float)
+    else:
+        seconds = times.to_numpy(dtype=float)
+    steps = np.diff(seconds)
     return RawLayout(
         path=path,
         columns=columns,
@@ -99,6 +120,7 @@ def read_layout(
         time_format=time_format,
         t_first=times.iloc[0] if time_format == "iso" else float(times.iloc[0]),
         t_last=times.iloc[-1] if time_format == "iso" else float(times.iloc[-1]),
+        step_s=float(np.median(steps)) if steps.size else None,
     )
 
 

@@ -628,7 +628,9 @@ def planned_layouts(campaign: dict, root: str = "resources/campaign") -> dict[st
                 t0, t1 = pd.Timestamp(t[0]), pd.Timestamp(t[1])
             else:
                 t0, t1 = float(t[0]), float(t[1])
-            out[path] = RawLayout(path, cols, lg["time_column"], lg["time_format"], t0, t1)
+            out[path] = RawLayout(
+                path, cols, lg["time_column"], lg["time_format"], t0, t1, float(lg["step_s"])
+            )
     return out
 
 

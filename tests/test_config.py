@@ -404,6 +404,30 @@ BAD_VEHICLES = [
         "1st",
         "invalid name",
     ),
+    (  # once "dt must be > 0, got nan" in the fit, or Ljung-Box short of residuals
+        "window-of-one-step",
+        lambda d: d["windows"]["identification"][0].update(end="2024-01-01T00:03:00"),
+        None,
+        "windows.identification[0].end",
+        "2024-01-01T00:03:00",
+        "fewer than 3 logger steps of 60 s",
+    ),
+    (  # once 126 s, then a 368 MiB allocation error
+        "tidy-step-far-below-the-logger",
+        lambda d: d.update(cleaning={"step_s": 0.00001}),
+        None,
+        "cleaning.step_s",
+        0.00001,
+        "rows at this step, more than 5,000,000",
+    ),
+    (  # once a 16.5 GiB allocation: the last row's year mistyped
+        "year-typo-in-the-last-row",
+        lambda d: None,
+        csv_text().replace("2024-01-01T00:09:00", "2042-01-01T00:09:00"),
+        "raw_files",
+        "data/V1.csv",
+        "a typo in a timestamp (the year?)",
+    ),
 ]
 
 
