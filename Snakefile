@@ -11,7 +11,7 @@ configfile: "config/config.yaml"
 report: "workflow/report/workflow.rst"
 
 
-validate(config, "workflow/schemas/config.schema.yaml")
+validate(config, "railtherm/schemas/study.schema.yaml")
 
 
 include: "workflow/rules/common.smk"

@@ -849,6 +849,8 @@ def study_context(
     workdir = str(workdir)
     if not isinstance(config, Mapping):
         raise ConfigError(config_file, "(root)", config, "expected a mapping (vehicles, ...)")
+    # the schema Snakemake validates the study config with: an unknown key stops here too
+    validate_schema(config_file, copy.deepcopy(dict(config)), packaged_schema("study"))
     defaults = config.get("defaults") or {}
     if not isinstance(defaults, Mapping):
         raise ConfigError(config_file, "defaults", defaults, "must be a mapping (key: value)")

@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 
+import pytest
 import yaml
 from test_config import RAW_FILE, VEHICLE, VEHICLE_FILE, csv_text, write_raw, write_vehicle
 
@@ -70,6 +71,26 @@ def test_validate_bad_study_config(tmp_path, monkeypatch, capsys):
     )
     assert main(["validate", "--config", "missing.yaml"]) == 1
     assert "missing.yaml: key '(file)' = 'missing.yaml': file not found" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("extra", "key", "hint"),
+    [
+        ({"default": {}}, "default", "did you mean 'defaults'?"),
+        ({"defaults": {"modle": {}}}, "defaults.modle", "did you mean 'model'?"),
+        ({"study": {"figure5": True}}, "study.figure5", "unknown key"),
+    ],
+)
+def test_validate_refuses_an_unknown_study_key_as_snakemake_would(
+    tmp_path, monkeypatch, capsys, extra, key, hint
+):
+    """Once these passed `railtherm validate` and failed in Snakemake's schema check."""
+    monkeypatch.chdir(tmp_path)
+    setup_repo(tmp_path)
+    write_study([VEHICLE_FILE], **extra)
+    assert main(["validate"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"config/config.yaml: key '{key}'") and hint in err
 
 
 def test_validate_directory_option(tmp_path, monkeypatch, capsys):

@@ -560,7 +560,7 @@ def test_study_loads_vehicles_in_config_order(repo):
             "config/config.yaml",
             "vehicles",
             [],
-            "must be a non-empty list",
+            "must have at least 1 item",  # the study schema, as Snakemake's check says
             id="no-vehicles",
         ),
     ],
