@@ -38,7 +38,14 @@ from jsonschema.exceptions import ValidationError, best_match
 
 from railtherm.errors import ConfigError, DataError
 from railtherm.ingest import irradiance_names
-from railtherm.rawfile import MAX_ROWS, MIN_WINDOW_STEPS, RawLayout, read_columns, read_layout
+from railtherm.rawfile import (
+    MAX_ROWS,
+    MIN_WINDOW_STEPS,
+    RawLayout,
+    read_columns,
+    read_layout,
+    separator_hint,
+)
 
 __all__ = [
     "Study",
@@ -573,11 +580,12 @@ def _layout(
     except DataError as exc:
         raise ConfigError(file, key, raw, f"{normalised}: {exc.reason}") from None
     if time["column"] not in columns:
+        hint = separator_hint(columns, fmt["separator"])
         raise ConfigError(
             file,
             "format.time.column",
             time["column"],
-            f"not a column of {normalised} (columns: {_words(columns)})",
+            f"not a column of {normalised} ({hint}columns: {_words(columns)})",
         )
     try:
         layout = read_layout(
@@ -604,6 +612,7 @@ def _layout(
 def _missing_column(file: str, key: str, column: str, raw: str, layout: RawLayout) -> ConfigError:
     close = difflib.get_close_matches(column, layout.columns, n=1)
     hint = f"did you mean '{close[0]}'? " if close else ""
+    hint = separator_hint(layout.columns, "") or hint
     return ConfigError(
         file, key, column, f"not a column of {raw} ({hint}columns: {_words(layout.columns)})"
     )

@@ -79,6 +79,7 @@ from __future__ import annotations
 import datetime as dt
 import gzip
 import os
+import zlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -86,7 +87,7 @@ import numpy as np
 import pandas as pd
 
 from railtherm.errors import ConfigError, DataError
-from railtherm.rawfile import parse_times, read_columns
+from railtherm.rawfile import csv_error, parse_times, read_columns, separator_hint
 
 __all__ = [
     "TIDY_COLUMNS",
@@ -161,14 +162,15 @@ def read_raw(
     except DataError as exc:
         raise DataError(file, exc.key, exc.value, exc.reason) from None
     if time_column not in columns:
+        hint = separator_hint(columns, sep)
         raise DataError(
-            file, time_column, None, f"time column not found (columns: {', '.join(columns)})"
+            file, time_column, None, f"time column not found ({hint}columns: {', '.join(columns)})"
         )
     try:
-        raw = pd.read_csv(path, sep=sep, decimal=decimal, dtype={time_column: str})
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
-        reason = f"cannot read the file as CSV: {exc}".splitlines()[0]
-        raise DataError(file, "", None, reason) from None
+        # index_col=False: a separator at the end of every row must not shift the columns
+        raw = pd.read_csv(path, sep=sep, decimal=decimal, dtype={time_column: str}, index_col=False)
+    except (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError) as exc:
+        raise csv_error(file, exc) from None
     if raw.empty:
         raise DataError(file, time_column, None, "the file has a header but no data rows")
     labels = raw[time_column]

@@ -7,9 +7,11 @@ checks) or, for files the virtual climatic wind tunnel has not written yet, from
 
 from __future__ import annotations
 
+import gzip
 import hashlib
 import json
 import os
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,7 +54,12 @@ MIN_WINDOW_STEPS = 3  # a window needs at least this many logger steps: a fit an
 _ISO_DATE = r"^\s*\d{4}-\d{2}-\d{2}"
 
 
-def _csv_error(path: str, exc: Exception) -> DataError:
+def csv_error(path: str, exc: Exception) -> DataError:
+    """The :class:`DataError` for a file pandas cannot read (a damaged compressed file named
+    as such)."""
+    if isinstance(exc, EOFError | zlib.error | gzip.BadGzipFile):
+        reason = f"the compressed file is truncated or damaged ({exc}); copy it again"
+        return DataError(path, "", None, reason.splitlines()[0])
     return DataError(path, "", None, f"cannot read the file as CSV: {exc}".splitlines()[0])
 
 
@@ -67,8 +74,8 @@ def read_columns(path: str | os.PathLike[str], separator: str = ",") -> tuple[st
         header = pd.read_csv(path, sep=separator, header=None, nrows=1, dtype=str)
     except pd.errors.EmptyDataError:
         raise DataError(path, "", None, "the file is empty (no header line)") from None
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
-        raise _csv_error(path, exc) from None
+    except (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError) as exc:
+        raise csv_error(path, exc) from None
     columns = tuple("" if pd.isna(c) else str(c) for c in header.iloc[0])
     seen: set[str] = set()
     for column in columns:
@@ -76,6 +83,19 @@ def read_columns(path: str | os.PathLike[str], separator: str = ",") -> tuple[st
             raise DataError(path, column, column, "the header names this column twice")
         seen.add(column)
     return columns
+
+
+def separator_hint(columns: tuple[str, ...], separator: str) -> str:
+    """A hint when a header read with ``separator`` came out as one column that another
+    common separator would split: "the header reads as one column; is format.separator ';'?"
+    (empty when there is nothing to suggest)."""
+    if len(columns) != 1:
+        return ""
+    for other in (";", "\t", ",", "|"):
+        if other != separator and other in columns[0]:
+            shown = "\\t" if other == "\t" else other
+            return f"the header reads as one column; is format.separator '{shown}'? "
+    return ""
 
 
 def read_layout(
@@ -102,9 +122,11 @@ def read_layout(
     if time_column not in columns:
         raise DataError(path, time_column, None, f"no such column (columns: {', '.join(columns)})")
     try:
-        raw = pd.read_csv(path, sep=separator, usecols=[time_column], dtype=str)[time_column]
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
-        raise _csv_error(path, exc) from None
+        raw = pd.read_csv(path, sep=separator, usecols=[time_column], dtype=str, index_col=False)[
+            time_column
+        ]
+    except (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError) as exc:
+        raise csv_error(path, exc) from None
     if raw.empty:
         raise DataError(path, time_column, None, "the file has a header but no data rows")
     times = parse_times(path, raw, time_column, time_format, decimal)
@@ -134,7 +156,29 @@ def parse_times(
         looks_iso = raw.str.match(_ISO_DATE).fillna(False).astype(bool)
         try:
             times = pd.to_datetime(raw.where(looks_iso), format="ISO8601", errors="coerce")
-        except (ValueError, TypeError) as exc:  # e.g. mixed time-zone offsets
+        except ValueError:
+            # mixed UTC offsets (a daylight-saving change): every stamp names its instant, so
+            # they are compared in UTC; stamps with and without an offset cannot be
+            try:
+                times = pd.to_datetime(
+                    raw.where(looks_iso), format="ISO8601", errors="coerce", utc=True
+                )
+            except (ValueError, TypeError) as exc:
+                raise DataError(
+                    path, time_column, text.iloc[0], f"timestamps cannot be parsed together: {exc}"
+                ) from None
+            offset = raw.str.contains(r"(?:Z|[+-]\d\d:?\d\d)\s*$").fillna(False).astype(bool)
+            naive = looks_iso & ~offset
+            if naive.any():
+                row = int(naive.to_numpy(dtype=bool).argmax())
+                raise DataError(
+                    path,
+                    time_column,
+                    text.iloc[row],
+                    f"line {row + 2}: no UTC offset, where other timestamps have one; give "
+                    "every timestamp its offset, or none",
+                ) from None
+        except TypeError as exc:
             raise DataError(
                 path, time_column, text.iloc[0], f"timestamps cannot be parsed together: {exc}"
             ) from None

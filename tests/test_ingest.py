@@ -713,3 +713,44 @@ def test_campaign_windows_match_the_noise_free_truth(tmp_path, campaign, vid):
         rel = out["Q_H"].to_numpy()[use] / q_true[use] - 1
         assert abs(rel.mean()) < 0.003, (window, rel.mean())
         assert np.abs(rel).max() < 0.03, (window, np.abs(rel).max())
+
+
+def test_a_semicolon_file_read_with_commas_gets_a_separator_hint(tmp_path):
+    df = _simple_frame(np.arange(3) * 60.0)
+    path = _write(df, tmp_path / "raw.csv", ";", ".")
+    with pytest.raises(DataError, match="reads as one column; is format.separator ';'"):
+        ingest.read_raw(path, _vehicle(SIMPLE)["format"])
+
+
+def test_trailing_separators_do_not_shift_the_columns(tmp_path):
+    path = tmp_path / "raw.csv"
+    rows = [f"2024-01-01T00:0{i}:00,20,-10,1000," for i in range(4)]
+    path.write_text("time,Ti1,To1,P1\n" + "\n".join(rows) + "\n")
+    raw = ingest.read_raw(path, _vehicle(SIMPLE)["format"])
+    table = ingest.tidy(raw, _vehicle(SIMPLE), None, "raw.csv")
+    assert table["T"].eq(20.0).all() and table["T_o"].eq(-10.0).all()
+
+
+def test_a_truncated_gzip_file_is_named(tmp_path):
+    path = tmp_path / "raw.csv.gz"
+    text = "time,Ti1,To1,P1\n" + "".join(
+        f"2024-01-01T{i // 60:02d}:{i % 60:02d}:00,20,-10,1000\n" for i in range(500)
+    )
+    data = gzip.compress(text.encode())
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(DataError, match=r"raw.csv.gz.*truncated or damaged"):
+        ingest.read_raw(path, _vehicle(SIMPLE)["format"])
+
+
+def test_mixed_utc_offsets_are_compared_in_utc(tmp_path):
+    """A daylight-saving change in an offset-stamped log once ended in pandas' 'Pass
+    utc=True'; every stamp names its instant, so the record runs on in UTC."""
+    path = tmp_path / "raw.csv"
+    stamps = ["2024-03-31T01:58:00+01:00", "2024-03-31T01:59:00+01:00"]
+    stamps += ["2024-03-31T03:00:00+02:00", "2024-03-31T03:01:00+02:00"]
+    path.write_text("time,Ti1,To1,P1\n" + "".join(f"{s},20,-10,1000\n" for s in stamps))
+    raw = ingest.read_raw(path, _vehicle(SIMPLE)["format"])
+    assert list(raw.index) == [0.0, 60.0, 120.0, 180.0]
+    path.write_text(path.read_text().replace("03:01:00+02:00", "03:01:00"))
+    with pytest.raises(DataError, match="line 5: no UTC offset"):
+        ingest.read_raw(path, _vehicle(SIMPLE)["format"])
