@@ -463,6 +463,19 @@ def _fmt_time(value: Any) -> str:
 # Vehicle
 
 
+def _check_finite(file: str, data: Any, key: str = "") -> None:
+    """Every number in a config is finite: YAML's .nan and .inf pass a JSON Schema's "number"
+    and its bounds (NaN > 0 is false either way), then fail deep in a job."""
+    if isinstance(data, dict):
+        for k, v in data.items():
+            _check_finite(file, v, f"{key}.{k}" if key else str(k))
+    elif isinstance(data, list):
+        for i, v in enumerate(data):
+            _check_finite(file, v, f"{key}[{i}]")
+    elif isinstance(data, float) and not math.isfinite(data):
+        raise ConfigError(file, key, data, "not a finite number (.nan or .inf)")
+
+
 def load_vehicle(
     path: str | os.PathLike[str],
     defaults: Mapping[str, Any] | None = None,
@@ -491,6 +504,7 @@ def load_vehicle(
             data,
             f"expected a mapping of keys (id, class, ...), got {_TYPE_WORDS.get(_json_type(data))}",
         )
+    _check_finite(file, data)
     for section in DEFAULTABLE[1:]:  # model is merged after validation (see _check_model)
         if section in (defaults or {}) and isinstance(data.get(section, {}), dict):
             data[section] = deep_merge(defaults[section], data.get(section) or {})
@@ -860,6 +874,7 @@ def study_context(
         raise ConfigError(config_file, "(root)", config, "expected a mapping (vehicles, ...)")
     # the schema Snakemake validates the study config with: an unknown key stops here too
     validate_schema(config_file, copy.deepcopy(dict(config)), packaged_schema("study"))
+    _check_finite(config_file, dict(config))
     defaults = config.get("defaults") or {}
     if not isinstance(defaults, Mapping):
         raise ConfigError(config_file, "defaults", defaults, "must be a mapping (key: value)")
