@@ -7,6 +7,7 @@ checks) or, for files the virtual climatic wind tunnel has not written yet, from
 
 from __future__ import annotations
 
+import atexit
 import gzip
 import hashlib
 import json
@@ -205,8 +206,9 @@ class DigestCache:
     and mtime are the old ones."""
 
     def __init__(self, path: str | os.PathLike[str] | None = None):
-        self.path = None if path is None else os.fspath(path)
+        self.path = None if path is None else os.path.abspath(path)  # cwd may change by exit
         self.entries: dict[str, list] = {}
+        self._dirty = False
         if self.path and os.path.isfile(self.path):
             try:
                 with open(self.path, encoding="utf-8") as stream:
@@ -231,12 +233,16 @@ class DigestCache:
                 h.update(block)
         value = f"sha256:{h.hexdigest()}"
         self.entries[name] = [*key, value]
-        self._save()
+        if self.path and not self._dirty:  # written once, when the process ends
+            atexit.register(self.save)
+        self._dirty = True
         return value
 
-    def _save(self) -> None:
-        if not self.path:
+    def save(self) -> None:
+        """Write the cache (done at exit after new digests; a failure costs only time)."""
+        if not self.path or not self._dirty:
             return
+        self._dirty = False
         try:
             os.makedirs(os.path.dirname(self.path) or ".", exist_ok=True)
             tmp = f"{self.path}.{os.getpid()}.tmp"

@@ -833,6 +833,7 @@ def test_digest_cache_sees_new_content_behind_an_old_mtime(tmp_path):
     raw.write_text("time,T\n0,20.0\n")
     cache = DigestCache(store)
     first = cache.digest(raw)
+    cache.save()  # (also done at exit)
     assert first.startswith("sha256:") and store.is_file()
     assert DigestCache(store).digest(raw) == first  # from the cache, the file unchanged
     st = raw.stat()
