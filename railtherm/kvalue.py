@@ -366,10 +366,22 @@ def static_k(
     Q_mean = _zoh_mean(t, Q_H)
     if not delta_T > 0:
         raise DataError(
-            source, "T - T_o", round(delta_T, 6), "the mean T - T_o must be > 0 for eq. 10"
+            source,
+            "T - T_o",
+            round(delta_T, 6),
+            f"the mean T - T_o must be > 0 for eq. 10 (mean T {T_mean:.4g} degC, mean T_o "
+            f"{T_o_mean:.4g} degC, mean Q_H {Q_mean:.4g} W): are channels.indoor_air and "
+            "outdoor_air, or a power and a temperature channel, swapped? Is the k window where "
+            "the vehicle is heated?",
         )
     if not Q_mean > 0:
-        raise DataError(source, "Q_H", round(Q_mean, 6), "the mean Q_H must be > 0 for eq. 10")
+        raise DataError(
+            source,
+            "Q_H",
+            round(Q_mean, 6),
+            f"the mean Q_H must be > 0 for eq. 10 (mean T - T_o {delta_T:.4g} K): is a power "
+            "channel's sign or column wrong, or the k window outside the heated test?",
+        )
     kA = Q_mean / delta_T
     k = kA / A
 

@@ -261,8 +261,10 @@ def test_to_dict_is_plain_yaml_in_a_stable_order():
 @pytest.mark.parametrize(
     ("change", "column", "reason"),
     [
-        ({"T": 0.0, "T_o": 5.0}, "T - T_o", "must be > 0"),
-        ({"Q_H": 0.0}, "Q_H", "must be > 0"),
+        ({"T": 0.0, "T_o": 5.0}, "T - T_o", "must be > 0 .* swapped"),
+        # power and outdoor columns swapped: 24 kW read as an outdoor temperature
+        ({"T_o": 24_000.0, "Q_H": -10.0}, "T - T_o", "mean T_o 2.4e\\+04 degC.* swapped"),
+        ({"Q_H": 0.0}, "Q_H", "must be > 0 .* power channel"),
     ],
 )
 def test_no_k_without_heat_and_temperature_difference(change, column, reason):
