@@ -107,7 +107,7 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
                 value = float(entry["value"])
                 row |= {p: value, f"{p}_lo": math.nan, f"{p}_hi": math.nan, f"{p}_status": "fixed"}
             else:
-                judged = _judged(entry)
+                judged = pem.parameter_identification(entry)
                 q = quantity(entry["value"], entry["ci95"], judged)
                 row |= {f"{p}{suffix}": q[suffix] for suffix in ("", "_lo", "_hi", "_status")}
         row["flags"] = ";".join(sorted({f["code"] for f in fit["flags"]}))
@@ -140,7 +140,7 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
         T = fit["measures"]["T"]["overall"]
         kA = fit["parameters"].get("kA", {})
         if kA.get("estimated"):
-            q = quantity(kA["value"], kA["ci95"], _judged(kA))
+            q = quantity(kA["value"], kA["ci95"], pem.parameter_identification(kA))
         else:  # fixed from the static test
             q = {"": kA.get("value", math.nan), "_lo": math.nan, "_hi": math.nan}
             q["_status"] = "fixed" if kA else ""
@@ -292,14 +292,6 @@ def _columns(name: str, q: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _judged(entry: Mapping[str, Any]) -> Mapping[str, Any]:
-    """A fit parameter's identification (computed from its interval for fits written before
-    it was recorded)."""
-    if "identified" in entry:
-        return entry
-    return pem.identification(entry["value"], entry.get("ci95", (math.nan, math.nan)))
-
-
 _FLIP = {"upper": "lower", "lower": "upper", "point": "point", "none": "none"}
 
 
@@ -314,7 +306,7 @@ def _ratio_limit(num: tuple[str, float], den: tuple[str, float]) -> tuple[str, f
 
 
 def _part(entry: Mapping[str, Any]) -> tuple[str, float]:
-    judged = _judged(entry)
+    judged = pem.parameter_identification(entry)
     if judged.get("identified", True):
         return "point", float(entry["value"])
     limit = judged.get("limit_value")
@@ -345,7 +337,7 @@ def table2(
         kv = kvalues.get(vid)
         if params["kA"]["estimated"] or kv is None:
             entry = params["kA"]
-            judged = dict(_judged(entry))
+            judged = dict(pem.parameter_identification(entry))
             if judged.get("limit_value") is not None:
                 judged["limit_value"] = judged["limit_value"] / A
             ci = [c / A for c in entry.get("ci95", (math.nan, math.nan))]
@@ -358,7 +350,9 @@ def table2(
         row["k_source"] = fit["k_source"]
         for p in ("C", "K_veh", "C_veh"):
             entry = params[p]
-            row |= _columns(p, quantity(entry["value"], entry["ci95"], _judged(entry)))
+            row |= _columns(
+                p, quantity(entry["value"], entry["ci95"], pem.parameter_identification(entry))
+            )
         row |= {
             "R2": float(fit["R2"]),
             "verdict": fit["verdict"],
@@ -409,7 +403,7 @@ def table3(
             ci = [c / m for c in C_veh["ci95"]]
             c_veh = quantity(c_value, ci, pem.identification(c_value, ci))
         else:
-            reason = f"C_veh {_judged(C_veh)['reason']}"
+            reason = f"C_veh {pem.parameter_identification(C_veh)['reason']}"
             judged = {"limit": c_kind, "limit_value": c_value, "reason": reason}
             c_veh = quantity(math.nan, (math.nan, math.nan), {"identified": False, **judged})
         d_kind, d_value = _ratio_limit(_part(C_veh), _part(C))
@@ -420,9 +414,9 @@ def table3(
             delta = quantity(d_value, ci, pem.identification(d_value, ci))
         else:
             why = "; ".join(
-                f"{p} {_judged(params[p])['reason']}"
+                f"{p} {pem.parameter_identification(params[p])['reason']}"
                 for p in ("C", "C_veh")
-                if not _judged(params[p]).get("identified", True)
+                if not pem.parameter_identification(params[p]).get("identified", True)
             )
             judged = {"identified": False, "limit": d_kind, "reason": why}
             judged["limit_value"] = None if d_kind == "none" else d_value
@@ -457,7 +451,7 @@ def table1(
             ),
             "vehicles with C, K_veh, C_veh identified": sum(
                 all(
-                    _judged(fits[vid]["parameters"][p]).get("identified", True)
+                    pem.parameter_identification(fits[vid]["parameters"][p]).get("identified", True)
                     for p in ("C", "K_veh", "C_veh")
                 )
                 for vid in ids

@@ -451,7 +451,7 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
 
     def value(p):
         entry = par.get(p)
-        if entry is None or entry.get("identified", True) is False:
+        if entry is None or not pem.parameter_identification(entry)["identified"]:
             return None
         return float(entry["value"])
 

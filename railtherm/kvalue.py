@@ -284,17 +284,17 @@ def _line(t: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
     return slope, y - y.mean() - slope * tc
 
 
-def _drift(t: np.ndarray, y: np.ndarray, duration: float) -> tuple[float, float, np.ndarray]:
-    """(drift, its standard uncertainty, residuals about the line) of y across the window: the
+def _drift(t: np.ndarray, y: np.ndarray, duration: float) -> tuple[float, float]:
+    """(drift, its standard uncertainty) of y across the window: the
     least-squares slope times the duration, with the slope's standard error from the residuals
     widened by their integrated autocorrelation time (thermostat cycling correlates them)."""
     slope, residuals = _line(t, y)
     tc = t - t.mean()
     if residuals.size < 3:
-        return slope * duration, 0.0, residuals
+        return slope * duration, 0.0
     variance = float(residuals @ residuals) / (residuals.size - 2)
     se_slope = math.sqrt(variance * autocorrelation_time(residuals) / float(tc @ tc))
-    return slope * duration, se_slope * duration, residuals
+    return slope * duration, se_slope * duration
 
 
 def _trapezoid_mean(t: np.ndarray, y: np.ndarray) -> float:
@@ -387,9 +387,9 @@ def static_k(
 
     # -- verdict --------------------------------------------------------------------------
     t_q = t[:-1] + np.diff(t) / 2.0  # Q_H[n] is the mean over [t_n, t_n+1)
-    drift_T, u_drift_T, _ = _drift(t, T, duration)
-    drift_T_o, u_drift_T_o, _ = _drift(t, T_o, duration)
-    drift_Q, u_drift_Q, _ = _drift(t_q, Q_H[:-1], duration)
+    drift_T, u_drift_T = _drift(t, T, duration)
+    drift_T_o, u_drift_T_o = _drift(t, T_o, duration)
+    drift_Q, u_drift_Q = _drift(t_q, Q_H[:-1], duration)
     drift_Q_rel, u_drift_Q_rel = drift_Q / Q_mean, u_drift_Q / Q_mean
     duration_h = duration / 3600.0
 

@@ -52,6 +52,7 @@ __all__ = [
     "fit",
     "experiment_from_table",
     "identification",
+    "parameter_identification",
 ]
 
 Z95 = 1.959963984540054
@@ -1053,6 +1054,17 @@ def identification(
         "limit_value": limit_value,
         "reason": f"95 % interval unbounded {where} (beyond a factor {factor:g} of the value)",
     }
+
+
+def parameter_identification(entry: Mapping[str, Any]) -> Mapping[str, Any]:
+    """The :func:`identification` of a parameter entry of a written fit (``parameters.<p>``
+    of fit_<model>.yaml): as recorded there, or, for a fit written before it was recorded,
+    judged from the entry's interval. A fixed parameter (no interval) is identified."""
+    if "identified" in entry:
+        return entry
+    if "ci95" not in entry:
+        return {"identified": True}
+    return identification(float(entry["value"]), entry["ci95"])
 
 
 def _flags(sol, v, th, free, ci, corr, cond, bnds) -> list[Flag]:

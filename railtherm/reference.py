@@ -108,7 +108,7 @@ def _row(quantity, label, published, fit_entry, simulated=None) -> dict[str, Any
     status = "estimated"
     if fit_entry is not None and "ci95" in fit_entry:
         lo, hi = map(float, fit_entry["ci95"])
-        judged = fit_entry if "identified" in fit_entry else pem.identification(value, (lo, hi))
+        judged = pem.parameter_identification(fit_entry)
         if not judged["identified"]:
             value, lo, hi = np.nan, np.nan, np.nan
             status = f"not identified: {judged['reason']}"

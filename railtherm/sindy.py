@@ -299,7 +299,8 @@ def _param(fit: Mapping[str, Any], name: str) -> tuple[float, float, float]:
     """(value, lo, hi) of a fit parameter; NaN throughout for one the data do not determine
     (railtherm.pem.identification), so no coefficient is implied from it."""
     entry = fit["parameters"][name]
-    if entry.get("identified", True) is False:
+    if entry.get("identified", True) is False:  # as judged by the fit; the interval
+        # arithmetic below copes with an unbounded interval of an older fit itself
         return math.nan, math.nan, math.nan
     lo, hi = entry.get("ci95") or (entry["value"], entry["value"])
     return float(entry["value"]), float(lo), float(hi)

@@ -1,4 +1,5 @@
 # Shared set-up: load and validate every vehicle before any job starts, and helpers for rules.
+import functools
 import hashlib
 import os
 import re
@@ -36,6 +37,7 @@ wildcard_constraints:
 _IMPORT = re.compile(r"^\s*(?:from railtherm(?:\.(\w+))? import ([\w, ]+)|import railtherm\.(\w+))", re.M)
 
 
+@functools.cache
 def railtherm_modules(*modules):
     """The railtherm source files ``modules`` and every railtherm module they import, in turn."""
     seen, todo = [], list(modules)
