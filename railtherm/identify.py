@@ -442,6 +442,9 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
       envelope to bare single glazing in wind); W logged as kW puts it 1000 times too high;
     - the stored heat per kg, (sum of the capacities) / mass, at most that of water (4186 J/(kg
       K)): no vehicle stores more;
+    - the stored heat per kg at least ``min_capacity_per_kg_J_kgK`` (default 50 J/(kg K), a
+      tenth of the vehicle's mass in steel at 477 J/(kg K)): time logged in minutes but
+      declared seconds divides every capacity by 60;
     - the air node's capacity (C, or C_bar) at least half that of the air in ``volume_m3``
       (rho c_p = 1206 J/(m^3 K)): the node holds the air and what is in equilibrium with it.
 
@@ -471,6 +474,14 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 f"the capacities store {per_kg:.4g} J/(kg K) of the mass {estimate['mass_kg']:g} "
                 f"kg, more than water ({C_WATER:g} J/(kg K)): a unit mistake (power in W "
                 "declared kW?) or the wrong mass"
+            )
+        floor = float(thresholds.get("min_capacity_per_kg_J_kgK", 50.0))
+        if per_kg < floor:
+            out.append(
+                f"the capacities store only {per_kg:.4g} J/(kg K) of the mass "
+                f"{estimate['mass_kg']:g} kg, below {floor:g} J/(kg K) "
+                "(check.min_capacity_per_kg_J_kgK): is the time column's unit right (minutes "
+                "declared seconds divides every capacity by 60), or the mass?"
             )
     air = value("C") if "C" in par else value("C_bar")
     if air is not None and estimate.get("volume_m3"):

@@ -703,6 +703,17 @@ def _bartlett_hac(gT: np.ndarray, L: int) -> np.ndarray:
     return _gram(c[:, L + 1 :] - c[:, : T + L]) / (L + 1)
 
 
+def _sandwich(Vt: np.ndarray, inv_s: np.ndarray, meat: np.ndarray) -> np.ndarray:
+    """The HAC covariance (J^T J)^+ meat (J^T J)^+ with (J^T J)^+ = V diag(inv_s^2) V^T,
+    formed as F F^T with F = (J^T J)^+ meat^(1/2): positive semi-definite by construction, so
+    no variance comes out negative (or is clipped to zero) and no correlation exceeds 1 when
+    J is ill-conditioned and the plain triple product loses everything to cancellation."""
+    lam, Q = np.linalg.eigh(meat)
+    root = Q * np.sqrt(np.clip(lam, 0.0, None))
+    F = Vt.T @ (inv_s[:, None] ** 2 * (Vt @ root))
+    return F @ F.T
+
+
 def _andrews_bandwidth(e: np.ndarray) -> int:
     """Andrews (1991) AR(1) plug-in bandwidth for the Bartlett kernel."""
     T = len(e)
@@ -922,11 +933,10 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
         cond = 1.0
     with np.errstate(divide="ignore"):
         inv_s = np.where(null, 0.0, 1.0 / np.where(null, 1.0, s))
-    bread = (Vt.T * inv_s**2) @ Vt  # (J^T J)^+
     bandwidths = []
     if covariance == "iid":
         s2 = ssr / max(m - p_all, 1)
-        cov = s2 * bread
+        cov = s2 * ((Vt.T * inv_s**2) @ Vt)  # s^2 (J^T J)^+
     else:
         meat = np.zeros((p_all, p_all))
         JT = np.ascontiguousarray(J.T)  # no copy: J is the transpose of a C-ordered array
@@ -946,15 +956,21 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
                 bandwidths.append(L)
                 meat += _bartlett_hac(gT, L)
                 row += N_i
-        cov = bread @ meat @ bread
+        cov = _sandwich(Vt, inv_s, meat)
     var = np.diag(cov)[:P].copy()
     # directions the data do not determine: infinite variance for the parameters on them
     if null.any():
         load = np.abs(Vt[null][:, :P]).max(axis=0)
         var[load > 1e-8] = np.inf
-    sd = np.sqrt(np.maximum(var, 0.0))
     th = prob.theta(v)
     free = prob.free
+    # a zero or undefined variance where the residuals are not zero is no information about
+    # the parameter but a breakdown of the estimator: the parameter is not identified
+    degenerate = [
+        p for i, p in enumerate(free) if ssr > 0 and not (var[i] > 0) and not np.isinf(var[i])
+    ]
+    var[[free.index(p) for p in degenerate]] = np.inf
+    sd = np.sqrt(np.maximum(var, 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
         d = np.sqrt(np.maximum(np.diag(cov)[:P], 0.0))
         corr = cov[:P, :P] / np.outer(d, d)
@@ -973,6 +989,16 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
             ci[p] = (float(np.exp(lv - Z95 * sd[i])), float(np.exp(lv + Z95 * sd[i])))
         sd_log[p] = float(sd[i])
     flags = _flags(sol, v, th, free, ci, corr, cond, bnds)
+    if degenerate:
+        flags.append(
+            Flag(
+                "degenerate_covariance",
+                tuple(degenerate),
+                f"the {covariance} covariance gives no positive variance for "
+                f"{', '.join(degenerate)}: the estimator breaks down on these data, so the "
+                "parameters are taken as not identified",
+            )
+        )
     sims = prob._evaluate(v, derivatives=True)[1]
     x0s = prob.x0s(v)
     simulated, residuals = [], []

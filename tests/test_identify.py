@@ -204,3 +204,13 @@ def test_capacities_that_store_more_than_water_are_implausible():
     light = {**estimate, "mass_kg": 5_000.0}  # (1.8e7 + 1e7) / 5 t = 5600 J/(kg K)
     reasons = identify.plausibility(light, section_defaults("check"))
     assert len(reasons) == 1 and "5600 J/(kg K)" in reasons[0] and "more than water" in reasons[0]
+
+
+def test_time_in_minutes_declared_seconds_is_never_fit_acceptable():
+    """Minutes read as seconds compress every window 60-fold: the fit is as good as ever and
+    every capacity is 60 times too small (k, from means, is unchanged)."""
+    tables = {n: t.assign(time=t["time"] / 60.0) for n, t in TABLES.items()}
+    estimate, series = identify.identify(tables, vehicle(), k_result(), 2)
+    result = identify.check(estimate, series, section_defaults("check"))
+    assert result["verdict"] == "assumptions in doubt"
+    assert any("time column's unit" in r for r in result["reasons"]), result["reasons"]

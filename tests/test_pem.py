@@ -199,6 +199,28 @@ def test_hac_is_wider_than_iid_on_coloured_residuals():
     assert min(hac.bandwidths) > 10
 
 
+def first_order_record(seed: int, n: int = 2000, noise: float = 0.01) -> pem.Experiment:
+    """One body of capacity C_bar, the only measured state T; T_veh not logged."""
+    u = programme(n, 60.0, seed)
+    A, B = S1.matrices(FIRST)
+    x = models.simulate(S1, FIRST, u, 60.0, models.steady_state(A, B, u[0]))[:, 0]
+    y = x + noise * np.random.default_rng(seed).standard_normal(n)
+    return pem.Experiment(name="e", dt=60.0, u=u, y=np.column_stack([y, np.full(n, np.nan)]))
+
+
+@pytest.mark.parametrize("seed, x0", [(35, "estimated"), (36, "measured"), (30, "measured")])
+def test_hac_covariance_of_an_over_parametrised_fit_does_not_collapse(seed, x0):
+    """A second-order fit of first-order data: the Jacobian's condition reaches ~1e12, where
+    the plain product bread @ meat @ bread cancelled to variances of exactly 0 (intervals of
+    zero width, correlations NaN or beyond 1) and the fit came out unflagged. The HAC
+    covariance must stay a covariance and the fit must say that it determines little."""
+    r = pem.fit(S2, [first_order_record(seed)], fixed={"kA": 979.2}, x0=x0)
+    assert all(r.sd_log[p] > 0 for p in r.free), r.sd_log
+    c = r.correlation[np.isfinite(r.correlation)]
+    assert np.all(np.abs(c) <= 1.0 + 1e-9)
+    assert {f.code for f in r.flags} & {"wide_interval", "ill_conditioned", "high_correlation"}
+
+
 def test_bartlett_meat_equals_explicit_sum():
     g = np.random.default_rng(0).standard_normal((200, 3))
     L = 7
