@@ -1,9 +1,10 @@
 """The ``railtherm`` command line.
 
-``railtherm validate [--config config/config.yaml] [VEHICLE.yaml ...]`` checks the study config
-and every vehicle it lists (or only the vehicle files given, with the study's defaults and
-campaign layouts when the study config exists). It prints ``ok: N vehicles`` and exits 0, or
-prints the one-line error on stderr and exits 1.
+``railtherm validate [--config config/config.yaml] [--headers-only] [VEHICLE.yaml ...]`` checks
+the study config and every vehicle it lists (or only the vehicle files given, with the study's
+defaults and campaign layouts when the study config exists), then reads every value of their
+raw files as the jobs ``clean`` and ``kvalue`` will (:mod:`railtherm.datacheck`). It prints
+``ok: N vehicles, ...`` and exits 0, or prints the one-line error on stderr and exits 1.
 
 ``railtherm audit PUBLISHED.yaml [--ranges config/audit.yaml] [--estimates results/tables]
 [--out results/audit] [--fail-on never|error|warning]`` runs the audit of published values
@@ -36,7 +37,22 @@ def _validate(args: argparse.Namespace) -> int:
     for path in args.vehicles:
         add_vehicle(study, path, workdir=workdir)
     count = len(study.vehicles)
-    print(f"ok: {count} vehicle{'' if count == 1 else 's'}")
+    summary = f"ok: {count} vehicle{'' if count == 1 else 's'}"
+    if not args.headers_only:
+        from railtherm.datacheck import check_values  # pandas only when reading values
+
+        windows, not_written = 0, []
+        for vehicle in study.vehicles.values():
+            checked = check_values(vehicle, workdir=workdir)
+            windows += len(checked.windows)
+            not_written += checked.not_written
+        summary += f", values of {windows} window{'' if windows == 1 else 's'} checked"
+        if not_written:
+            summary += (
+                f" ({len(not_written)} raw file{'' if len(not_written) == 1 else 's'} not "
+                "written yet: the clean job checks them)"
+            )
+    print(summary)
     return 0
 
 
@@ -83,6 +99,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--directory",
         default=".",
         help="working directory the config's paths are relative to (default: %(default)s)",
+    )
+    validate.add_argument(
+        "--headers-only",
+        action="store_true",
+        help=(
+            "check configs against the raw files' headers and time columns only, as "
+            "Snakemake's parse does (default: also read every value as the jobs will)"
+        ),
     )
     validate.add_argument("vehicles", nargs="*", metavar="VEHICLE.yaml", help="vehicle files")
     validate.set_defaults(run=_validate)

@@ -510,6 +510,13 @@ def load_vehicle(
             data[section] = deep_merge(defaults[section], data.get(section) or {})
     validate_schema(file, data, vehicle_schema())
 
+    for section, key in (("cleaning", "temperature_range_degC"), ("check", "k_range_W_m2K")):
+        lo, hi = data[section][key]
+        if not lo < hi:
+            raise ConfigError(
+                file, f"{section}.{key}", [lo, hi], "must be [lower, upper] with lower < upper"
+            )
+
     fmt = data["format"]
     if fmt["separator"] == fmt["decimal"]:
         raise ConfigError(
@@ -606,6 +613,8 @@ def _layout(
             local, fmt["separator"], fmt["decimal"], time["column"], time["format"]
         )
     except DataError as exc:
+        if exc.value is None:  # about the file, not one of its values
+            raise ConfigError(file, key, raw, f"{normalised}: {exc.reason}") from None
         raise ConfigError(
             file,
             "format.time.format",
@@ -719,6 +728,9 @@ def _check_windows(file: str, data: dict[str, Any], layouts: dict[str, RawLayout
         duration = layout.seconds(end) - layout.seconds(start)
         _check_window_size(file, key, window, layout, duration, data.get("cleaning") or {})
         _check_record_size(file, layout)
+        if key == "windows.kvalue":  # its figure shows the whole record at the tidy step
+            record = layout.seconds(layout.t_last) - layout.seconds(layout.t_first)
+            _check_window_size(file, "the whole record", window, layout, record, data["cleaning"])
 
 
 def _check_window_size(

@@ -11,7 +11,7 @@ estimated with the capacities; every output says which way k was obtained.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from railtherm import ingest, metrics, models, pem
+from railtherm.errors import DataError
 from railtherm.kvalue import sensor_counts, sensor_u_K
 
 # the fitted models of a vehicle, by the key in their file names (fit_<key>.yaml)
@@ -72,6 +73,52 @@ def experiments(structure: models.Structure, tables: Mapping[str, pd.DataFrame])
         )
         for name, table in tables.items()
     ]
+
+
+MIN_USED_SHARE = 0.95
+
+
+def rows_used(
+    structure: models.Structure,
+    tables: Mapping[str, pd.DataFrame],
+    outputs: Sequence[str],
+    vehicle_data: Mapping[str, Any],
+) -> dict[str, dict[str, Any]]:
+    """Rows per window and, per compared output, how many the fit uses (a row whose
+    measurement is missing is skipped, eq. 17 sums over the rest). An input must be finite in
+    every row, since a simulation carries a missing input into every later state; an output
+    used in fewer than ``check.min_used_share`` (default 0.95) of a window's rows means the fit
+    would rest on a fraction of the data. Both are :class:`DataError` naming the window, the
+    column and the row."""
+    share = float((vehicle_data.get("check") or {}).get("min_used_share", MIN_USED_SHARE))
+    source = f"{vehicle_data.get('id', '(vehicle)')} window"
+    out = {}
+    for name, table in tables.items():
+        n = len(table)
+        for column in structure.inputs:
+            values = table[column].to_numpy(float)
+            bad = ~np.isfinite(values)
+            if bad.any():
+                i = int(bad.argmax())
+                raise DataError(
+                    f"{source} {name}",
+                    column,
+                    float(values[i]),
+                    f"row {i} (time {table['time'].iloc[i]:g} s) of {n}: an input must be "
+                    f"finite in every row, or the simulation carries it into every later state",
+                )
+        used = {s: int(np.isfinite(table[s].to_numpy(float)).sum()) for s in outputs}
+        for s, k in used.items():
+            if k < share * n:
+                raise DataError(
+                    f"{source} {name}",
+                    s,
+                    f"{k} of {n} rows",
+                    f"the fit would use only {100 * k / n:.1f} % of the rows, less than "
+                    f"check.min_used_share = {share:g}: the measurement is missing in the rest",
+                )
+        out[name] = {"rows": n, "used": used}
+    return out
 
 
 def _settings(structure, vehicle_data, kvalue: Mapping[str, Any] | None):
@@ -134,6 +181,7 @@ def identify(
         "covariance": model.get("covariance", "hac"),
         "start": model.get("start", "auto"),
     }
+    rows = rows_used(structure, tables, outputs, vehicle_data)
     exps = experiments(structure, tables)
     result = pem.fit(structure, exps, **options)
     fitted = result.to_dict()
@@ -154,6 +202,7 @@ def identify(
         "volume_m3": float(vehicle_data["volume_m3"]) if "volume_m3" in vehicle_data else None,
         "outputs": list(outputs),
         "windows": list(tables),
+        "rows": rows,
         "notes": notes,
         "fit": fitted,
         "systematic": budget,

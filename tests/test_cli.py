@@ -34,6 +34,8 @@ def test_validate_ok(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     setup_repo(tmp_path)
     assert main(["validate"]) == 0
+    assert capsys.readouterr().out == "ok: 2 vehicles, values of 4 windows checked\n"
+    assert main(["validate", "--headers-only"]) == 0
     assert capsys.readouterr().out == "ok: 2 vehicles\n"
 
 
@@ -41,10 +43,10 @@ def test_validate_single_vehicle_files(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     setup_repo(tmp_path)
     assert main(["validate", VEHICLE_FILE]) == 0
-    assert capsys.readouterr().out == "ok: 1 vehicle\n"
+    assert capsys.readouterr().out == "ok: 1 vehicle, values of 2 windows checked\n"
     os.remove("config/config.yaml")  # loose vehicle files need no study config
     assert main(["validate", VEHICLE_FILE, "config/vehicles/V2.yaml"]) == 0
-    assert capsys.readouterr().out == "ok: 2 vehicles\n"
+    assert capsys.readouterr().out == "ok: 2 vehicles, values of 4 windows checked\n"
 
 
 def test_validate_bad_vehicle_exits_1_with_message(tmp_path, monkeypatch, capsys):
@@ -97,7 +99,7 @@ def test_validate_directory_option(tmp_path, monkeypatch, capsys):
     setup_repo(tmp_path)
     monkeypatch.chdir(tmp_path.parent)
     assert main(["validate", "-d", str(tmp_path)]) == 0
-    assert capsys.readouterr().out == "ok: 2 vehicles\n"
+    assert capsys.readouterr().out == "ok: 2 vehicles, values of 4 windows checked\n"
 
 
 def test_console_script_prints_no_traceback(tmp_path):

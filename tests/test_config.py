@@ -71,7 +71,11 @@ def csv_text(time_format: str = "iso", columns: list[str] | None = None, sep: st
             time = (START + pd.Timedelta(seconds=i * STEP_S)).isoformat()
         else:
             time = f"{i * STEP_S:g}"
-        values = {c: f"{20 + i * 0.1 + j:.2f}" for j, c in enumerate(columns)}
+        # indoor near 21-22 degC, the tunnel 30 K colder: a k window eq. 10 can use
+        values = {
+            c: f"{20 + i * 0.1 + j - (30 if c.startswith('T_out') else 0):.2f}"
+            for j, c in enumerate(columns)
+        }
         values["time"] = time
         lines.append(sep.join(values[c] for c in columns))
     return "\n".join(lines) + "\n"
@@ -456,6 +460,7 @@ BAD_VEHICLES = [
 ]
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("change", "raw", "key", "value", "reason"),
     [pytest.param(*case[1:], id=case[0]) for case in BAD_VEHICLES],
@@ -477,6 +482,7 @@ def test_bad_vehicle_names_file_key_and_value(repo, change, raw, key, value, rea
     assert "\n" not in message
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("text", "key", "value", "reason"),
     [
@@ -531,6 +537,7 @@ def test_study_loads_vehicles_in_config_order(repo):
     assert loaded.vehicles["A2"].path == "config/vehicles/A2.yaml"
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("config", "file", "key", "value", "reason"),
     [
@@ -732,6 +739,7 @@ def test_read_layout_plain_and_gz_agree(repo):
     assert plain.t_last == packed.t_last == START + pd.Timedelta(minutes=9)
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("text", "column", "value", "reason"),
     [
@@ -755,12 +763,14 @@ def test_read_layout_errors_name_file_column_value(repo, text, column, value, re
     assert reason in str(caught.value)
 
 
+@pytest.mark.bad_input
 def test_read_layout_number_is_not_an_iso_timestamp(repo):
     write_raw("time,a\n3600,1\n", "data/bad.csv")
     with pytest.raises(DataError, match="line 2: not an ISO 8601 timestamp"):
         read_layout("data/bad.csv", time_column="time", time_format="iso")
 
 
+@pytest.mark.bad_input
 def test_read_layout_missing_file():
     with pytest.raises(DataError, match="cannot read the file"):
         read_layout("no/such/file.csv", time_column="time", time_format="iso")
@@ -796,6 +806,7 @@ def test_study_defaults_merge_under_vehicle_sections(repo):
     assert settings["min_delta_T_K"] == 15  # schema default
 
 
+@pytest.mark.bad_input
 def test_bad_study_default_names_config_file(repo):
     config = {"vehicles": [VEHICLE_FILE], "defaults": {"instruments": {"power_u_rel": -0.1}}}
     with pytest.raises(ConfigError) as exc:
@@ -811,6 +822,7 @@ BILLION_LAUGHS = "\n".join(
 )
 
 
+@pytest.mark.bad_input
 def test_an_alias_bomb_is_refused_before_it_is_built(tmp_path):
     """Nine levels of nine aliases stand for 9^9 = 387 million values: refused with the file
     named, without expanding them (it takes milliseconds, not minutes and all memory)."""
@@ -827,6 +839,7 @@ def test_ordinary_anchors_and_aliases_still_work(tmp_path):
     assert read_yaml(path)["model"]["initial"] == {"C": 1.0e4, "K_veh": 20}
 
 
+@pytest.mark.bad_input
 def test_digest_cache_sees_new_content_behind_an_old_mtime(tmp_path):
     """Raw files rerun their jobs on content (rule clean's param), whatever their mtime."""
     raw, store = tmp_path / "raw.csv", tmp_path / "cache" / "digests.json"

@@ -6,6 +6,7 @@ import pytest
 
 from railtherm import identify, models
 from railtherm.config import section_defaults
+from railtherm.errors import DataError
 
 TRUTH = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
 A = 306.0
@@ -87,6 +88,7 @@ def test_two_stage_fit_recovers_the_truth_and_cross_validates():
     assert result["verdict"] == "fit acceptable" and result["R2"] == pytest.approx(1.0)
 
 
+@pytest.mark.bad_input
 def test_unusable_static_k_falls_back_to_joint_and_says_so():
     estimate, series = identify.identify(TABLES, vehicle(), k_result(usable=False), 2)
     assert estimate["k_source"] == "joint estimation (PEM)"
@@ -158,6 +160,7 @@ def test_an_offset_on_both_temperatures_of_the_k_window_is_one_source_each():
         )
 
 
+@pytest.mark.bad_input
 def test_residuals_beyond_sensor_accuracy_put_the_fit_in_doubt():
     estimate, series = identify.identify(TABLES, vehicle(), k_result(), 2)
     noisy = series.copy()
@@ -176,6 +179,7 @@ def test_without_surface_sensors_the_fit_uses_T_and_still_cross_validates():
     assert [cv["r2_T"] for cv in estimate["cross_validation"]] == pytest.approx([1.0, 1.0])
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("factor", "reasons"),
     [
@@ -199,6 +203,7 @@ def test_a_unit_mistake_in_the_power_is_never_fit_acceptable(factor, reasons):
     assert identify.plausibility(ok, section_defaults("check")) == []
 
 
+@pytest.mark.bad_input
 def test_capacities_that_store_more_than_water_are_implausible():
     estimate, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
     light = {**estimate, "mass_kg": 5_000.0}  # (1.8e7 + 1e7) / 5 t = 5600 J/(kg K)
@@ -206,6 +211,7 @@ def test_capacities_that_store_more_than_water_are_implausible():
     assert len(reasons) == 1 and "5600 J/(kg K)" in reasons[0] and "more than water" in reasons[0]
 
 
+@pytest.mark.bad_input
 def test_time_in_minutes_declared_seconds_is_never_fit_acceptable():
     """Minutes read as seconds compress every window 60-fold: the fit is as good as ever and
     every capacity is 60 times too small (k, from means, is unchanged)."""
@@ -214,3 +220,28 @@ def test_time_in_minutes_declared_seconds_is_never_fit_acceptable():
     result = identify.check(estimate, series, section_defaults("check"))
     assert result["verdict"] == "assumptions in doubt"
     assert any("time column's unit" in r for r in result["reasons"]), result["reasons"]
+
+
+@pytest.mark.bad_input
+def test_a_fit_says_how_many_rows_it_used_and_refuses_too_few():
+    """A fit once used 280 of 1609 rows without a word: the rows used are in the estimate,
+    a missing input stops the fit, and so does a measurement missing in too many rows."""
+    estimate, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
+    name, table = next(iter(TABLES.items()))
+    assert estimate["rows"][name] == {
+        "rows": len(table),
+        "used": {"T": len(table), "T_veh": len(table)},
+    }
+    holes = {n: t.copy() for n, t in TABLES.items()}
+    holes[name].loc[holes[name].index[5:], "T"] = np.nan
+    with pytest.raises(DataError, match=rf"V window {name}: column 'T' = '5 of \d+ rows'"):
+        identify.identify(holes, vehicle(), k_result(), 2)
+    gap = {n: t.copy() for n, t in TABLES.items()}
+    gap[name]["Q_H"] = gap[name]["Q_H"].astype(float)
+    gap[name].loc[gap[name].index[7], "Q_H"] = np.inf
+    with pytest.raises(DataError, match=r"column 'Q_H' = inf: row 7 "):
+        identify.identify(gap, vehicle(), k_result(), 2)
+    few = {n: t.copy() for n, t in TABLES.items()}
+    few[name].loc[few[name].index[:3], "T"] = np.nan  # a few missing rows are skipped
+    estimate, _ = identify.identify(few, vehicle(), k_result(), 2)
+    assert estimate["rows"][name]["used"]["T"] == len(table) - 3

@@ -249,6 +249,7 @@ def test_short_gaps_are_interpolated_per_channel_and_flagged(tmp_path):
     assert flagged == {5, 11, 12, 13}
 
 
+@pytest.mark.bad_input
 def test_long_gap_is_an_error_naming_file_column_and_time(tmp_path):
     t = np.arange(60) * 60.0
     df = _simple_frame(t)
@@ -260,6 +261,7 @@ def test_long_gap_is_an_error_naming_file_column_and_time(tmp_path):
     assert "960 s" in msg and "max_gap_s = 900" in msg
 
 
+@pytest.mark.bad_input
 def test_long_gap_of_missing_rows_and_limit_from_config(tmp_path):
     t = np.arange(60) * 60.0
     df = _simple_frame(t).drop(index=range(10, 13))  # 3 missing rows = 180 s
@@ -293,6 +295,7 @@ def test_empty_cell_at_the_start_is_held_and_flagged(tmp_path):
 # Errors
 
 
+@pytest.mark.bad_input
 def test_time_going_backwards_is_an_error(tmp_path):
     df = _simple_frame(np.array([0.0, 60.0, 180.0, 120.0, 240.0]))
     with pytest.raises(DataError) as err:
@@ -302,6 +305,7 @@ def test_time_going_backwards_is_an_error(tmp_path):
     assert "data row 4 (line 5)" in msg
 
 
+@pytest.mark.bad_input
 def test_duplicated_time_is_an_error(tmp_path):
     df = _simple_frame(np.array([0.0, 60.0, 60.0, 120.0]))
     with pytest.raises(
@@ -310,6 +314,7 @@ def test_duplicated_time_is_an_error(tmp_path):
         _clean(tmp_path, df, _vehicle(SIMPLE))
 
 
+@pytest.mark.bad_input
 def test_unparseable_time_is_an_error_naming_the_value(tmp_path):
     df = _simple_frame(np.arange(3) * 60.0)
     df.loc[1, "time"] = "yesterday"
@@ -317,6 +322,7 @@ def test_unparseable_time_is_an_error_naming_the_value(tmp_path):
         _clean(tmp_path, df, _vehicle(SIMPLE))
 
 
+@pytest.mark.bad_input
 def test_missing_time_column_and_unreadable_file(tmp_path):
     data = _vehicle(SIMPLE)
     data["format"]["time"]["column"] = "Zeit"
@@ -327,6 +333,7 @@ def test_missing_time_column_and_unreadable_file(tmp_path):
         ingest.read_raw(tmp_path / "nope.csv", data["format"])
 
 
+@pytest.mark.bad_input
 def test_missing_channel_is_an_error_naming_file_and_column(tmp_path):
     channels = {**SIMPLE, "fan_power": [{"column": "fan_9", "unit": "W"}]}
     with pytest.raises(DataError) as err:
@@ -336,6 +343,7 @@ def test_missing_channel_is_an_error_naming_file_and_column(tmp_path):
     assert "Ti1, To1, P1" in msg
 
 
+@pytest.mark.bad_input
 def test_text_in_a_channel_is_an_error(tmp_path):
     df = _simple_frame(np.arange(4) * 60.0).astype({"P1": object})
     df.loc[2, "P1"] = "ERR"
@@ -343,6 +351,7 @@ def test_text_in_a_channel_is_an_error(tmp_path):
         _clean(tmp_path, df, _vehicle(SIMPLE))
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("column", "value", "shown"),
     [("Ti1", "inf", "inf"), ("P1", "-inf", "-inf"), ("To1", "Infinity", "inf")],
@@ -356,6 +365,7 @@ def test_an_infinite_value_is_an_error_naming_its_line(tmp_path, column, value, 
         _clean(tmp_path, df, _vehicle(SIMPLE))
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("column", "value", "cause"),
     [
@@ -383,6 +393,7 @@ def test_the_temperature_range_is_checked_only_where_the_window_reads(tmp_path):
     assert table["T"].between(-80, 120).all()
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("start", "end", "key"),
     [
@@ -401,6 +412,7 @@ def test_window_outside_the_data_is_an_error(tmp_path, start, end, key):
     assert msg.endswith("2024-01-01T00:04:00")
 
 
+@pytest.mark.bad_input
 def test_window_without_data_rows_is_an_error(tmp_path):
     df = _simple_frame(np.arange(10) * 60.0).drop(index=[4, 5, 6])
     window = {"name": "w", "start": _iso([250])[0], "end": _iso([350])[0]}
@@ -536,6 +548,7 @@ def _cases(draw):
     )
 
 
+@pytest.mark.bad_input
 @settings(
     max_examples=120, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
@@ -715,6 +728,7 @@ def test_campaign_windows_match_the_noise_free_truth(tmp_path, campaign, vid):
         assert np.abs(rel).max() < 0.03, (window, np.abs(rel).max())
 
 
+@pytest.mark.bad_input
 def test_a_semicolon_file_read_with_commas_gets_a_separator_hint(tmp_path):
     df = _simple_frame(np.arange(3) * 60.0)
     path = _write(df, tmp_path / "raw.csv", ";", ".")
@@ -731,6 +745,7 @@ def test_trailing_separators_do_not_shift_the_columns(tmp_path):
     assert table["T"].eq(20.0).all() and table["T_o"].eq(-10.0).all()
 
 
+@pytest.mark.bad_input
 def test_a_truncated_gzip_file_is_named(tmp_path):
     path = tmp_path / "raw.csv.gz"
     text = "time,Ti1,To1,P1\n" + "".join(

@@ -69,6 +69,7 @@ def test_window_means_are_time_means_with_q_h_held_over_the_following_step():
     assert r.k == pytest.approx(24_000.0 / (400.0 * 30.03))
 
 
+@pytest.mark.bad_input
 def test_drifting_window_fails_with_a_reason_naming_the_quantity():
     """T rises by 0.8 K over 8 h: slope * duration = 0.8 K > 0.5 K."""
     r = k_of(window(T=lambda t: 20.0 + 0.8 * t / (8 * 3600.0)))
@@ -120,6 +121,7 @@ def test_drift_just_inside_the_limit_passes():
     assert r.steady and r.drift_T_K == pytest.approx(0.49)
 
 
+@pytest.mark.bad_input
 def test_too_short_window_fails():
     r = k_of(window(hours=4.0))
     assert not r.steady
@@ -127,6 +129,7 @@ def test_too_short_window_fails():
     assert r.k == pytest.approx(2.0)  # k is still computed and reported
 
 
+@pytest.mark.bad_input
 def test_too_small_temperature_difference_fails():
     r = k_of(window(T=0.0, T_o=-10.0, Q_H=8000.0))
     assert r.reasons == ("the mean T - T_o is 10.00 K (minimum 15 K)",)
@@ -258,6 +261,7 @@ def test_to_dict_is_plain_yaml_in_a_stable_order():
     assert all(type(d[key]) is float for key in ("k", "u_k", "delta_T", "drift_T_K"))
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("change", "column", "reason"),
     [
@@ -273,6 +277,7 @@ def test_no_k_without_heat_and_temperature_difference(change, column, reason):
     assert info.value.key == column
 
 
+@pytest.mark.bad_input
 def test_missing_or_non_finite_columns_are_data_errors():
     w = window().drop(columns="T_o")
     with pytest.raises(DataError, match="column 'T_o'"):

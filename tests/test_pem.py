@@ -128,6 +128,7 @@ def test_unmeasured_body_temperature_estimates_its_initial_state():
     assert abs(r.x0[0][1] + 3.0) < 1e-4
 
 
+@pytest.mark.bad_input
 def test_nan_rows_are_skipped():
     e = experiment(S2, TRAM2)
     e.y[100:400, 0] = np.nan
@@ -141,6 +142,7 @@ def test_nan_rows_are_skipped():
     assert r.x0_estimated == [("T_veh",)]  # T_veh[0] is NaN: estimated
 
 
+@pytest.mark.bad_input
 def test_non_identifiable_constant_excitation_is_flagged():
     """Constant Q_H and T_o from a steady start: the capacities do not act on the outputs."""
     n, dt = 2000, 60.0
@@ -156,6 +158,7 @@ def test_non_identifiable_constant_excitation_is_flagged():
     assert all(f.message for f in r.flags)
 
 
+@pytest.mark.bad_input
 def test_parameter_at_bound_is_flagged():
     e = experiment(S2, TRAM2)
     r = pem.fit(S2, [e], fixed={"kA": 979.2}, bounds={"C": (1e4, 1.0e7)})
@@ -163,6 +166,7 @@ def test_parameter_at_bound_is_flagged():
     assert any(f.code == "at_bound" and f.parameters == ("C",) for f in r.flags)
 
 
+@pytest.mark.bad_input
 def test_non_convergence_is_flagged():
     r = pem.fit(S2, [experiment(S2, TRAM2)], fixed={"kA": 979.2}, start="initial", max_nfev=2)
     assert any(f.code == "not_converged" for f in r.flags)
@@ -208,6 +212,7 @@ def first_order_record(seed: int, n: int = 2000, noise: float = 0.01) -> pem.Exp
     return pem.Experiment(name="e", dt=60.0, u=u, y=np.column_stack([y, np.full(n, np.nan)]))
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize("seed, x0", [(35, "estimated"), (36, "measured"), (30, "measured")])
 def test_hac_covariance_of_an_over_parametrised_fit_does_not_collapse(seed, x0):
     """A second-order fit of first-order data: the Jacobian's condition reaches ~1e12, where
@@ -258,6 +263,7 @@ def test_experiment_from_table_holds_T_o_as_step_mean():
     assert e.dt == 60.0 and e.y.shape == (5, 2)
 
 
+@pytest.mark.bad_input
 def test_bad_options_raise():
     e = experiment(S2, TRAM2, n=100)
     with pytest.raises(ValueError, match="outputs"):

@@ -166,6 +166,7 @@ def test_reference_comparison_on_the_armadillo_data(armadillo):
         reference.compare(ref, {**checked, "model": "order2"}, tables, vehicle.data)
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("edit", "key"),
     [
@@ -235,6 +236,7 @@ def test_derived_kA_interval_matches_monte_carlo(rho):
     assert lo < kA["value"] < hi
 
 
+@pytest.mark.bad_input
 @pytest.mark.workflow
 def test_reference_to_a_fit_not_in_the_study_stops_the_run(tmp_path):
     study = validation_copy(tmp_path)
@@ -249,6 +251,7 @@ def test_reference_to_a_fit_not_in_the_study_stops_the_run(tmp_path):
     assert "Armadillo" in err and not (study / "results").exists()
 
 
+@pytest.mark.bad_input
 @pytest.mark.workflow
 def test_new_raw_content_with_the_old_mtime_reruns_its_jobs(tmp_path):
     """A measured raw file replaced by other content with the same size class and the old
@@ -263,10 +266,33 @@ def test_new_raw_content_with_the_old_mtime_reruns_its_jobs(tmp_path):
     assert "Nothing to be done" in (r := snakemake(study, target, "-n")).stdout + r.stderr
     before = raw.stat()
     lines = raw.read_text().splitlines(keepends=True)
-    lines[5], lines[6] = lines[6], lines[5]  # same bytes, other order: other data
+    # the same bytes in another order: other measurements at the same times
+    (t5, v5), (t6, v6) = (line.split(",", 1) for line in lines[5:7])
+    lines[5], lines[6] = f"{t5},{v6}", f"{t6},{v5}"
     raw.write_text("".join(lines))
     os.utime(raw, ns=(before.st_atime_ns, before.st_mtime_ns))
     assert raw.stat().st_mtime_ns == before.st_mtime_ns and raw.stat().st_size == before.st_size
     again = snakemake(study, target, "-n")
     assert again.returncode == 0
     assert "rule clean:" in again.stdout and "Nothing to be done" not in again.stdout
+
+
+@pytest.mark.bad_input
+@pytest.mark.workflow
+def test_a_bad_value_in_a_measured_file_stops_the_run_before_any_job(tmp_path):
+    """The values of the study's own raw files are read at parse time, as clean reads them."""
+    study = tmp_path / "validation"
+    shutil.copytree(VALIDATION / "config", study / "config")
+    shutil.copytree(REPO / "data", tmp_path / "data")
+    raw = tmp_path / "data" / "armadillo" / "armadillo_data_H2.csv"
+    lines = raw.read_text().splitlines(keepends=True)
+    header = lines[0].strip().split(",")
+    cells = lines[100].rstrip("\n").split(",")
+    cells[header.index("T_int")] = "inf"
+    lines[100] = ",".join(cells) + "\n"
+    raw.write_text("".join(lines))
+    run = snakemake(study, "--dry-run")
+    assert run.returncode != 0
+    err = run.stdout + run.stderr
+    assert "invalid raw data" in err and "column 'T_int' = 'inf': line 101" in err, err
+    assert not (study / "results").exists()

@@ -153,6 +153,7 @@ def test_run_writes_raw_files_and_truth_deterministically(small_run, tmp_path):
     assert outputs(second) == written
 
 
+@pytest.mark.bad_input
 def test_bad_vehicle_config_stops_before_any_job(tmp_path):
     study = make_study(tmp_path, SMALL)
     path = study / "config" / "vehicles" / "Metro3.yaml"

@@ -12,6 +12,7 @@ from railtherm import identify as rt_identify
 from railtherm import reference as rt_reference
 from railtherm import ingest, synth
 from railtherm.config import load_study
+from railtherm.datacheck import check_study_values
 from railtherm.errors import RailthermError
 from railtherm.rawfile import DigestCache
 
@@ -95,6 +96,18 @@ def window_raw_file(wildcards):
 
 
 RAW_DIGESTS = DigestCache(".snakemake/railtherm/raw-digests.json")
+
+# every value of the study's own raw files, read as the jobs clean and kvalue will, so that a
+# bad value stops the run before any job (cached by content: a parse again re-reads nothing)
+try:
+    check_study_values(
+        STUDY,
+        RAW_DIGESTS,
+        ".snakemake/railtherm/value-checks.json",
+        skip=lambda path: Path(path).is_relative_to(CAMPAIGN_ROOT),
+    )
+except RailthermError as err:
+    raise WorkflowError(f"invalid raw data: {err}") from None
 
 
 def raw_digest(wildcards):

@@ -1,0 +1,107 @@
+"""The values of a vehicle's raw files, checked as the jobs will read them.
+
+:mod:`railtherm.config` checks a vehicle config against its raw files' headers and time
+columns; the jobs then read every value. What a job would stop on and the config and raw
+files alone decide - a cell that is no number or infinite, a temperature outside the physical
+range, a gap longer than ``cleaning.max_gap_s``, a k window without a positive T - T_o or
+Q_H (eq. 10) - is checked here, by the same code the rules ``clean`` and ``kvalue`` run, so
+that ``railtherm validate`` stops on it before any job does.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from railtherm import ingest, kvalue
+from railtherm.config import Study, Vehicle
+from railtherm.rawfile import DigestCache
+
+
+@dataclass
+class DataCheck:
+    """What :func:`check_values` read: the windows checked (``vehicle/window``) and the raw
+    files not there to read yet (a campaign's files before the virtual wind tunnel ran)."""
+
+    windows: list[str] = field(default_factory=list)
+    not_written: list[str] = field(default_factory=list)
+
+
+def check_values(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> DataCheck:
+    """Clean every window of ``vehicle`` in memory (rule ``clean``) and compute its static k
+    (rule ``kvalue``); the first error propagates, naming file, column or key, line and
+    value. Nothing is written."""
+    out = DataCheck()
+    raws: dict[str, object] = {}
+    for name in ingest.window_names(vehicle.data):
+        raw_name, window, key = ingest.window_spec(vehicle.data, name)
+        display = vehicle.raw_files[raw_name]
+        local = os.path.join(str(workdir), display)
+        if not os.path.isfile(local):
+            if display not in out.not_written:
+                out.not_written.append(display)
+            continue
+        if display not in raws:
+            raws[display] = ingest.read_raw(local, vehicle.format, label=display)
+        table = ingest.tidy(raws[display], vehicle.data, window, display, window_key=key)
+        if name == "kvalue":
+            kvalue.for_vehicle(table, vehicle.data, source=f"{display} ({key})")
+        out.windows.append(f"{vehicle.id}/{name}")
+    return out
+
+
+def _code_version() -> str:
+    """Digest of the code that reads and judges the values (a change re-checks them)."""
+    h = hashlib.sha256()
+    here = Path(__file__).parent
+    for name in ("datacheck.py", "ingest.py", "kvalue.py", "rawfile.py", "config.py"):
+        h.update((here / name).read_bytes())
+    return h.hexdigest()
+
+
+def check_study_values(
+    study: Study,
+    digests: DigestCache,
+    cache: str | os.PathLike[str],
+    workdir: str | os.PathLike[str] = ".",
+    skip: Callable[[str], bool] = lambda path: False,
+) -> list[str]:
+    """:func:`check_values` for every vehicle of ``study`` whose raw files exist and are not
+    ``skip``-ped (files a workflow writes itself), remembered in the JSON file ``cache`` by a
+    digest of the vehicle's validated config, its raw files' contents and this code: a study
+    parsed again re-reads nothing that passed before. Returns the ids checked now."""
+    code = _code_version()
+    try:
+        with open(cache, encoding="utf-8") as stream:
+            passed = set(json.load(stream))
+    except (OSError, ValueError, TypeError):
+        passed = set()  # a missing or broken cache is only a cache
+    checked = []
+    for vehicle in study.vehicles.values():
+        files = [os.path.join(str(workdir), f) for f in vehicle.raw_files.values()]
+        if any(skip(f) or not os.path.isfile(f) for f in vehicle.raw_files.values()):
+            continue
+        h = hashlib.sha256(code.encode())
+        h.update(json.dumps(vehicle.data, sort_keys=True, default=str).encode())
+        for f in files:
+            h.update(digests.digest(f).encode())
+        key = h.hexdigest()
+        if key in passed:
+            continue
+        check_values(vehicle, workdir)
+        passed.add(key)
+        checked.append(vehicle.id)
+    if checked:
+        try:
+            os.makedirs(os.path.dirname(os.path.abspath(cache)), exist_ok=True)
+            tmp = f"{cache}.{os.getpid()}.tmp"
+            with open(tmp, "w", encoding="utf-8") as stream:
+                json.dump(sorted(passed), stream)
+            os.replace(tmp, cache)
+        except OSError:
+            pass  # an unwritable cache costs time, not correctness
+    return checked
