@@ -616,5 +616,6 @@ def check(
         "flags": fit["flags"],
         "systematic": estimate["systematic"],
         "windows": estimate["windows"],
+        "rows": estimate["rows"],
         "outputs": estimate["outputs"],
     }
