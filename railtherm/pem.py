@@ -933,7 +933,7 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
         cond = 1.0
     with np.errstate(divide="ignore"):
         inv_s = np.where(null, 0.0, 1.0 / np.where(null, 1.0, s))
-    bandwidths = []
+    bandwidths, capped = [], []
     if covariance == "iid":
         s2 = ssr / max(m - p_all, 1)
         cov = s2 * ((Vt.T * inv_s**2) @ Vt)  # s^2 (J^T J)^+
@@ -954,6 +954,8 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
                     res_full[rr] = ri
                 L = _andrews_bandwidth(res_full)
                 bandwidths.append(L)
+                if len(res_full) >= 8 and L >= len(res_full) // 2:
+                    capped.append(f"{e.name} (L = {L} of {len(res_full)} rows)")
                 meat += _bartlett_hac(gT, L)
                 row += N_i
         cov = _sandwich(Vt, inv_s, meat)
@@ -989,6 +991,17 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
             ci[p] = (float(np.exp(lv - Z95 * sd[i])), float(np.exp(lv + Z95 * sd[i])))
         sd_log[p] = float(sd[i])
     flags = _flags(sol, v, th, free, ci, corr, cond, bnds)
+    if capped:
+        flags.append(
+            Flag(
+                "hac_bandwidth_capped",
+                tuple(free),
+                "the residuals are so persistent that the HAC bandwidth reached half the "
+                f"window in {', '.join(dict.fromkeys(capped))}: the intervals rest on a few "
+                "effective samples and may understate the uncertainty (a slow dynamic the "
+                "model lacks?)",
+            )
+        )
     if degenerate:
         flags.append(
             Flag(

@@ -201,6 +201,19 @@ def test_hac_is_wider_than_iid_on_coloured_residuals():
     hac = pem.fit(S2, [e], fixed={"kA": 979.2}, covariance="hac")
     assert all(hac.sd_log[p] > 2 * iid.sd_log[p] for p in iid.free)
     assert min(hac.bandwidths) > 10
+    assert "hac_bandwidth_capped" not in {f.code for f in hac.flags}
+
+
+@pytest.mark.bad_input
+def test_a_random_walk_residual_caps_the_hac_bandwidth_and_says_so():
+    """Residuals that wander like a random walk (an unmodelled slow drift): the Bartlett
+    bandwidth reaches half the window, where HAC rests on a few effective samples."""
+    e = experiment(S2, TRAM2, n=2000, seed=3)
+    walk = np.cumsum(0.02 * np.random.default_rng(7).standard_normal(len(e.y)))
+    e.y = e.y + walk[:, None]
+    r = pem.fit(S2, [e], fixed={"kA": 979.2})
+    flag = next(f for f in r.flags if f.code == "hac_bandwidth_capped")
+    assert "e (L = 1000 of 2000 rows)" in flag.message
 
 
 def first_order_record(seed: int, n: int = 2000, noise: float = 0.01) -> pem.Experiment:
