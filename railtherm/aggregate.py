@@ -19,7 +19,6 @@ import pandas as pd
 
 from railtherm import pem
 from railtherm.smallsample import t_interval, two_class_test
-from railtherm.synth import DEVIATION_EFFECT_ON_K
 from railtherm.tables import round_significant, write_csv
 
 COVERAGE_FACTOR = 2.0  # expanded uncertainty U = 2 u: about 95 % for a normal distribution
@@ -52,16 +51,14 @@ def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame |
         if truth_by_id is not None and vid in truth_by_id.index:
             t = truth_by_id.loc[vid]
             declared = [d for d in str(t["deviations"] or "").split(";") if d and d != "nan"]
-            effects = [
-                f"{d}: {DEVIATION_EFFECT_ON_K[d]}" for d in declared if DEVIATION_EFFECT_ON_K.get(d)
-            ]
+            effects = str(t["k_effects"]) if pd.notna(t["k_effects"]) else ""
             error = r["k"] - t["k"]
             agrees = bool(abs(error) <= max(r["u_k"], K_TOLERANCE_REL * t["k"]))
             notes = []
             if not r["usable"]:
                 notes.append("window not steady: k not usable")
             if effects:
-                notes.append("declared deviation affecting the static test: " + " | ".join(effects))
+                notes.append("declared deviation affecting the static test: " + effects)
             elif not agrees:
                 notes.append("disagrees with the truth and no declared deviation explains it")
             note = "; ".join(notes)

@@ -47,9 +47,9 @@ from typing import Any
 
 import pandas as pd
 
-from railtherm.config import packaged_schema, read_yaml, validate_schema
 from railtherm.errors import ConfigError
 from railtherm.smallsample import two_class_test
+from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 
 SEVERITIES = ("error", "warning", "info")
 FAMILIES = ("consistency", "claims", "plausibility", "fitness", "units", "reproduction")

@@ -23,8 +23,8 @@ import numpy as np
 import pandas as pd
 
 from railtherm import identify, metrics, models, pem
-from railtherm.config import packaged_schema, read_yaml, validate_schema
 from railtherm.errors import ConfigError
+from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 
 __all__ = ["compare", "load_reference", "markdown", "published_parameters", "simulate_published"]
 

@@ -37,10 +37,10 @@ import numpy as np
 import pandas as pd
 from scipy.signal import lfilter
 
-from railtherm.config import deep_merge, read_yaml, validate_schema
 from railtherm.errors import ConfigError
 from railtherm.models import discretize_zoh, second_order
 from railtherm.rawfile import RawLayout
+from railtherm.yamlio import deep_merge, read_yaml, validate_schema
 
 __all__ = [
     "DEVIATION_TYPES",
@@ -1146,7 +1146,8 @@ def vehicle_config(campaign: dict, vehicle_id: str, raw_dir: str = "../../resour
 def ground_truth_table(campaign: dict) -> pd.DataFrame:
     """One row per vehicle (campaign order): the declared truth in SI units, the derived c_veh
     (eq. 24) and delta (eq. 25), time constants of eq. 14, programme and logger step, and the
-    declared deviations (";"-joined types, "" if none)."""
+    declared deviations (";"-joined types, "" if none) with what each does to the static k
+    test (``k_effects``, "type: effect" joined by " | ", "" if none does anything)."""
     rows = []
     for vid in campaign["_merged"]:
         spec = vehicle_spec(campaign, vid)
@@ -1177,6 +1178,11 @@ def ground_truth_table(campaign: dict) -> pd.DataFrame:
                 if spec["programme"]["type"] == "existing"
                 else 1.0,
                 "deviations": ";".join(d["type"] for d in devs),
+                "k_effects": " | ".join(
+                    f"{d['type']}: {DEVIATION_EFFECT_ON_K[d['type']]}"
+                    for d in devs
+                    if DEVIATION_EFFECT_ON_K[d["type"]]
+                ),
                 "synthetic": True,
             }
         )

@@ -4,6 +4,7 @@ import pandas as pd
 import pytest
 
 from railtherm.aggregate import kvalue_table
+from railtherm.synth import DEVIATION_EFFECT_ON_K
 
 
 def result(k, u_k, steady=True, forced=False, reasons=()):
@@ -22,6 +23,7 @@ TRUTH = pd.DataFrame(
         "vehicle": ["A", "B", "C", "D"],
         "k": [2.0, 2.0, 2.0, 2.0],
         "deviations": ["", "", "unlogged_aux", "unsteady_start"],
+        "k_effects": ["", "", f"unlogged_aux: {DEVIATION_EFFECT_ON_K['unlogged_aux']}", ""],
     }
 )
 
