@@ -6,9 +6,20 @@ defaults and campaign layouts when the study config exists), then reads every va
 raw files as the jobs ``clean`` and ``kvalue`` will (:mod:`railtherm.datacheck`). It prints
 ``ok: N vehicles, ...`` and exits 0, or prints the one-line error on stderr and exits 1.
 
+``railtherm fit VEHICLE.yaml [--model order2] [--out DIR]`` runs one vehicle through the
+rules' chain (clean -> static k -> PEM fit -> check, :mod:`railtherm.run`), prints each fit's
+parameters and verdict and, with ``--out``, writes the rules' files. A raw file that the study's
+virtual wind tunnel plans but has not written is written first.
+
 ``railtherm audit PUBLISHED.yaml [--ranges config/audit.yaml] [--estimates results/tables]
 [--out results/audit] [--fail-on never|error|warning]`` runs the audit of published values
 (:mod:`railtherm.audit`) without the rest of the pipeline.
+
+``railtherm new-vehicle RAW.csv [--out VEHICLE.yaml] [--id ID]`` writes a starter vehicle YAML
+for a raw logger file (:mod:`railtherm.starter`): the detected separator, decimal mark and time
+format, a guess of the channel map from the column names, one identification window over the
+whole file, and TODOs for what the file cannot tell, which ``railtherm validate`` refuses until
+they are filled. It never overwrites a file; without ``--out`` it prints the YAML.
 """
 
 from __future__ import annotations
@@ -18,24 +29,32 @@ import os
 import sys
 from collections.abc import Sequence
 
-from railtherm import __version__
+from railtherm import __version__, starter
 from railtherm.config import Study, add_vehicle, load_study, read_yaml, study_context
 from railtherm.errors import ConfigError, RailthermError
 
 
-def _validate(args: argparse.Namespace) -> int:
+def _study(args: argparse.Namespace, vehicles: Sequence[str]) -> Study:
+    """The study config's vehicles, or only ``vehicles`` under its defaults and campaign
+    layouts (loose vehicle files need no study config)."""
     workdir = args.directory
     config_local = os.path.normpath(os.path.join(workdir, args.config))
-    if args.vehicles and not os.path.isfile(config_local):
-        study = Study(vehicles={}, campaign=None)  # loose vehicle files, no study config
+    if vehicles and not os.path.isfile(config_local):
+        study = Study(vehicles={}, campaign=None)
     else:
         config = read_yaml(config_local, display=args.config)
-        if not args.vehicles:
+        if not vehicles:
             study = load_study(config, workdir=workdir, config_file=args.config)
         else:
             study = study_context(config, workdir=workdir, config_file=args.config)
-    for path in args.vehicles:
-        add_vehicle(study, path, workdir=workdir)
+    for path in vehicles:
+        add_vehicle(study, os.path.join(workdir, path), workdir=workdir)
+    return study
+
+
+def _validate(args: argparse.Namespace) -> int:
+    workdir = args.directory
+    study = _study(args, args.vehicles)
     count = len(study.vehicles)
     summary = f"ok: {count} vehicle{'' if count == 1 else 's'}"
     if not args.headers_only:
@@ -70,6 +89,48 @@ def _audit(args: argparse.Namespace) -> int:
     print(f"{args.out}/findings.csv, {args.out}/audit.md: {summary}")
     fail = {"never": (), "error": ("error",), "warning": ("error", "warning")}[args.fail_on]
     return 1 if any(counts.get(s, 0) for s in fail) else 0
+
+
+def _campaign_files(study: Study, workdir: str) -> list[str]:
+    """Write the raw files of the study's vehicles that the virtual wind tunnel plans but has
+    not written yet (what rule ``synthesize`` does); the paths written."""
+    if not study.campaign_data:
+        return []
+    from railtherm import synth  # only studies with a campaign need the generator
+
+    written = []
+    for vid in study.campaign_data["vehicles"]:
+        spec = synth.vehicle_spec(study.campaign_data, vid)
+        for name in synth.raw_file_names(spec):
+            path = os.path.normpath(f"resources/campaign/{vid}/{name}")
+            local = os.path.join(workdir, path)
+            wanted = any(path in v.raw_files.values() for v in study.vehicles.values())
+            if wanted and not os.path.isfile(local):
+                synth.write_raw_file(spec, name, local)
+                written.append(path)
+    return written
+
+
+def _fit(args: argparse.Namespace) -> int:
+    from railtherm.run import fit_vehicle  # numpy, scipy and pandas only when fitting
+
+    study = _study(args, [args.vehicle])
+    for path in _campaign_files(study, args.directory):
+        print(f"{path}: written by the virtual climatic wind tunnel (synthetic)")
+    (vehicle,) = study.vehicles.values()
+    out = None if args.out is None else os.path.join(args.directory, args.out)
+    result = fit_vehicle(vehicle, args.model, out=out, workdir=args.directory)
+    if result.kvalue is not None:
+        k = result.kvalue
+        print(
+            f"{vehicle.id}: k = {k.k:.4g} +- {k.u_k:.2g} W/(m2 K) (eq. 10), "
+            f"{'steady' if k.steady else 'not steady'}{', forced' if k.forced else ''}"
+        )
+    for fit in result.fits.values():
+        print(fit.summary())
+    if out:
+        print(f"written to {os.path.join(out, 'vehicles', vehicle.id)}")
+    return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -110,6 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     validate.add_argument("vehicles", nargs="*", metavar="VEHICLE.yaml", help="vehicle files")
     validate.set_defaults(run=_validate)
+    starter.register(commands)
 
     audit = commands.add_parser(
         "audit",
@@ -141,6 +203,37 @@ def build_parser() -> argparse.ArgumentParser:
         help="exit 1 if there are findings of this severity or worse (default: %(default)s)",
     )
     audit.set_defaults(run=_audit)
+
+    fit = commands.add_parser(
+        "fit",
+        help="one vehicle through clean, static k, fit and check, without the workflow",
+        description=(
+            "Clean the windows of VEHICLE.yaml, compute the static k (eq. 10), fit each model "
+            "by simulation-error PEM and judge it, as the workflow's rules do; print the "
+            "parameters with their 95 %% intervals and the verdict. With --out, write the "
+            "rules' files under DIR/vehicles/<id>/."
+        ),
+    )
+    fit.add_argument("vehicle", metavar="VEHICLE.yaml", help="vehicle file")
+    fit.add_argument(
+        "--model",
+        action="append",
+        choices=["order1", "order2", "interior_envelope"],
+        help="model to fit (repeatable; default: the models the vehicle file asks for)",
+    )
+    fit.add_argument("--out", metavar="DIR", help="results directory to write into")
+    fit.add_argument(
+        "--config",
+        default="config/config.yaml",
+        help="study config whose defaults apply, if it exists (default: %(default)s)",
+    )
+    fit.add_argument(
+        "-d",
+        "--directory",
+        default=".",
+        help="working directory all paths are relative to (default: %(default)s)",
+    )
+    fit.set_defaults(run=_fit)
     return parser
 
 

@@ -35,21 +35,41 @@ wildcard_constraints:
     vehicle="[A-Za-z][A-Za-z0-9_-]*",
 
 
-_IMPORT = re.compile(r"^\s*(?:from railtherm(?:\.(\w+))? import ([\w, ]+)|import railtherm\.(\w+))", re.M)
+_IMPORT = re.compile(
+    r"^\s*(?:from railtherm((?:\.\w+)*) import ([\w, ]+)|import railtherm((?:\.\w+)+)"
+    r"|from (\.+\w*) import)",
+    re.M,
+)
+
+
+def _source_files(dotted):
+    """Source files (relative to the package) of a railtherm module or subpackage."""
+    path = RAILTHERM_DIR.joinpath(*dotted.split("."))
+    if path.with_suffix(".py").is_file():
+        return [path.with_suffix(".py").relative_to(RAILTHERM_DIR).as_posix()]
+    if path.is_dir():
+        return sorted(p.relative_to(RAILTHERM_DIR).as_posix() for p in path.rglob("*.py"))
+    return []
 
 
 @functools.cache
 def railtherm_modules(*modules):
-    """The railtherm source files ``modules`` and every railtherm module they import, in turn."""
-    seen, todo = [], list(modules)
+    """The railtherm source files ``modules`` (``ingest.py``; a subpackage ``synth.py`` stands
+    for every file of ``synth/``) and every railtherm module they import, in turn."""
+    seen, todo = [], [f for m in modules for f in _source_files(m.removesuffix(".py"))]
     while todo:
         name = todo.pop(0)
-        if name in seen or not (RAILTHERM_DIR / name).is_file():
+        if name in seen:
             continue
         seen.append(name)
-        for sub, names, plain in _IMPORT.findall((RAILTHERM_DIR / name).read_text()):
-            found = [sub or plain] if (sub or plain) else [n.strip() for n in names.split(",")]
-            todo += [f"{m}.py" for m in found if m]
+        package = ".".join(Path(name).parent.parts)
+        for sub, names, plain, relative in _IMPORT.findall((RAILTHERM_DIR / name).read_text()):
+            if relative:  # from .x import ...: a sibling inside a subpackage, already included
+                todo += _source_files(package) if package else []
+            elif sub or plain:
+                todo += _source_files((sub or plain).lstrip("."))
+            else:
+                todo += [f for n in names.split(",") for f in _source_files(n.strip())]
     return sorted(seen)
 
 

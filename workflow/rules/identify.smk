@@ -16,7 +16,7 @@ rule identify:
     params:
         vehicle=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data,
         windows=lambda wildcards: identification_windows(wildcards.vehicle),
-        code=code_digest("identify.py", "pem.py", "models.py"),
+        code=code_digest("identify.py", "pem.py", "models.py", "fit.py"),
     log:
         "logs/identify/{vehicle}/{model}.log",
     threads: 1
@@ -39,7 +39,7 @@ rule check:
         model="order[12]|interior_envelope",
     params:
         check=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data["check"],
-        code=code_digest("identify.py", "metrics.py"),
+        code=code_digest("identify.py", "metrics.py", "fit.py"),
     log:
         "logs/check/{vehicle}/{model}.log",
     threads: 1

@@ -8,7 +8,7 @@ rule kvalue:
         "results/vehicles/{vehicle}/kvalue.yaml",
     params:
         vehicle=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data,
-        code=code_digest("kvalue.py"),
+        code=code_digest("kvalue.py", "fit.py"),
     log:
         "logs/kvalue/{vehicle}.log",
     threads: 1

@@ -3,6 +3,7 @@
 import yaml
 
 from railtherm import identify, ingest, logs
+from railtherm.fit import write_yaml
 
 log = logs.to_file(snakemake.log[0])
 tables = {
@@ -16,8 +17,7 @@ if snakemake.input.kvalue:
 estimate, series = identify.identify(
     tables, snakemake.params.vehicle, kvalue, snakemake.wildcards.model
 )
-with open(snakemake.output.estimate, "w", encoding="utf-8") as stream:
-    yaml.safe_dump(estimate, stream, sort_keys=False)
+write_yaml(estimate, snakemake.output.estimate)
 ingest.write_tidy(series, snakemake.output.series)
 log.info(
     "%s: %s, cost %.6g",

@@ -1,0 +1,215 @@
+"""A checked fit of one grey-box model to one vehicle, as an object.
+
+:class:`Fit` is what ``fit_<model>.yaml`` holds (the rule ``check``'s output): the parameters
+with their 95 % intervals and the explicit "not identified" state, the flags, the fit
+measures (R^2 of eq. 21) and the verdict; with the identified model as a continuous
+state-space system (:meth:`Fit.to_statespace`, eqs. 7-8 or 9) and a simulator
+(:meth:`Fit.simulate`, exact zero-order hold as in eq. 15). :func:`read_fit` and
+:meth:`Fit.write` are the one place the file is read and written.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from railtherm import models, pem
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One parameter of a fit (SI units). ``estimated``: True (by PEM), False (fixed, e.g. kA
+    from the static test, eq. 10) or "derived" (kA of losses in series). ``ci95`` is the
+    combined 95 % interval (statistical and systematic), None for a fixed parameter.
+    ``identified`` is False where the data do not determine the value: then ``limit``
+    ("upper" | "lower" | "none") and ``limit_value`` say what the data do bound."""
+
+    name: str
+    value: float
+    estimated: bool | str
+    ci95: tuple[float, float] | None = None
+    identified: bool = True
+    limit: str | None = None
+    limit_value: float | None = None
+
+    @classmethod
+    def from_entry(cls, name: str, entry: Mapping[str, Any]) -> Parameter:
+        ident = pem.parameter_identification(entry)
+        ci = entry.get("ci95")
+        return cls(
+            name=name,
+            value=float(entry["value"]),
+            estimated=entry.get("estimated", True),
+            ci95=None if ci is None else (float(ci[0]), float(ci[1])),
+            identified=bool(ident["identified"]),
+            limit=ident.get("limit"),
+            limit_value=ident.get("limit_value"),
+        )
+
+    def __str__(self) -> str:
+        if not self.identified:
+            bound = "" if self.limit_value is None else f" {self.limit_value:.3g}"
+            side = {"upper": "at most", "lower": "at least"}.get(self.limit or "", "no bound")
+            return f"{self.name}: not identified ({side}{bound})"
+        if self.ci95 is None:
+            return f"{self.name} = {self.value:.4g} (fixed)"
+        return f"{self.name} = {self.value:.4g} [{self.ci95[0]:.4g}, {self.ci95[1]:.4g}]"
+
+
+@dataclass(frozen=True)
+class StateSpace:
+    """dx/dt = A x + B u, y = C x + D u (continuous time, SI units), with the names of the
+    states x, inputs u and outputs y: the identified model for any other tool (python-control,
+    MATLAB's ss). Every state is an output (the model's temperatures)."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+
+    def discretize(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """(A_d, B_d) of the exact zero-order-hold discretisation over ``dt`` s (eq. 15)."""
+        return models.discretize_zoh(self.A, self.B, dt)
+
+
+@dataclass
+class Fit:
+    """A checked fit: ``data`` is the content of ``fit_<model>.yaml``; ``series`` the
+    measured and simulated states per window (time, T, T_sim, ..., inputs), when known."""
+
+    data: dict[str, Any]
+    series: pd.DataFrame | None = field(default=None, repr=False)
+
+    # --- what the tables print
+    @property
+    def vehicle(self) -> str:
+        return str(self.data["vehicle"])
+
+    @property
+    def model(self) -> str:
+        return str(self.data["model"])
+
+    @property
+    def verdict(self) -> str:
+        return str(self.data["verdict"])
+
+    @property
+    def reasons(self) -> list[str]:
+        return list(self.data.get("reasons", []))
+
+    @property
+    def flags(self) -> list[dict[str, Any]]:
+        return list(self.data.get("flags", []))
+
+    @property
+    def R2(self) -> float:
+        """R^2 of the simulated T over every window (eq. 21)."""
+        return float(self.data["R2"])
+
+    @property
+    def k_source(self) -> str:
+        return str(self.data["k_source"])
+
+    @property
+    def parameters(self) -> dict[str, Parameter]:
+        return {p: Parameter.from_entry(p, e) for p, e in self.data["parameters"].items()}
+
+    @property
+    def theta(self) -> dict[str, float]:
+        """Every parameter's value by name (identified or not: the model as fitted)."""
+        return {p: float(e["value"]) for p, e in self.data["parameters"].items()}
+
+    # --- the model
+    @property
+    def structure(self) -> models.Structure:
+        """The grey-box structure, with the irradiance inputs it was fitted with."""
+        base, *irradiance = str(self.data["structure"]).split("+")
+        return models.structure_for(base, irradiance)
+
+    def to_statespace(self) -> StateSpace:
+        """The identified model as (A, B, C, D): eqs. 7-8 (second order), eq. 9 (first order)
+        or the interior-envelope structure, inputs T_o, Q_H and any irradiance."""
+        s = self.structure
+        A, B = s.matrices(self.theta)
+        n, m = B.shape
+        return StateSpace(
+            A=A,
+            B=B,
+            C=np.eye(n),
+            D=np.zeros((n, m)),
+            states=tuple(s.states),
+            inputs=tuple(s.inputs),
+            outputs=tuple(s.states),
+        )
+
+    def simulate(
+        self,
+        u: pd.DataFrame | np.ndarray,
+        dt: float,
+        x0: Sequence[float] | None = None,
+    ) -> pd.DataFrame:
+        """The states for inputs ``u`` (rows every ``dt`` s; columns T_o, Q_H and any
+        irradiance, by name if a DataFrame) held over each step (exact ZOH, eq. 15), from
+        ``x0`` (default: the steady state of the first input row). Returns time and states."""
+        s = self.structure
+        if isinstance(u, pd.DataFrame):
+            missing = [c for c in s.inputs if c not in u.columns]
+            if missing:
+                raise ValueError(
+                    f"simulate needs input columns {list(s.inputs)}; missing {missing}"
+                )
+            u = u[list(s.inputs)].to_numpy(float)
+        u = np.atleast_2d(np.asarray(u, dtype=float))
+        if u.shape[1] != len(s.inputs):
+            raise ValueError(f"u has {u.shape[1]} columns; the model's inputs are {s.inputs}")
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+        theta = self.theta
+        if x0 is None:
+            A, B = s.matrices(theta)
+            x0 = models.steady_state(A, B, u[0])
+        x = models.simulate(s, theta, u, dt, np.asarray(x0, dtype=float))
+        out = pd.DataFrame(x, columns=list(s.states))
+        out.insert(0, "time", np.arange(len(u)) * dt)
+        return out
+
+    # --- on disk
+    def write(self, path: str | os.PathLike[str]) -> None:
+        """Write ``fit_<model>.yaml`` (plain YAML, keys in the order of the fit)."""
+        write_yaml(self.data, path)
+
+    def summary(self) -> str:
+        """A few lines for people: the model, each parameter, R^2 and the verdict."""
+        lines = [
+            f"{self.vehicle} {self.model} ({self.k_source}): {self.verdict}, R2 = {self.R2:.4f}"
+        ]
+        lines += [f"  {p}" for p in self.parameters.values()]
+        lines += [f"  - {r}" for r in self.reasons]
+        return "\n".join(lines)
+
+
+def write_yaml(data: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
+    """A result as plain YAML (keys in insertion order), the form of every railtherm result
+    file (kvalue.yaml, identify/<model>.yaml, fit_<model>.yaml)."""
+    directory = os.path.dirname(str(path))
+    if directory:
+        os.makedirs(directory, exist_ok=True)
+    with open(path, "w", encoding="utf-8") as stream:
+        yaml.safe_dump(dict(data), stream, sort_keys=False)
+
+
+def read_fit(path: str | os.PathLike[str], series: str | os.PathLike[str] | None = None) -> Fit:
+    """A :class:`Fit` from ``fit_<model>.yaml`` (and its series CSV, if given)."""
+    with open(path, encoding="utf-8") as stream:
+        data = yaml.safe_load(stream)
+    return Fit(data, None if series is None else pd.read_csv(series))

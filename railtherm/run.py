@@ -1,0 +1,89 @@
+"""One vehicle through the study's chain, without the workflow engine.
+
+:func:`fit_vehicle` does for one validated :class:`~railtherm.config.Vehicle` what the rules
+``clean`` -> ``kvalue`` -> ``identify`` -> ``check`` do: tidy tables of its windows, the
+static k (eq. 10) when it has a k window, then each model fitted by simulation-error PEM
+(eqs. 15-20) with k fixed from stage one, and the verdict. With ``out`` it writes the same
+files under ``out/vehicles/<id>/`` as the workflow does under ``results/vehicles/<id>/``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import pandas as pd
+
+from railtherm import identify, ingest, kvalue
+from railtherm.config import Vehicle
+from railtherm.fit import Fit, write_yaml
+
+
+@dataclass
+class VehicleResult:
+    """What :func:`fit_vehicle` produced: the tidy tables by window name, the static k test
+    (None without a k window) and the checked fits by model key (order1, order2, ...)."""
+
+    vehicle: Vehicle
+    tables: dict[str, pd.DataFrame]
+    kvalue: kvalue.KValue | None
+    fits: dict[str, Fit] = field(default_factory=dict)
+
+
+def tidy_tables(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> dict[str, pd.DataFrame]:
+    """Every window of ``vehicle`` cleaned (rule ``clean``): the k window and the
+    identification windows, each raw file read once."""
+    raws: dict[str, pd.DataFrame] = {}
+    tables = {}
+    for name in ingest.window_names(vehicle.data):
+        raw_name, window, key = ingest.window_spec(vehicle.data, name)
+        path = vehicle.raw_files[raw_name]
+        if path not in raws:
+            raws[path] = ingest.read_raw(
+                os.path.join(str(workdir), path), vehicle.format, label=path
+            )
+        tables[name] = ingest.tidy(raws[path], vehicle.data, window, path, window_key=key)
+    return tables
+
+
+def fit_vehicle(
+    vehicle: Vehicle,
+    models: Sequence[str] | None = None,
+    out: str | os.PathLike[str] | None = None,
+    workdir: str | os.PathLike[str] = ".",
+) -> VehicleResult:
+    """Clean, static k, fit and check ``models`` (default: every model the config asks for,
+    :func:`railtherm.identify.model_keys`). ``out``: a results directory to write the rules'
+    files into (``vehicles/<id>/clean/<window>.csv``, ``kvalue.yaml``,
+    ``identify/<model>.yaml`` and ``_series.csv``, ``fit_<model>.yaml``)."""
+    keys = list(models) if models else identify.model_keys(vehicle.data)
+    unknown = [k for k in keys if identify.model_key(k) not in identify.MODEL_STRUCTURE]
+    if unknown:
+        raise ValueError(f"unknown model {unknown[0]!r}; known: {sorted(identify.MODEL_STRUCTURE)}")
+    tables = tidy_tables(vehicle, workdir)
+    base = None if out is None else os.path.join(str(out), "vehicles", vehicle.id)
+    if base is not None:
+        for name, table in tables.items():
+            ingest.write_tidy(table, os.path.join(base, "clean", f"{name}.csv"))
+    k = None
+    if "kvalue" in tables:
+        source = f"{vehicle.id} ({ingest.window_spec(vehicle.data, 'kvalue')[2]})"
+        k = kvalue.for_vehicle(tables["kvalue"], vehicle.data, source=source)
+        if base is not None:
+            write_yaml(k.to_dict(), os.path.join(base, "kvalue.yaml"))
+    windows = {w["name"]: tables[w["name"]] for w in vehicle.windows["identification"]}
+    result = VehicleResult(vehicle=vehicle, tables=tables, kvalue=k)
+    for key in keys:
+        model = identify.model_key(key)
+        estimate, series = identify.identify(
+            windows, vehicle.data, None if k is None else k.to_dict(), model
+        )
+        checked = identify.check(estimate, series, vehicle.data["check"])
+        fit = Fit(checked, series)
+        if base is not None:
+            write_yaml(estimate, os.path.join(base, "identify", f"{model}.yaml"))
+            ingest.write_tidy(series, os.path.join(base, "identify", f"{model}_series.csv"))
+            fit.write(os.path.join(base, f"fit_{model}.yaml"))
+        result.fits[model] = fit
+    return result
