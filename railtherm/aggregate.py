@@ -18,8 +18,10 @@ import numpy as np
 import pandas as pd
 
 from railtherm import pem
+from railtherm.metrics import ACCEPTABLE
 from railtherm.smallsample import t_interval, two_class_test
 from railtherm.tables import round_significant, write_csv
+from railtherm.yamlio import packaged_schema
 
 COVERAGE_FACTOR = 2.0  # expanded uncertainty U = 2 u: about 95 % for a normal distribution
 K_TOLERANCE_REL = 0.03  # agreement floor: within 3 % of the truth counts as agreeing
@@ -220,7 +222,8 @@ def model_markdown(df: pd.DataFrame, source: str) -> str:
 # ----------------------------------------------------------------------------------------------
 # the study's tables (paper section 6)
 
-CLASS_ORDER = ("tram", "metro", "regional", "main-line", "other")
+# the vehicle classes in the order of the paper's tables: the vehicle schema's list
+CLASS_ORDER = tuple(packaged_schema("vehicle")["properties"]["class"]["enum"])
 CLASS_LABEL = {
     "tram": "Tram",
     "metro": "Metro",
@@ -231,7 +234,6 @@ CLASS_LABEL = {
 Z95 = pem.Z95
 SYNTHETIC_SOURCE = "synthetic: virtual climatic wind tunnel campaign (not measurements)"
 MEASURED_SOURCE = "measured"
-ACCEPTABLE = "fit acceptable"
 ESTIMATED = "estimated"
 
 
@@ -383,7 +385,7 @@ def table3(
 ) -> pd.DataFrame:
     """Table 3: c_veh = C_veh / m_veh (eq. 24, J/(kg K)) and delta = C_veh / C (eq. 25) with
     95 % intervals, in Table 2's row order. c_veh takes C_veh's interval (the mass is taken as
-    exact); delta's interval is exp(log delta +- 1.96 sd), sd combining the statistical
+    exact); delta's interval is exp(log delta +- z_0.975 sd), sd combining the statistical
     variances and the correlation of log C and log C_veh with the systematic effects of each
     source on both. A ratio with a part the data do not determine is not identified either;
     its limit follows from the parts' (C at its lower bound: delta at least C_veh / bound)."""

@@ -65,6 +65,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from railtherm.acf import autocorrelation_time
 from railtherm.errors import DataError
 
 __all__ = [
@@ -247,34 +248,6 @@ def sensor_counts(channels: Mapping[str, Sequence[Mapping[str, Any]]]) -> dict[s
         "surface": float(len(channels.get("surface", []))),
         "power": float(len(channels.get("heater_power", [])) + len(channels.get("fan_power", []))),
     }
-
-
-def autocorrelation_time(x: Sequence[float]) -> float:
-    """Integrated autocorrelation time tau = 1 + 2 sum_{j>=1} rho_j (in samples) of a series.
-
-    Geyer's initial positive sequence: rho_0 + rho_1, rho_2 + rho_3, ... are summed while
-    positive (so oscillating, e.g. thermostat-cycled, series are truncated at the first
-    non-positive pair). Clamped to >= 1: anti-correlation earns no credit. 1 for a constant or
-    too short series."""
-    x = np.asarray(x, dtype=float)
-    n = x.size
-    if n < 4:
-        return 1.0
-    d = x - x.mean()
-    var = float(d @ d)
-    if var <= 0.0 or not math.isfinite(var):
-        return 1.0
-    size = 1 << (2 * n - 1).bit_length()
-    f = np.fft.rfft(d, size)
-    acov = np.fft.irfft(f * np.conj(f), size)[:n]
-    rho = acov / acov[0]
-    total = 0.0
-    for m in range(0, (n - 1) // 2):
-        pair = rho[2 * m] + rho[2 * m + 1]
-        if pair <= 0.0:
-            break
-        total += pair
-    return max(1.0, 2.0 * total - 1.0)
 
 
 def _line(t: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:

@@ -16,7 +16,7 @@ temperature T, n = 1..m, and e(n) = y(n) - yhat(n) the (simulation-error) residu
   Simulation-error residuals of slow thermal data are almost never white (any small model error
   leaves a slow, smooth residual), so the Ljung-Box p-value is nearly always ~0 on real data and
   is reported for information; the *autocorrelation time* tau (``railtherm.kvalue``'s
-  :func:`~railtherm.kvalue.autocorrelation_time`, Geyer's initial positive sequence) says how
+  :func:`~railtherm.acf.autocorrelation_time`, Geyer's initial positive sequence) says how
   coloured they are: the residuals carry about m / tau independent samples.
 * :func:`aic` and :func:`bic` from SSR, m, p under a Gaussian likelihood, to compare the first
   and the second order on the same data (lower is better; only differences matter).
@@ -34,9 +34,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.stats import chi2
 
-from railtherm.kvalue import autocorrelation_time
+from railtherm.acf import autocorrelation, autocorrelation_time, deviations
 
 __all__ = [
     "ACCEPTABLE",
@@ -129,39 +128,6 @@ def rmse(y: Any, yhat: Any) -> float:
     return math.sqrt(float(e @ e) / y.size)
 
 
-def _deviations(e: Any) -> tuple[np.ndarray, int]:
-    """Residuals minus their mean with NaN rows set to 0, and the number of finite rows."""
-    e = np.asarray(e, dtype=float)
-    if e.ndim != 1:
-        raise ValueError(f"residuals must be a 1-D array, got shape {e.shape}")
-    finite = ~np.isnan(e)
-    n = int(finite.sum())
-    d = np.zeros_like(e)
-    if n:
-        d[finite] = e[finite] - e[finite].mean()
-    return d, n
-
-
-def autocorrelation(e: Any, max_lag: int | None = None) -> np.ndarray:
-    """Sample autocorrelation rho_0..rho_max_lag of a residual series, by FFT.
-
-    rho_k = sum_n d(n) d(n + k) / sum_n d(n)^2 with d = e - mean(e) (the usual biased estimator,
-    as in Box-Jenkins and Ljung-Box). NaN rows count as zero deviations. max_lag defaults to
-    len(e) - 1 and is clipped to it. rho_0 = 1; all NaN for a constant or empty series."""
-    d, n = _deviations(e)
-    size = d.size
-    max_lag = size - 1 if max_lag is None else min(int(max_lag), size - 1)
-    if max_lag < 0:
-        return np.empty(0)
-    var = float(d @ d)
-    if n == 0 or not var > 0.0:
-        return np.full(max_lag + 1, math.nan)
-    nfft = 1 << (2 * size - 1).bit_length()
-    f = np.fft.rfft(d, nfft)
-    acov = np.fft.irfft(f * np.conj(f), nfft)[: max_lag + 1]
-    return acov / var
-
-
 @dataclass(frozen=True)
 class Whiteness:
     """Ljung-Box test of residual whiteness, and how coloured the residuals are.
@@ -201,7 +167,7 @@ def ljung_box(e: Any, lags: int | None = None, fitted: int = 0) -> Whiteness:
     lags defaults to min(20, m // 5) (at least 1); ``fitted`` is subtracted from the degrees of
     freedom (the ARMA convention; 0 for simulation-error residuals, whose parameters do not
     whiten them). The p-value is chi2.sf(Q, dof) (scipy.stats.chi2)."""
-    d, m = _deviations(e)
+    d, m = deviations(e)
     if m < 3:
         raise ValueError(f"the Ljung-Box test needs at least 3 finite residuals, got {m}")
     if lags is None:
@@ -218,6 +184,8 @@ def ljung_box(e: Any, lags: int | None = None, fitted: int = 0) -> Whiteness:
         q, p = 0.0, 1.0
     else:
         q = float(m * (m + 2) * np.sum(rho[1:] ** 2 / (m - k)))
+        from scipy.stats import chi2  # ~2 s to import: only where a p-value is asked for
+
         p = float(chi2.sf(q, dof))
     tau = float(autocorrelation_time(d[~np.isnan(np.asarray(e, dtype=float))]))
     return Whiteness(q=q, p_value=p, lags=lags, dof=dof, m=m, tau=tau, effective_samples=m / tau)

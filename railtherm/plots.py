@@ -39,6 +39,7 @@ from matplotlib.text import Text
 
 from railtherm import aggregate, pem
 from railtherm.kvalue import KValue
+from railtherm.metrics import ACCEPTABLE, IN_DOUBT
 
 __all__ = [
     "fit_figure",
@@ -72,7 +73,6 @@ COLORS = {"T": "#c0392b", "T_veh": "#8e44ad", "T_o": "#2471a3", "Q_H": "#4d4d4d"
 IRRADIANCE_COLORS = ("#d68910", "#b9770e", "#7d6608")
 FIGSIZE_FIG5_IN = (3.5, 3.0)  # each of Figure 5 (a) and (b): one paper column
 SYNTHETIC_NOTE = "synthetic data: virtual climatic wind tunnel (not measurements)"
-DOUBT = "assumptions in doubt"
 # the models of Figure 3: told apart by line style as well as colour (grey print)
 MODEL_LABELS = {1: "first-order model (eq. 9)", 2: "second-order model (eqs. 7-8)"}
 MODEL_STYLES = {
@@ -748,7 +748,7 @@ def _class_figure(
                     lo, hi = float(row[f"{quantity}_lo"]), float(row[f"{quantity}_hi"])
                     if np.isfinite(lo) and np.isfinite(hi):
                         ax.vlines(x, lo, hi, color=COLORS["T_veh"], lw=0.6, alpha=0.8, zorder=2)
-                    doubt = str(row["verdict"]) == DOUBT
+                    doubt = str(row["verdict"]) == IN_DOUBT
                     (point,) = ax.plot([x], [y], ls="none", zorder=5, **_POINT[doubt])
                 else:
                     any_open = True
@@ -805,8 +805,8 @@ def _class_figure(
         verdicts = table3.loc[ok, "verdict"].astype(str)
         handles = [
             Line2D([], [], ls="none", label=label, **_POINT[doubt])
-            for doubt, label in ((False, "fit acceptable"), (True, DOUBT))
-            if ((verdicts == DOUBT) == doubt).any()
+            for doubt, label in ((False, ACCEPTABLE), (True, IN_DOUBT))
+            if ((verdicts == IN_DOUBT) == doubt).any()
         ]
         bar = {"marker": "|", "ms": 9, "mew": 0.6, "color": COLORS["T_veh"]}
         handles.append(Line2D([], [], ls="none", label="95 % interval", **bar))
