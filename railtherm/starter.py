@@ -1,0 +1,604 @@
+"""A starter vehicle YAML for a raw logger file: ``railtherm new-vehicle RAW.csv``.
+
+The file format is detected, the rest is guessed or left as an explicit TODO:
+
+- **separator** among ``,`` ``;`` and tab by :class:`csv.Sniffer` on the first lines (if it
+  cannot decide: the candidate that splits the header into the most columns);
+- **decimal mark** ``.`` or ``,``: the one with which pandas reads more columns as numbers
+  (``.`` when both read alike, and always with the separator ``,``);
+- **gzip** by the extension ``.gz`` (pandas reads it as :mod:`railtherm.rawfile` does);
+- **time column**: the first column whose name looks like a time (time, zeit, date, datum,
+  stamp), else the first column; its **format** is ``seconds`` if every value is a number,
+  ``iso`` if every value is an ISO 8601 timestamp (parsed by :func:`railtherm.rawfile.read_layout`,
+  exactly as the validator will), otherwise a TODO: railtherm reads no other format;
+- **channel groups** from the column names (English and German, case-insensitive), each guess
+  marked ``# guessed from the column name: check``; temperatures whose values are above 200
+  get ``unit: K``, power columns named with ``kW`` get ``unit: kW`` (else ``W``);
+- **windows**: one identification window over the whole file, in the file's own notation; the
+  static k window stays a commented-out TODO, as only the engineer can choose the steady part.
+
+What no file can tell (class, mass, outer surface, air volume) is written as the placeholder
+``TODO``, which ``railtherm validate`` refuses until it is replaced.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import gzip
+import json
+import os
+import re
+import sys
+import zlib
+from dataclasses import dataclass, field
+from typing import Any
+
+import pandas as pd
+import yaml
+
+from railtherm.errors import ConfigError, DataError
+from railtherm.rawfile import (
+    RawLayout,
+    csv_error,
+    parse_times,
+    read_columns,
+    read_layout,
+    separator_hint,
+)
+from railtherm.yamlio import packaged_schema
+
+TODO = "TODO"
+GUESSED = "# guessed from the column name: check"
+SEPARATORS = (",", ";", "\t")
+SNIFF_CHARS = 64 * 1024  # the text csv.Sniffer looks at
+SAMPLE_ROWS = 5000  # rows read to detect the decimal mark and the units
+NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")  # ids and names in the schema
+CLASSES = tuple(packaged_schema("vehicle")["properties"]["class"]["enum"])
+
+_TIME_NAME = re.compile(r"time|zeit|date|datum|stamp")
+# Channel groups in the order a name is tried: the more specific words first (a wall
+# temperature is not the indoor air, a fan power is not the heater's). Names are lowercased
+# and German umlauts spelt out (Außen -> aussen, Lüfter -> luefter) before matching; short
+# symbols such as T_in must stand alone ("Zeit_in" is not T_in).
+_ALONE_BEFORE, _ALONE_AFTER = r"(?<![a-z])", r"(?![a-z])"
+CHANNEL_WORDS: tuple[tuple[str, re.Pattern[str]], ...] = (
+    (
+        "irradiance",
+        re.compile(rf"{_ALONE_BEFORE}i_?sol|solar|strahlung|irradian|pyrano|global_?rad"),
+    ),
+    ("surface", re.compile(r"surf|wall|wand|oberfl")),
+    ("fan_power", re.compile(r"fan|luefter|geblaese")),
+    ("heater_power", re.compile(rf"{_ALONE_BEFORE}p_?hea|heat|heiz|power|leistung")),
+    (
+        "outdoor_air",
+        re.compile(
+            rf"{_ALONE_BEFORE}t_?(ext|out|amb|o){_ALONE_AFTER}|aussen|outdoor|outside|ambient"
+            r"|umgebung|kanal|tunnel"
+        ),
+    ),
+    (
+        "indoor_air",
+        re.compile(
+            rf"{_ALONE_BEFORE}t_?(int|in|i){_ALONE_AFTER}|innen|cabin|kabine|indoor|inside"
+            r"|interior|raum|fahrgast"
+        ),
+    ),
+)
+TEMPERATURE_GROUPS = ("indoor_air", "surface", "outdoor_air")
+POWER_GROUPS = ("heater_power", "fan_power", "heat_flows")
+# the schema's order of the channel groups; the first, third and fourth are required
+GROUP_ORDER = (
+    "indoor_air",
+    "surface",
+    "outdoor_air",
+    "heater_power",
+    "fan_power",
+    "heat_flows",
+    "irradiance",
+)
+REQUIRED_GROUPS = {
+    "indoor_air": "the indoor air temperature sensor(s), their weighted mean is T",
+    "outdoor_air": "the outdoor (tunnel) air temperature sensor(s), their weighted mean is T_o",
+    "heater_power": "the heater power channel(s) in W or kW, summed into Q_H",
+}
+_KW = re.compile(rf"{_ALONE_BEFORE}kw{_ALONE_AFTER}")
+_UMLAUTS = str.maketrans({"ä": "ae", "ö": "oe", "ü": "ue", "ß": "ss"})
+
+
+@dataclass
+class Detected:
+    """What :func:`detect` found in a raw file.
+
+    ``layout`` is None when no time column could be read as ``iso`` or ``seconds``;
+    ``time_problem`` then says why, and ``time_column_known`` whether the column or only its
+    format is in doubt. ``sample`` holds the first rows read with the detected
+    separator and decimal mark.
+    """
+
+    path: str
+    columns: tuple[str, ...]
+    separator: str
+    decimal: str
+    time_column: str
+    time_by_name: bool
+    layout: RawLayout | None
+    time_problem: str = ""
+    time_column_known: bool = True  # False: the guessed column is no time (it does not increase)
+    sample: pd.DataFrame = field(default_factory=pd.DataFrame)
+
+
+@dataclass
+class Channel:
+    """One guessed channel: its column, unit (None: the schema's default) and a comment."""
+
+    column: str
+    unit: str | None = None
+    note: str = ""
+
+
+# ---------------------------------------------------------------------------------------------
+# Detection
+
+
+def _head_text(path: str) -> str:
+    """The first lines of a plain or gzip-compressed text file (whole lines only)."""
+    opener = gzip.open if path.endswith(".gz") else open
+    try:
+        with opener(path, "rt", encoding="utf-8", errors="replace", newline="") as stream:
+            text = stream.read(SNIFF_CHARS)
+    except (OSError, EOFError, zlib.error) as exc:
+        raise csv_error(path, exc) from None
+    if len(text) == SNIFF_CHARS and "\n" in text:
+        text = text[: text.rindex("\n") + 1]
+    return text
+
+
+def _header_width(text: str, separator: str) -> int:
+    first = text.splitlines()[0] if text.strip() else ""
+    return len(next(csv.reader([first], delimiter=separator), []))
+
+
+def detect_separator(path: str) -> str:
+    """``,``, ``;`` or tab, by :class:`csv.Sniffer`; if it cannot decide, or its choice leaves
+    the header one column wide, the candidate that splits the header into the most columns."""
+    text = _head_text(path)
+    if not text.strip():
+        raise DataError(path, "", None, "the file is empty (no header line)")
+    try:
+        separator = csv.Sniffer().sniff(text, delimiters="".join(SEPARATORS)).delimiter
+    except csv.Error:
+        separator = ""
+    if separator not in SEPARATORS or _header_width(text, separator) < 2:
+        separator = max(SEPARATORS, key=lambda s: _header_width(text, s))  # "," on a tie
+    return separator
+
+
+def _read_sample(path: str, separator: str, decimal: str) -> pd.DataFrame:
+    try:
+        return pd.read_csv(path, sep=separator, decimal=decimal, nrows=SAMPLE_ROWS, index_col=False)
+    except (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError) as exc:
+        raise csv_error(path, exc) from None
+
+
+def _numeric_columns(sample: pd.DataFrame) -> int:
+    return sum(pd.api.types.is_numeric_dtype(sample[c]) for c in sample.columns)
+
+
+def detect_decimal(path: str, separator: str) -> tuple[str, pd.DataFrame]:
+    """The decimal mark with which pandas reads more columns as numbers, and the sample read
+    with it: ``,`` only when it reads more (``21,5``) and the separator is not ``,``."""
+    dot = _read_sample(path, separator, ".")
+    if separator == ",":
+        return ".", dot
+    comma = _read_sample(path, separator, ",")
+    if _numeric_columns(comma) > _numeric_columns(dot):
+        return ",", comma
+    return ".", dot
+
+
+def detect(raw_path: str | os.PathLike[str]) -> Detected:
+    """Separator, decimal mark, time column and format, and the time span of a raw file.
+
+    :class:`DataError` naming the file when it is empty, cannot be read as CSV, or has fewer
+    than two columns.
+    """
+    path = str(raw_path)
+    separator = detect_separator(path)
+    columns = read_columns(path, separator)
+    if len(columns) < 2:
+        reason = "the header reads as one column with each of the separators ',', ';' and tab"
+        if separator_hint(columns, separator):  # none of those, so '|' would split it
+            reason += "; for a file separated by '|', write format.separator '|' by hand"
+        else:
+            reason += ": a raw file needs a time column and at least one channel"
+        raise DataError(path, "(header)", columns[0] if columns else "", reason)
+    decimal, sample = detect_decimal(path, separator)
+    named = [c for c in columns if _TIME_NAME.search(c.lower())]
+    time_column = named[0] if named else columns[0]
+    layout, problems = None, []
+    for time_format in ("seconds", "iso"):
+        try:
+            layout = read_layout(path, separator, decimal, time_column, time_format)
+            break
+        except DataError as exc:
+            if exc.value is None:  # about the file (no data rows), not a time value
+                raise
+            problems.append(exc.value)
+    problem, column_known = "", True
+    if layout is None:
+        problem = (
+            f"the time column '{time_column}' holds neither elapsed seconds nor ISO 8601 "
+            f"timestamps (for example {problems[0]!r})"
+        )
+    elif not _increasing(path, sample, layout, decimal):
+        problem = f"the column '{time_column}' does not increase from row to row"
+        layout, column_known = None, False
+    return Detected(
+        path=path,
+        columns=columns,
+        separator=separator,
+        decimal=decimal,
+        time_column=time_column,
+        time_by_name=bool(named),
+        layout=layout,
+        time_problem=problem,
+        time_column_known=column_known,
+        sample=sample,
+    )
+
+
+def _increasing(path: str, sample: pd.DataFrame, layout: RawLayout, decimal: str) -> bool:
+    """The time column increases strictly in the sample's rows (a channel taken for the time
+    column does not)."""
+    column = layout.time_column
+    try:
+        times = parse_times(path, sample[column].astype(str), column, layout.time_format, decimal)
+    except DataError:
+        return False
+    return bool(times.is_monotonic_increasing and times.is_unique and len(times) > 1)
+
+
+def _normalised_name(column: str) -> str:
+    return column.lower().translate(_UMLAUTS)
+
+
+def channel_group(column: str) -> str | None:
+    """The channel group a column name suggests (None: no guess)."""
+    name = _normalised_name(column)
+    for group, pattern in CHANNEL_WORDS:
+        if pattern.search(name):
+            return group
+    return None
+
+
+def _values(sample: pd.DataFrame, column: str) -> pd.Series:
+    if column not in sample.columns:
+        return pd.Series(dtype=float)
+    return pd.to_numeric(sample[column], errors="coerce").dropna()
+
+
+def _range(values: pd.Series) -> str:
+    if values.empty:
+        return "no numeric values in the first rows"
+    if values.min() == values.max():
+        return f"value {values.min():.4g} throughout the first rows"
+    return f"values {values.min():.4g} to {values.max():.4g}"
+
+
+def guess_channels(found: Detected) -> tuple[dict[str, list[Channel]], list[str]]:
+    """Channels by group from the column names, with units from the names and the values; and
+    the columns left unmapped (the time column excluded)."""
+    groups: dict[str, list[Channel]] = {g: [] for g in GROUP_ORDER}
+    unmapped = []
+    for column in found.columns:
+        if column == found.time_column and found.time_column_known:
+            continue
+        group = channel_group(column)
+        if group is None:
+            unmapped.append(column)
+            continue
+        values = _values(found.sample, column)
+        kw = bool(_KW.search(column.lower()))
+        if group in TEMPERATURE_GROUPS:
+            if not values.empty and values.median() > 200:
+                channel = Channel(column, "K", f"{_range(values)}, above 200: kelvin")
+            else:
+                channel = Channel(column, None, f"{_range(values)} °C")
+        elif group in POWER_GROUPS:
+            why = "kW in the name" if kw else "no kW in the name: W"
+            channel = Channel(column, "kW" if kw else "W", f"{_range(values)}, {why}")
+        else:  # irradiance
+            channel = Channel(column, "kW/m2" if kw else "W/m2", _range(values))
+        groups[group].append(channel)
+    return groups, unmapped
+
+
+# ---------------------------------------------------------------------------------------------
+# The YAML text
+
+
+def _scalar(value: Any) -> str:
+    """``value`` as a YAML scalar: plain where that reads back the same, else double-quoted
+    (a JSON string is a valid YAML double-quoted scalar)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        number = float(value)
+        return str(int(number)) if number.is_integer() else repr(number)
+    text = str(value)
+    plain = re.fullmatch(r"[A-Za-z_][A-Za-z0-9_./\-]*", text) is not None
+    if plain and yaml.safe_load(text) == text:
+        return text
+    return json.dumps(text, ensure_ascii=False)
+
+
+def _stem(path: str) -> str:
+    name = os.path.basename(path)
+    for ext in (".gz", ".csv", ".txt", ".dat", ".tsv"):
+        if name.lower().endswith(ext):
+            name = name[: -len(ext)]
+    return name
+
+
+def _name_from(text: str, fallback: str) -> str:
+    """A name the schema accepts (letter first, then letters, digits, _ or -)."""
+    name = re.sub(r"[^A-Za-z0-9_-]+", "_", text).strip("_-")
+    if not name:
+        return fallback
+    return name if name[0].isalpha() else f"{fallback}_{name}"
+
+
+def _raw_path(path: str, yaml_dir: str) -> str:
+    """The raw file's path relative to the YAML's directory, as load_vehicle reads it; absolute
+    when the two share no directory but the root (a relative path would only climb to it)."""
+    absolute = os.path.abspath(path)
+    try:
+        shared = os.path.commonpath([absolute, yaml_dir])
+        relative = os.path.relpath(absolute, yaml_dir)
+    except ValueError:  # another drive
+        return absolute
+    if os.path.dirname(shared) == shared:  # only the root (or drive) in common
+        return absolute
+    return relative.replace(os.sep, "/")
+
+
+def _time_text(value: pd.Timestamp | float) -> str:
+    if isinstance(value, pd.Timestamp):
+        return _scalar(value.isoformat())
+    return _scalar(value)
+
+
+def _comment_line(key_text: str, comment: str, width: int = 30) -> str:
+    return f"{key_text.ljust(width)} {comment}" if comment else key_text
+
+
+class _Todos(list):
+    """The TODO list: ``add`` records ``key: meaning`` and returns the YAML comment."""
+
+    def add(self, key: str, meaning: str) -> str:
+        self.append(f"{key}: {meaning}")
+        return f"# TODO: {meaning}"
+
+
+def _header(found: Detected) -> list[str]:
+    layout = found.layout
+    shown_sep = "\\t" if found.separator == "\t" else found.separator
+    compressed = ", gzip-compressed" if found.path.endswith(".gz") else ""
+    lines = [
+        "# Starter vehicle file written by `railtherm new-vehicle` from",
+        f"#   {found.path}",
+        f"# Detected: separator '{shown_sep}', decimal mark '{found.decimal}'{compressed}, "
+        f"{len(found.columns)} columns.",
+    ]
+    if layout is not None:
+        what = "elapsed seconds" if layout.time_format == "seconds" else "ISO 8601 timestamps"
+        unit = " s" if layout.time_format == "seconds" else ""
+        span = f"from {_time_text(layout.t_first)}{unit} to {_time_text(layout.t_last)}{unit}"
+        lines.append(f"# Time: column '{found.time_column}' in {what}, {span}.")
+    else:
+        lines.append(f"# Time: not understood: {found.time_problem}.")
+    return [
+        *lines,
+        "# Fill in every TODO and check every line marked 'guessed', then run",
+        "#   railtherm validate <this file>",
+        "# Every key is explained in config/README.md.",
+        "",
+    ]
+
+
+def _metadata(vid: str, from_file_name: bool, todos: _Todos) -> list[str]:
+    origin = "from the file name; " if from_file_name else ""
+    classes = f"the vehicle class, one of {', '.join(CLASSES)}"
+    lines = [
+        _comment_line(f"id: {_scalar(vid)}", f"# {origin}used in every output path"),
+        _comment_line(f"class: {TODO}", todos.add("class", classes)),
+        "# description: free text (optional)",
+    ]
+    for key, meaning in (
+        ("mass_kg", "the vehicle mass m_veh in kg (> 0), for c_veh = C_veh / m_veh"),
+        ("surface_m2", "A, the overall uncoiled outer surface in m2 (> 0), for k = kA / A"),
+        ("volume_m3", "the interior air volume in m3 (> 0)"),
+    ):
+        lines.append(_comment_line(f"{key}: {TODO}", todos.add(key, meaning)))
+    return [*lines, ""]
+
+
+def _format(found: Detected, todos: _Todos) -> list[str]:
+    layout = found.layout
+    lines = [
+        "format:",
+        _comment_line(f"  separator: {json.dumps(found.separator)}", "# detected"),
+        _comment_line(f'  decimal: "{found.decimal}"', "# detected"),
+        "  # power_timing: instant      # optional: what a logged power value stands for:",
+        "  #   instant | mean_preceding | mean_following (energy meters); see the logger's manual",
+        "  time:",
+    ]
+    if layout is not None:
+        first = "# the first column (no name looks like time): check"
+        why = GUESSED if found.time_by_name else first
+        lines.append(_comment_line(f"    column: {_scalar(found.time_column)}", why))
+        note = "# detected: every value parses"
+        if layout.time_format == "seconds" and abs(float(layout.t_first)) > 1e8:
+            note += "; Unix time (seconds since 1970) is fine as seconds"
+        elif layout.time_format == "seconds" and float(layout.t_first) != 0:
+            note += f"; starts at {_scalar(layout.t_first)} s: check the unit is seconds"
+        lines.append(_comment_line(f"    format: {layout.time_format}", note))
+        if layout.step_s:
+            lines.append(f"    # logger step: {layout.step_s:g} s (the median time difference)")
+    elif not found.time_column_known:
+        column = todos.add("format.time.column", f"name the time column ({found.time_problem})")
+        form = todos.add("format.time.format", "iso or seconds, the format of that column")
+        lines.append(_comment_line(f"    column: {TODO}", column))
+        lines.append(_comment_line(f"    format: {TODO}", form))
+    else:
+        meaning = (
+            f"{found.time_problem}; railtherm reads only iso and seconds: convert the time "
+            "column to one of them"
+        )
+        lines.append(_comment_line(f"    column: {_scalar(found.time_column)}", GUESSED))
+        lines.append(_comment_line(f"    format: {TODO}", todos.add("format.time.format", meaning)))
+    return [*lines, ""]
+
+
+def _channels(found: Detected, todos: _Todos) -> list[str]:
+    groups, unmapped = guess_channels(found)
+    block: list[tuple[str, str]] = []  # (entry, comment), the comments aligned
+    for group in GROUP_ORDER:
+        channels = groups[group]
+        if not channels and group not in REQUIRED_GROUPS:
+            continue
+        block.append((f"  {group}:", ""))
+        if not channels:
+            meaning = f"{REQUIRED_GROUPS[group]}; no column name says so"
+            block.append((f"    - {{column: {TODO}}}", todos.add(f"channels.{group}", meaning)))
+        for channel in channels:
+            entry = f"column: {_scalar(channel.column)}"
+            if channel.unit is not None:
+                entry += f", unit: {_scalar(channel.unit)}"
+            block.append((f"    - {{{entry}}}", f"{GUESSED} ({channel.note})"))
+    width = max(30, *(len(entry) for entry, comment in block if comment))
+    lines = ["channels:", *(_comment_line(entry, comment, width) for entry, comment in block)]
+    if unmapped:
+        lines.append(f"  # not mapped: {', '.join(unmapped)}")
+        lines.append(
+            "  # (add each that is a channel; known heat flows in W or kW go under heat_flows)"
+        )
+    return [*lines, ""]
+
+
+def _windows(found: Detected, todos: _Todos) -> list[str]:
+    lines = [
+        "windows:",
+        "  # kvalue:                    # TODO (optional): the steady part of the test for",
+        "  #   start: ...               # the static k test (eq. 10); only you can choose it",
+        "  #   end: ...",
+        "  identification:              # the whole file: narrow it or split it as needed",
+        "    - name: whole",
+    ]
+    if found.layout is not None:
+        lines.append(f"      start: {_time_text(found.layout.t_first)}")
+        lines.append(f"      end: {_time_text(found.layout.t_last)}")
+    else:
+        meaning = "the window's start and end, once the time column is understood"
+        lines.append(
+            _comment_line(f"      start: {TODO}", todos.add("windows.identification", meaning))
+        )
+        lines.append(f"      end: {TODO}")
+    return [*lines, ""]
+
+
+def starter_vehicle(
+    raw_path: str | os.PathLike[str],
+    vehicle_id: str | None = None,
+    yaml_dir: str | os.PathLike[str] | None = None,
+) -> tuple[str, list[str]]:
+    """The text of a starter vehicle YAML for ``raw_path`` and its TODO list.
+
+    ``yaml_dir`` is the directory the YAML will be saved in (default: the current directory):
+    ``raw_files`` gives the raw file's path relative to it, as
+    :func:`railtherm.config.load_vehicle` reads it. Each TODO starts with the key to fill, then
+    ``: `` and what is meant; ``railtherm validate`` refuses the file until every TODO is
+    filled. The keys come in the schema's order.
+    """
+    path = str(raw_path)
+    if not os.path.isfile(path):
+        raise ConfigError(path, "(file)", path, "file not found")
+    if vehicle_id is not None and not NAME_PATTERN.match(vehicle_id):
+        raise ConfigError(
+            "--id",
+            "id",
+            vehicle_id,
+            "must start with a letter and contain only letters, digits, _ or -",
+        )
+    found = detect(path)
+    stem = _stem(path)
+    yaml_dir = os.path.abspath(yaml_dir if yaml_dir is not None else os.getcwd())
+    todos = _Todos()
+    lines = [
+        *_header(found),
+        *_metadata(vehicle_id or _name_from(stem, "V"), vehicle_id is None, todos),
+        "raw_files:                     # relative to the directory of this file",
+        f"  {_name_from(stem, 'raw')}: {_scalar(_raw_path(path, yaml_dir))}",
+        "",
+        *_format(found, todos),
+        *_channels(found, todos),
+        *_windows(found, todos),
+        "# model:                       # optional; the study's defaults.model applies",
+        "#   mode: joint                # kA estimated with the capacities: for a record",
+        "#                              # without a steady window (windows.kvalue)",
+    ]
+    return "\n".join(lines) + "\n", list(todos)
+
+
+# ---------------------------------------------------------------------------------------------
+# The command
+
+
+def _run(args: argparse.Namespace) -> int:
+    out = args.out
+    if out is not None and os.path.exists(out):
+        raise ConfigError(
+            out, "(file)", out, "exists already; new-vehicle does not overwrite a file"
+        )
+    yaml_dir = os.path.dirname(os.path.abspath(out)) if out is not None else None
+    text, todos = starter_vehicle(args.raw, args.id, yaml_dir)
+    listing = [f"  {t}" for t in todos]
+    if out is None:
+        sys.stdout.write(text)
+        # the TODO list goes to stderr so that `> VEHICLE.yaml` keeps only the YAML
+        print("TODO:", *listing, sep="\n", file=sys.stderr)
+        return 0
+    os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
+    try:
+        with open(out, "x", encoding="utf-8") as stream:
+            stream.write(text)
+    except FileExistsError:
+        raise ConfigError(
+            out, "(file)", out, "exists already; new-vehicle does not overwrite a file"
+        ) from None
+    print(f"wrote {out}")
+    print(f"TODO (fill in, then run `railtherm validate {out}`):", *listing, sep="\n")
+    print("Check every line marked 'guessed'; windows.kvalue is optional (see the comments).")
+    return 0
+
+
+def register(commands: Any) -> None:
+    """Add the ``new-vehicle`` subparser to ``commands`` (an argparse subparsers object)."""
+    parser = commands.add_parser(
+        "new-vehicle",
+        help="write a starter vehicle YAML for a raw logger file",
+        description=(
+            "Detect the separator, decimal mark and time format of RAW.csv, guess which column "
+            "feeds which channel group, and write a vehicle YAML with explicit TODOs for what "
+            "the file cannot tell. 'railtherm validate' accepts it once the TODOs are filled."
+        ),
+    )
+    parser.add_argument("raw", metavar="RAW.csv", help="raw logger file (plain or .gz)")
+    parser.add_argument(
+        "--out",
+        metavar="VEHICLE.yaml",
+        help="file to write (never overwritten; default: print the YAML to stdout)",
+    )
+    parser.add_argument("--id", help="vehicle id (default: from the raw file's name)")
+    parser.set_defaults(run=_run)
