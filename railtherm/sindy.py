@@ -41,7 +41,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import pysindy as ps
 
 STATES = ("T", "T_veh")
 INPUTS = ("T_o", "Q_H")
@@ -52,9 +51,22 @@ STRUCTURE = np.array([[True, True, True, True], [True, True, False, False]])
 HOUR = 3600.0
 KW = 1000.0
 
+
+def _pysindy():
+    """pysindy, imported when the cross-check runs (an optional extra of railtherm)."""
+    try:
+        import pysindy
+    except ImportError:
+        raise ImportError(
+            "the SINDy cross-check needs pysindy: pip install 'railtherm[sindy]' "
+            "(or switch it off with sindy: {enabled: false} in the study config)"
+        ) from None
+    return pysindy
+
+
 DERIVATIVES = {
-    "finite_difference": lambda: ps.FiniteDifference(order=2),
-    "smoothed_finite_difference": lambda: ps.SmoothedFiniteDifference(),
+    "finite_difference": lambda: _pysindy().FiniteDifference(order=2),
+    "smoothed_finite_difference": lambda: _pysindy().SmoothedFiniteDifference(),
 }
 
 CONFIRMED = "structure confirmed"
@@ -160,6 +172,7 @@ def _regression(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Rows of the library Theta, the derivatives dx/dt and a block label per row (the
     window index), with the sample step (s). Edge rows of each window are dropped."""
+    ps = _pysindy()
     library = ps.PolynomialLibrary(degree=1, include_bias=False)
     differentiate = DERIVATIVES[settings.derivative]()
     thetas, dxs, labels, steps = [], [], [], []
@@ -185,6 +198,7 @@ def _regression(
 
 def _stlsq(theta: np.ndarray, dx: np.ndarray, threshold: float) -> np.ndarray:
     """STLSQ per equation, threshold relative to the equation's largest LS coefficient."""
+    ps = _pysindy()
     xi = np.zeros((dx.shape[1], theta.shape[1]))
     for i in range(dx.shape[1]):
         full = np.linalg.lstsq(theta, dx[:, i], rcond=None)[0]
