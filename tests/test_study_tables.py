@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import aggregate, pem, smallsample
+from railtherm import aggregate, pem, smallsample, tableformat
 
 
 def fit(
@@ -216,9 +216,9 @@ def test_a_value_at_a_bound_is_never_printed_averaged_or_tested():
     metro_delta = cs.loc[("every identified value", "metro", "delta")]
     assert metro_delta["n"] == 2 and metro_delta["not_identified"] == "M0"
     assert metro_delta["max"] < 2.0  # the pinned 1,400 is nowhere
-    md = aggregate.to_markdown("table2", tables["table2"], "T2.", "synthetic", [])
+    md = tableformat.to_markdown("table2", tables["table2"], "T2.", "synthetic", [])
     assert "not identified (≤ 1.0×10⁴)" in md and "not identified (≥ 10,000,000)" in md
-    md3 = aggregate.to_markdown("table3", t3.reset_index(), "T3.", "s", [])
+    md3 = tableformat.to_markdown("table3", t3.reset_index(), "T3.", "s", [])
     assert "not identified (≥ 1,400)" in md3 and "1,400 [" not in md3  # a limit, no estimate
 
 
@@ -260,7 +260,7 @@ def test_recovery_needs_an_identified_estimate():
     ],
 )
 def test_numbers_are_printed_as_the_paper_does(kind, x, lo, hi, text):
-    assert aggregate._value_interval(kind, x, lo, hi, tex=False) == text
+    assert tableformat._value_interval(kind, x, lo, hi, tex=False) == text
 
 
 def test_study_tables_are_written_with_their_source(tmp_path):
@@ -273,7 +273,7 @@ def test_study_tables_are_written_with_their_source(tmp_path):
         for ext in ("csv", "md", "tex")
     }
     source = aggregate.data_source(vehicles)
-    aggregate.write_study_tables(tables, source, paths)
+    tableformat.write_study_tables(tables, source, paths)
     for name in tables:
         csv = pd.read_csv(paths[f"{name}_csv"])
         assert (csv["source"] == aggregate.SYNTHETIC_SOURCE).all()

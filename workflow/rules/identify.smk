@@ -86,7 +86,7 @@ rule compare_models:
         md="results/tables/models.md",
     params:
         data={vid: STUDY.vehicles[vid].data for vid in VEHICLES},
-        code=code_digest("aggregate.py"),
+        code=code_digest("aggregate.py", "tableformat.py"),
     log:
         "logs/compare_models.log",
     threads: 1

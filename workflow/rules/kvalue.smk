@@ -61,7 +61,7 @@ rule kvalue_table:
         "results/tables/kvalue.csv",
     params:
         vehicles=kvalue_vehicles(),
-        code=code_digest("aggregate.py", "synth.py"),
+        code=code_digest("aggregate.py"),
     log:
         "logs/kvalue_table.log",
     threads: 1

@@ -58,7 +58,7 @@ rule aggregate:
         vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
         with_kvalue=[vid for vid in second_order_vehicles() if vid in kvalue_vehicles()],
         class_test=config["study"]["class_test"],
-        code=code_digest("aggregate.py"),
+        code=code_digest("aggregate.py", "tableformat.py"),
     log:
         "logs/aggregate.log",
     threads: 1

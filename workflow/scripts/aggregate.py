@@ -4,7 +4,7 @@ from pathlib import Path
 
 import yaml
 
-from railtherm import aggregate, logs
+from railtherm import aggregate, logs, tableformat
 
 log = logs.to_file(snakemake.log[0])
 vehicles = snakemake.params.vehicles
@@ -17,5 +17,5 @@ kvalues = {vid: None for vid in vehicles} | {
     for vid, path in zip(snakemake.params.with_kvalue, snakemake.input.kvalues, strict=True)
 }
 tables = aggregate.study_tables(fits, kvalues, vehicles, snakemake.params.class_test)
-aggregate.write_study_tables(tables, aggregate.data_source(vehicles), dict(snakemake.output))
+tableformat.write_study_tables(tables, aggregate.data_source(vehicles), dict(snakemake.output))
 log.info("tables of %d vehicles", len(vehicles))

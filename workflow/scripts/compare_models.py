@@ -4,12 +4,12 @@ from pathlib import Path
 
 import yaml
 
-from railtherm import aggregate, logs, tables
+from railtherm import aggregate, logs, tableformat, tables
 
 log = logs.to_file(snakemake.log[0])
 fits = [yaml.safe_load(Path(p).read_text(encoding="utf-8")) for p in snakemake.input.fits]
 source = aggregate.data_source(snakemake.params.data)
 table = aggregate.model_table(fits, source)
 tables.write_csv(table, snakemake.output.csv)
-Path(snakemake.output.md).write_text(aggregate.model_markdown(table, source), encoding="utf-8")
+Path(snakemake.output.md).write_text(tableformat.model_markdown(table, source), encoding="utf-8")
 log.info("%d fits", len(fits))
