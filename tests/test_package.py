@@ -61,3 +61,10 @@ def test_no_import_cycle_among_railtherm_modules():
 def test_table_building_does_not_depend_on_the_campaign_generator():
     graph = _imports()
     assert "synth" not in graph["aggregate"] and "synth" not in graph["plots"]
+
+
+def test_entry_points_are_importable_from_the_package():
+    import railtherm
+
+    for name in ("load_vehicle", "load_study", "fit_vehicle", "Fit", "read_fit", "KValue"):
+        assert callable(getattr(railtherm, name)), name
