@@ -15,6 +15,7 @@ from scipy.linalg import expm
 from railtherm import synth
 from railtherm.errors import ConfigError
 from railtherm.models import second_order
+from railtherm.synth import physics
 
 TRUTH = {
     "k": {"value": 2.0, "unit": "W/(m^2 K)", "source": "assumption: test"},
@@ -248,7 +249,7 @@ def test_write_is_byte_deterministic_and_seed_dependent(tmp_path):
     (name,) = synth.raw_file_names(s1)
     assert name.endswith(".csv.gz")
     synth.write_raw_file(s1, name, tmp_path / "1" / name)
-    synth._CACHE.clear()
+    physics._CACHE.clear()
     synth.write_raw_file(s1, name, tmp_path / "2" / name)
     synth.write_raw_file(s2, name, tmp_path / "3" / name)
     b1, b2, b3 = ((tmp_path / d / name).read_bytes() for d in "123")
@@ -382,3 +383,16 @@ def test_bad_campaign_entries_name_file_key_and_value(tmp_path, mutate, key, rea
 def test_missing_campaign_file(tmp_path):
     with pytest.raises(ConfigError, match="campaign file not found"):
         synth.load_campaign(tmp_path / "nope.yaml")
+
+
+def test_campaign_schema_and_generator_name_the_same_deviations_and_truth():
+    """The schema file and the generator's tables are written apart: they must agree."""
+    from railtherm.yamlio import packaged_schema
+
+    defs = packaged_schema("campaign")["$defs"]
+    deviation = defs["deviation"]
+    assert tuple(deviation["properties"]["type"]["enum"]) == synth.DEVIATION_TYPES
+    assert set(deviation["$defs"]) == set(synth.DEVIATION_TYPES)
+    assert set(synth.DEVIATION_EFFECT_ON_K) == set(synth.DEVIATION_TYPES)
+    truth = defs["settings"]["properties"]["truth"]
+    assert set(truth["required"]) == set(synth.TRUTH_UNITS)
