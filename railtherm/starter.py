@@ -37,6 +37,7 @@ from typing import Any
 import pandas as pd
 import yaml
 
+from railtherm.config import CHANNEL_GROUPS
 from railtherm.errors import ConfigError, DataError
 from railtherm.rawfile import (
     RawLayout,
@@ -88,15 +89,7 @@ CHANNEL_WORDS: tuple[tuple[str, re.Pattern[str]], ...] = (
 TEMPERATURE_GROUPS = ("indoor_air", "surface", "outdoor_air")
 POWER_GROUPS = ("heater_power", "fan_power", "heat_flows")
 # the schema's order of the channel groups; the first, third and fourth are required
-GROUP_ORDER = (
-    "indoor_air",
-    "surface",
-    "outdoor_air",
-    "heater_power",
-    "fan_power",
-    "heat_flows",
-    "irradiance",
-)
+GROUP_ORDER = CHANNEL_GROUPS
 REQUIRED_GROUPS = {
     "indoor_air": "the indoor air temperature sensor(s), their weighted mean is T",
     "outdoor_air": "the outdoor (tunnel) air temperature sensor(s), their weighted mean is T_o",

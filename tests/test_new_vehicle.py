@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from test_validation import renamed_copy
 
 from railtherm.cli import main
 from railtherm.starter import GUESSED, channel_group, starter_vehicle
@@ -30,24 +31,6 @@ def armadillo_copy(folder: Path) -> Path:
 def armadillo_gz(folder: Path) -> Path:
     path = folder / "armadillo_data_H2.csv.gz"
     pd.read_csv(RAW).to_csv(path, index=False)  # compressed by the extension
-    return path
-
-
-def renamed_copy(folder: Path) -> Path:
-    """The Armadillo CSV as another logger writes it (as tests/test_validation.py's helper):
-    German names in another order, semicolons, decimal commas, kelvin and kW."""
-    raw = pd.read_csv(RAW)
-    renamed = pd.DataFrame(
-        {
-            "Innen_K": raw["T_int"] + 273.15,
-            "Zeit_s": raw["Time"],
-            "Heizung_kW": raw["P_hea"] / 1000.0,
-            "Aussen_C": raw["T_ext"],
-            "Strahlung": raw["I_sol"],
-        }
-    )
-    path = folder / "logger.csv"
-    renamed.to_csv(path, sep=";", decimal=",", index=False)
     return path
 
 
