@@ -52,11 +52,28 @@ def _study(args: argparse.Namespace, vehicles: Sequence[str]) -> Study:
     return study
 
 
+def _references(args: argparse.Namespace, study: Study) -> int:
+    """Check the study's reference files (``study.references``) against its fits; how many."""
+    config = read_yaml(os.path.join(args.directory, args.config), display=args.config)
+    paths = ((config or {}).get("study") or {}).get("references") or []
+    if paths:
+        from railtherm import identify, reference
+
+        fits = [
+            (vid, key) for vid, v in study.vehicles.items() for key in identify.model_keys(v.data)
+        ]
+        reference.study_references(paths, fits, workdir=args.directory)
+    return len(paths)
+
+
 def _validate(args: argparse.Namespace) -> int:
     workdir = args.directory
     study = _study(args, args.vehicles)
+    references = 0 if args.vehicles else _references(args, study)
     count = len(study.vehicles)
     summary = f"ok: {count} vehicle{'' if count == 1 else 's'}"
+    if references:
+        summary += f", {references} reference file{'' if references == 1 else 's'}"
     if not args.headers_only:
         from railtherm.datacheck import check_values  # pandas only when reading values
 

@@ -15,7 +15,7 @@ Fit quality is given both as the NRMSE fit that pySIP and MATLAB report and as R
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +61,28 @@ def load_reference(path: str | Path, display: str | None = None) -> dict[str, An
             name, "parameters", ", ".join(missing), f"missing: {structure.name} needs them all"
         )
     return data
+
+
+def study_references(
+    paths: Sequence[str], fits: Iterable[tuple[str, str]], workdir: str | Path = "."
+) -> list[tuple[str, dict[str, Any]]]:
+    """Every reference file of a study (``study.references``), loaded and checked against the
+    study's fits ``(vehicle, model key)``: [(path, reference)]. :class:`ConfigError` naming
+    the file when a reference is malformed or names a fit the study does not make."""
+    fits = set(fits)
+    out = []
+    for path in paths:
+        ref = load_reference(Path(workdir) / path, display=path)
+        if (ref["vehicle"], ref["model"]) not in fits:
+            raise ConfigError(
+                path,
+                "model",
+                ref["model"],
+                f"of vehicle '{ref['vehicle']}': no such fit in the study (list the vehicle in "
+                "the study config and the model in its model.orders or model.structures)",
+            )
+        out.append((path, ref))
+    return out
 
 
 def published_parameters(reference: Mapping[str, Any]) -> dict[str, float]:

@@ -296,3 +296,24 @@ def test_a_bad_value_in_a_measured_file_stops_the_run_before_any_job(tmp_path):
     err = run.stdout + run.stderr
     assert "invalid raw data" in err and "column 'T_int' = 'inf': line 101" in err, err
     assert not (study / "results").exists()
+
+
+@pytest.mark.bad_input
+def test_validate_checks_the_reference_files_as_the_run_would(tmp_path, capsys):
+    """Once a reference naming a fit the study does not make passed validate and stopped the
+    run at parse time."""
+    from railtherm.cli import main
+
+    study = validation_copy(tmp_path)
+    assert main(["validate", "-d", str(study)]) == 0
+    assert "1 reference file" in capsys.readouterr().out
+    vehicle = study / "config" / "vehicles" / "Armadillo.yaml"
+    data = yaml.safe_load(vehicle.read_text())
+    del data["model"]["structures"]
+    vehicle.write_text(yaml.safe_dump(data, sort_keys=False))
+    assert main(["validate", "-d", str(study)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(
+        "config/published/pysip_armadillo.yaml: key 'model' = 'interior_envelope'"
+    )
+    assert "no such fit in the study" in err

@@ -173,20 +173,10 @@ def model_targets():
 def load_references():
     """The study's published analyses of the same data, validated once at parse time:
     [(file, reference)], each naming a fit the study makes."""
-    out = []
-    for path in config["study"]["references"]:
-        try:
-            ref = rt_reference.load_reference(path)
-        except RailthermError as err:
-            raise WorkflowError(f"invalid configuration: {err}") from None
-        if (ref["vehicle"], ref["model"]) not in model_targets():
-            raise WorkflowError(
-                f"invalid configuration: {path}: key 'model' = '{ref['model']}' of vehicle "
-                f"'{ref['vehicle']}': no such fit in the study (list the vehicle in the study "
-                "config and the model in its model.orders or model.structures)"
-            )
-        out.append((path, ref))
-    return out
+    try:
+        return rt_reference.study_references(config["study"]["references"], model_targets())
+    except RailthermError as err:
+        raise WorkflowError(f"invalid configuration: {err}") from None
 
 
 REFERENCES = load_references()
