@@ -82,6 +82,8 @@ def _validate(args: argparse.Namespace) -> int:
             checked = check_values(vehicle, workdir=workdir)
             windows += len(checked.windows)
             not_written += checked.not_written
+            for warning in checked.warnings:
+                print(f"warning: {warning}", file=sys.stderr)
         summary += f", values of {windows} window{'' if windows == 1 else 's'} checked"
         if not_written:
             summary += (

@@ -29,13 +29,36 @@ class DataCheck:
 
     windows: list[str] = field(default_factory=list)
     not_written: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+
+# A thermal record of a vehicle or a building is logged every few seconds to an hour; a step
+# outside this range is more likely a time unit read wrongly (hours declared seconds) than a
+# logger setting.
+PLAUSIBLE_STEP_S = (1.0, 3 * 3600.0)
+
+
+def step_warnings(vehicle: Vehicle) -> list[str]:
+    """A sentence per raw file whose logger step is implausible for a thermal record."""
+    lo, hi = PLAUSIBLE_STEP_S
+    out = []
+    for name, layout in vehicle.layouts.items():
+        step = layout.step_s
+        if step and not lo <= step <= hi:
+            fmt = vehicle.format["time"]["format"]
+            out.append(
+                f"{vehicle.path}: raw file {layout.path} ({name}) is logged every {step:g} s by "
+                f"its time column read as format.time.format '{fmt}': implausible for a thermal "
+                f"record ({lo:g} s to {hi / 3600:g} h); is the time unit right?"
+            )
+    return out
 
 
 def check_values(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> DataCheck:
     """Clean every window of ``vehicle`` in memory (rule ``clean``) and compute its static k
     (rule ``kvalue``); the first error propagates, naming file, column or key, line and
     value. Nothing is written."""
-    out = DataCheck()
+    out = DataCheck(warnings=step_warnings(vehicle))
     raws: dict[str, object] = {}
     for name in ingest.window_names(vehicle.data):
         raw_name, window, key = ingest.window_spec(vehicle.data, name)

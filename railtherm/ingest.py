@@ -79,6 +79,7 @@ from __future__ import annotations
 import datetime as dt
 import gzip
 import os
+import re
 import zlib
 from collections.abc import Mapping
 from typing import Any
@@ -293,6 +294,18 @@ def _channels(vehicle_data: Mapping[str, Any], group: str) -> list[dict[str, Any
     return list(vehicle_data["channels"].get(group) or [])
 
 
+def _number_hint(text: str) -> str:
+    """The likely fix for a cell that is no number under the declared format."""
+    if re.fullmatch(r"\s*[-+]?\d[\d.]*,\d+\s*", text):
+        return (
+            " (a decimal comma: declare format.decimal: ',' - with format.separator ';' if "
+            "the file separates its columns by semicolons)"
+        )
+    if re.fullmatch(r"\s*[-+]?\d+\.\d+\s*", text):
+        return " (a decimal point where format.decimal is ',': declare format.decimal: '.')"
+    return ""
+
+
 def _numeric(file: str, raw: pd.DataFrame, column: str) -> np.ndarray:
     """A channel column as float, empty cells NaN (gaps); :class:`DataError` naming the first
     value that is no number, or not a finite one: "inf" or "-inf" is a logger's overflow or
@@ -308,7 +321,8 @@ def _numeric(file: str, raw: pd.DataFrame, column: str) -> np.ndarray:
         bad = np.isnan(values) & ~blank
         if bad.any():
             i = int(bad.argmax())
-            raise DataError(file, column, str(text.iloc[i]), f"line {i + 2}: not a number")
+            value = str(text.iloc[i])
+            raise DataError(file, column, value, f"line {i + 2}: not a number{_number_hint(value)}")
     infinite = np.isinf(values)
     if infinite.any():
         i = int(infinite.argmax())

@@ -178,6 +178,15 @@ CASES = [
     ),
     ("truncated gzip", truncated_gzip, ["data/V1.csv.gz", "truncated"]),
     (
+        "decimal comma declared as point",
+        both(
+            lambda: write_rows([[c.replace(".", ",") for c in r] for r in rows()], sep=";"),
+            vehicle(setting("format.separator", ";")),
+            vehicle(setting("format.separator", ";"), path=V2_FILE),
+        ),
+        ["data/V1.csv", "T_in_1", "'21,00'", "line 2", "format.decimal: ','"],
+    ),
+    (
         "channel column missing",
         vehicle(setting("channels.indoor_air[0].column", "t_in_1")),
         ["V1.yaml", "channels.indoor_air[0].column", "'t_in_1'", "did you mean 'T_in_1'"],
@@ -473,3 +482,29 @@ def test_value_check_is_cached_by_content(tmp_path, monkeypatch):
         skip=lambda path: path.startswith("data"),
     )
     assert skip == []
+
+
+def test_hours_declared_as_seconds_are_named_as_the_suspect(tmp_path, monkeypatch, capsys):
+    """A record in elapsed hours declared seconds: every step is 1/60 "s". Validate warns
+    (a 0.0167 s thermal logger is implausible) and names the time unit."""
+    monkeypatch.chdir(tmp_path)
+    setup_repo(tmp_path)
+    table = rows()
+    for i, r in enumerate(table[1:]):
+        r[0] = repr(i / 60.0)  # hours
+    write_rows(table)
+    windows = {
+        "kvalue": {"start": 0, "end": 4 / 60},
+        "identification": [{"name": "run1", "start": 2 / 60, "end": 9 / 60}],
+    }
+
+    def edit(data):
+        setting("format.time", {"column": "time", "format": "seconds"})(data)
+        setting("windows", windows)(data)
+
+    for path in (VEHICLE_FILE, V2_FILE):
+        vehicle(edit, path=path)()
+    assert main(["validate"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: config/vehicles/V1.yaml: raw file data/V1.csv" in err
+    assert "every 0.0166667 s" in err and "is the time unit right?" in err
