@@ -93,7 +93,7 @@ class Vehicle:
     synthetic: bool
     mass_kg: float
     surface_m2: float
-    volume_m3: float
+    volume_m3: float | None
     raw_files: dict[str, str]
     data: dict[str, Any]
     layouts: dict[str, RawLayout] = field(default_factory=dict)
@@ -252,7 +252,7 @@ def load_vehicle(
         synthetic=data["synthetic"],
         mass_kg=float(data["mass_kg"]),
         surface_m2=float(data["surface_m2"]),
-        volume_m3=float(data["volume_m3"]),
+        volume_m3=float(data["volume_m3"]) if "volume_m3" in data else None,
         raw_files=raw_files,
         data=data,
         layouts=found,

@@ -411,9 +411,12 @@ def _metadata(vid: str, from_file_name: bool, todos: _Todos) -> list[str]:
     for key, meaning in (
         ("mass_kg", "the vehicle mass m_veh in kg (> 0), for c_veh = C_veh / m_veh"),
         ("surface_m2", "A, the overall uncoiled outer surface in m2 (> 0), for k = kA / A"),
-        ("volume_m3", "the interior air volume in m3 (> 0)"),
     ):
         lines.append(_comment_line(f"{key}: {TODO}", todos.add(key, meaning)))
+    lines.append(
+        "# volume_m3: the interior air volume in m3 (optional: with it, an air-node capacity "
+        "below that of its air is flagged)"
+    )
     return [*lines, ""]
 
 
