@@ -856,3 +856,10 @@ def test_digest_cache_sees_new_content_behind_an_old_mtime(tmp_path):
     assert cache.digest(tmp_path / "gone.csv") == "missing"
     store.write_text("not json")
     assert DigestCache(store).digest(raw).startswith("sha256:")  # a broken cache is rebuilt
+
+
+def test_volume_is_optional(repo):
+    data = copy.deepcopy(VEHICLE)
+    del data["volume_m3"]
+    write_vehicle(data)
+    assert load_vehicle(VEHICLE_FILE).volume_m3 is None
