@@ -44,6 +44,11 @@ UNITS = {
 METRIC_LABELS = {"nrmse_fit": "NRMSE fit", "r2": "R² (eq. 21)", "rmse": "RMSE of T"}
 
 
+def unit(quantity: str) -> str:
+    """The SI unit of a compared quantity (an aperture a_<channel> is an area, m²)."""
+    return "m²" if quantity.startswith("a_") else UNITS[quantity]
+
+
 def load_reference(path: str | Path, display: str | None = None) -> dict[str, Any]:
     """Read and validate a reference file; :class:`ConfigError` naming the file, key and
     value on any problem."""
@@ -52,13 +57,15 @@ def load_reference(path: str | Path, display: str | None = None) -> dict[str, An
     validate_schema(name, data, packaged_schema("reference"))
     structure = identify.model_structure(data["model"])
     params = published_parameters(data)
-    unknown = sorted(set(params) - set(structure.parameters))
+    known = {*structure.parameters, "kA"}
+    unknown = sorted(p for p in params if p not in known and not p.startswith("a_"))
     if unknown:
-        raise ConfigError(name, "parameters", unknown[0], f"not a parameter of {structure.name}")
-    missing = sorted(set(structure.parameters) - set(params))
-    if missing:
         raise ConfigError(
-            name, "parameters", ", ".join(missing), f"missing: {structure.name} needs them all"
+            name,
+            "parameters",
+            unknown[0],
+            f"not a quantity of {structure.name} (its parameters: "
+            f"{', '.join(structure.parameters)}; kA; apertures a_<irradiance channel>)",
         )
     return data
 
@@ -100,18 +107,17 @@ def simulate_published(
     reference: Mapping[str, Any],
     tables: Mapping[str, pd.DataFrame],
     vehicle_data: Mapping[str, Any],
-) -> dict[str, float]:
+) -> dict[str, float] | None:
     """The published parameters simulated by railtherm (eq. 15) on the cleaned windows that
     railtherm's own fit used, every initial state estimated, nothing else: the fit figures
-    (metrics.summary) of the simulated T, and the overall kA of those parameters."""
+    (metrics.summary) of the simulated T, and the overall kA of those parameters. None when
+    the reference does not publish every parameter of the vehicle's structure (e.g. kA alone,
+    or a model without the vehicle's irradiance inputs): there is nothing to simulate."""
     structure = identify.model_structure(reference["model"], vehicle_data)
     theta = published_parameters(reference)
-    free = [p for p in structure.parameters if p not in theta]
-    if free:  # only apertures of irradiance inputs the published model did not have
-        raise ValueError(
-            f"reference {reference['vehicle']}/{reference['model']}: no published value for "
-            f"{free}; compare against a vehicle config with the published inputs"
-        )
+    if any(p not in theta for p in structure.parameters):
+        return None
+    theta = {p: theta[p] for p in structure.parameters}
     exps = identify.experiments(structure, tables)
     result = pem.fit(structure, exps, fixed=theta, outputs=("T",), x0="estimated")
     y = np.concatenate([e.y[:, 0] for e in exps])
@@ -138,7 +144,7 @@ def _row(quantity, label, published, fit_entry, simulated=None) -> dict[str, Any
     return {
         "quantity": quantity,
         "label": label,
-        "unit": UNITS[quantity],
+        "unit": unit(quantity),
         "published": published,
         "railtherm": value,
         "railtherm_lo": lo,
@@ -167,13 +173,15 @@ def compare(
         )
     theta = published_parameters(reference)
     printed = reference.get("metrics") or {}
-    simulated = simulate_published(reference, tables, vehicle_data)
+    simulated = simulate_published(reference, tables, vehicle_data) or {}
     fitted = fit["parameters"]
-    rows = [_row(q, q, theta[q], fitted.get(q)) for q in theta]
-    rows.append(_row("kA", "kA (overall)", printed.get("kA"), fitted.get("kA"), simulated["kA"]))
+    # every published parameter (a quantity railtherm does not estimate stays blank), then kA
+    rows = [_row(q, q, theta[q], fitted.get(q)) for q in theta if q != "kA"]
+    published_kA = theta.get("kA", printed.get("kA"))
+    rows.append(_row("kA", "kA (overall)", published_kA, fitted.get("kA"), simulated.get("kA")))
     overall = fit["measures"]["T"]["overall"]
     for q, label in METRIC_LABELS.items():
-        rows.append(_row(q, label, printed.get(q), {"value": overall[q]}, simulated[q]))
+        rows.append(_row(q, label, printed.get(q), {"value": overall[q]}, simulated.get(q)))
     table = pd.DataFrame(rows)
     table["k_source"] = fit["k_source"]
     table.insert(0, "model", reference["model"])
@@ -184,9 +192,9 @@ def compare(
 def _number(value: float, quantity: str) -> str:
     if not np.isfinite(value):
         return "–"
-    if UNITS[quantity] == "J/K":
+    if unit(quantity) == "J/K":
         return f"{value:.3g}"
-    if UNITS[quantity] == "1":
+    if unit(quantity) == "1":
         return f"{value:.3f}"
     return f"{value:.4g}"
 

@@ -16,6 +16,7 @@ import functools
 import importlib.resources
 import math
 import os
+import re
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -218,15 +219,23 @@ def _schema_error(file: str, error: ValidationError, prefix: str = "") -> Config
         return ConfigError(file, _key([*path, missing[0]], prefix), None, "missing required key")
     if kind == "additionalProperties" and expected is False:
         allowed = list(error.schema.get("properties", {}))
-        unknown = [name for name in error.instance if name not in allowed]
+        patterns = list(error.schema.get("patternProperties", {}))
+        unknown = [
+            name
+            for name in error.instance
+            if name not in allowed and not any(re.search(p, str(name)) for p in patterns)
+        ]
         name = unknown[0]
         close = difflib.get_close_matches(str(name), allowed, n=1)
         hint = f"did you mean '{close[0]}'? " if close else ""
+        names = words(allowed) if allowed else ""
+        if patterns:
+            names += ("; " if names else "") + "names matching " + " or ".join(patterns)
         return ConfigError(
             file,
             _key([*path, name], prefix),
             error.instance[name],
-            f"unknown key ({hint}allowed: {words(allowed)})",
+            f"unknown key ({hint}allowed: {names})",
         )
     if kind == "enum":
         reason = f"must be one of {words(expected)}"

@@ -166,12 +166,29 @@ def test_reference_comparison_on_the_armadillo_data(armadillo):
         reference.compare(ref, {**checked, "model": "order2"}, tables, vehicle.data)
 
 
+def test_a_reference_of_any_published_subset_compares_with_blanks(armadillo, tmp_path):
+    """A published analysis that printed kA alone, or an aperture railtherm's model lacks:
+    the comparison shows what there is and leaves the rest blank, never a crash."""
+    vehicle, checked, tables = armadillo
+    data = yaml.safe_load(PYSIP.read_text())
+    data["parameters"] = {"kA": 51.0, "a_I_sol": 2.5}
+    path = tmp_path / "ref.yaml"
+    path.write_text(yaml.safe_dump(data))
+    table = reference.compare(reference.load_reference(path), checked, tables, vehicle.data)
+    table = table.set_index("quantity")
+    assert table.loc["kA", "published"] == 51.0
+    assert abs(table.loc["kA", "ratio"] - 1) < 0.10
+    assert np.isnan(table.loc["a_I_sol", "railtherm"]) and table.loc["a_I_sol", "unit"] == "m²"
+    assert np.isnan(table.loc["nrmse_fit", "published_simulated"])  # nothing to simulate
+    assert "–" in reference.markdown(table.reset_index(), [data], "measured")
+
+
 @pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("edit", "key"),
     [
-        (lambda d: d["parameters"].pop("C"), "parameters"),
         (lambda d: d["parameters"].update(K_veh=3.0), "parameters"),
+        (lambda d: d["parameters"].update(R_veh=3.0), "parameters.R_veh"),
         (lambda d: d["parameters"].update(C=-1.0), "parameters.C"),
         (lambda d: d.update(model="order3"), "model"),
     ],
