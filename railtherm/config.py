@@ -305,7 +305,7 @@ def _layout(
             )
         return planned
     try:
-        columns = read_columns(local, fmt["separator"])
+        columns = read_columns(local, fmt=fmt)
     except DataError as exc:
         raise ConfigError(file, key, raw, f"{normalised}: {exc.reason}") from None
     if time["column"] not in columns:
@@ -317,9 +317,7 @@ def _layout(
             f"not a column of {normalised} ({hint}columns: {words(columns)})",
         )
     try:
-        layout = read_layout(
-            local, fmt["separator"], fmt["decimal"], time["column"], time["format"]
-        )
+        layout = read_layout(local, fmt=fmt)
     except DataError as exc:
         if exc.value is None:  # about the file, not one of its values
             raise ConfigError(file, key, raw, f"{normalised}: {exc.reason}") from None

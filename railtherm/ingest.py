@@ -1,8 +1,9 @@
 """Cleaning raw climatic-wind-tunnel recordings into tidy, uniformly sampled tables.
 
-A raw file (plain or ``.gz`` CSV) is read by :func:`read_raw`; :func:`tidy` cuts one window
-out of it and returns the tidy table every later stage consumes; :func:`clean_window` does both
-for a window named in the vehicle config, and :func:`write_tidy` writes the table.
+A raw file (CSV, plain or ``.gz``, or any kind :mod:`railtherm.readers` reads) is read by
+:func:`read_raw`; :func:`tidy` cuts one window out of it and returns the tidy table every later
+stage consumes; :func:`clean_window` does both for a window named in the vehicle config, and
+:func:`write_tidy` writes the table.
 
 Tidy table (columns in this order)
 ----------------------------------
@@ -80,7 +81,6 @@ import datetime as dt
 import gzip
 import os
 import re
-import zlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -88,7 +88,8 @@ import numpy as np
 import pandas as pd
 
 from railtherm.errors import ConfigError, DataError
-from railtherm.rawfile import csv_error, parse_times, read_columns, separator_hint
+from railtherm.rawfile import parse_times, read_columns, separator_hint
+from railtherm.readers import read_table, reader_kind
 
 __all__ = [
     "TIDY_COLUMNS",
@@ -141,12 +142,14 @@ RESERVED_WINDOWS = ("kvalue", "record")
 def read_raw(
     path: str | os.PathLike[str], fmt: dict[str, Any], label: str | None = None
 ) -> pd.DataFrame:
-    """Read a raw CSV file (plain or ``.gz``) into a DataFrame indexed by its time in seconds.
+    """Read a raw file into a DataFrame indexed by its time in seconds.
 
-    ``fmt`` is the vehicle's ``format`` section (separator, decimal, time.column, time.format).
+    ``fmt`` is the vehicle's ``format`` section: the kind of file (CSV, plain or ``.gz``; Excel;
+    MATLAB; R) and how to read it (:mod:`railtherm.readers`), decimal, time.column, time.format.
     The index (``t_s``, float) is the time column in seconds: the numbers themselves for
     ``seconds`` files, seconds since the first row for ``iso`` files. The time column is kept as
-    text (the raw labels); every other column is read as numbers where possible. ``label`` is
+    text (the raw labels); every other column is read as numbers where each of its cells is one
+    (``format.decimal`` honoured), else kept as text with the decimal mark ``.``. ``label`` is
     the file name used in messages (default: ``path``).
 
     Raises :class:`DataError` naming the file when it cannot be read, the time column is
@@ -159,21 +162,29 @@ def read_raw(
     time_column = fmt["time"]["column"]
     time_format = fmt["time"]["format"]
     try:
-        columns = read_columns(path, sep)
+        columns = read_columns(path, fmt=fmt)
     except DataError as exc:
         raise DataError(file, exc.key, exc.value, exc.reason) from None
     if time_column not in columns:
-        hint = separator_hint(columns, sep)
+        hint = separator_hint(columns, sep) if reader_kind(path, fmt) == "csv" else ""
         raise DataError(
             file, time_column, None, f"time column not found ({hint}columns: {', '.join(columns)})"
         )
     try:
-        # index_col=False: a separator at the end of every row must not shift the columns
-        raw = pd.read_csv(path, sep=sep, decimal=decimal, dtype={time_column: str}, index_col=False)
-    except (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError) as exc:
-        raise csv_error(file, exc) from None
+        raw = read_table(path, fmt)
+    except DataError as exc:
+        raise DataError(file, exc.key, exc.value, exc.reason) from None
     if raw.empty:
         raise DataError(file, time_column, None, "the file has a header but no data rows")
+    for column in raw.columns.drop(time_column):
+        text = raw[column]
+        if decimal != ".":  # "21,5" as "21.5"; a cell holding a "." is left as it is
+            keep = text.str.contains(".", regex=False).fillna(True).astype(bool)
+            text = text.where(keep, text.str.replace(decimal, ".", regex=False))
+        # a column of numbers only becomes float (as read_csv's type inference made it); any
+        # other stays text, and the cleaning names its first cell that is no number
+        values = pd.to_numeric(text, errors="coerce")
+        raw[column] = values.astype(float) if (values.notna() | text.isna()).all() else text
     labels = raw[time_column]
     try:
         times = parse_times(file, labels, time_column, time_format, decimal)

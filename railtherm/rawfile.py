@@ -3,27 +3,33 @@
 A layout comes either from reading an existing file (:func:`read_layout`, in railtherm.config's
 checks) or, for files the virtual climatic wind tunnel has not written yet, from the campaign
 (:func:`railtherm.synth.planned_layouts`). Both give the same answer for the same file.
+Files of every kind the vehicle's ``format`` declares (CSV, Excel, MATLAB, R) are read by
+:mod:`railtherm.readers`.
 """
 
 from __future__ import annotations
 
 import atexit
-import gzip
 import hashlib
 import json
 import os
-import zlib
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from railtherm.errors import DataError
 
+# csv_error stays importable from here, where it was before railtherm.readers
+from railtherm.readers import csv_error as csv_error
+from railtherm.readers import read_header, read_table
+
 
 @dataclass(frozen=True)
 class RawLayout:
-    """Columns and time span of one raw CSV file.
+    """Columns and time span of one raw file.
 
     ``t_first``/``t_last`` are ``pandas.Timestamp`` for ``time_format == "iso"`` and float
     seconds for ``time_format == "seconds"``; ``step_s`` the logger's median step in seconds
@@ -55,29 +61,29 @@ MIN_WINDOW_STEPS = 3  # a window needs at least this many logger steps: a fit an
 _ISO_DATE = r"^\s*\d{4}-\d{2}-\d{2}"
 
 
-def csv_error(path: str, exc: Exception) -> DataError:
-    """The :class:`DataError` for a file pandas cannot read (a damaged compressed file named
-    as such)."""
-    if isinstance(exc, EOFError | zlib.error | gzip.BadGzipFile):
-        reason = f"the compressed file is truncated or damaged ({exc}); copy it again"
-        return DataError(path, "", None, reason.splitlines()[0])
-    return DataError(path, "", None, f"cannot read the file as CSV: {exc}".splitlines()[0])
+def _format(fmt: Mapping[str, Any] | None, **given: Any) -> dict[str, Any]:
+    """``fmt`` (a vehicle's ``format`` section) with the keys given as arguments (not None)
+    put over it, and the defaults of separator and decimal."""
+    out = {"separator": ",", "decimal": ".", **(fmt or {})}
+    out.update({key: value for key, value in given.items() if value is not None})
+    return out
 
 
-def read_columns(path: str | os.PathLike[str], separator: str = ",") -> tuple[str, ...]:
-    """Column names in the header line of a plain or gzip-compressed CSV file.
+def read_columns(
+    path: str | os.PathLike[str],
+    separator: str | None = None,
+    *,
+    fmt: Mapping[str, Any] | None = None,
+) -> tuple[str, ...]:
+    """Column names of a raw file: the header line of a plain or gzip-compressed CSV file
+    (``separator``, default ``,``), or of a file of any kind ``fmt`` (a vehicle's ``format``
+    section: ``reader``, ``encoding``, ``sheet``, ... see :mod:`railtherm.readers`) declares.
 
     Raises :class:`DataError` naming the file when it cannot be read, is empty, or has a
     column name twice (a channel map could not tell the two apart).
     """
     path = str(path)
-    try:
-        header = pd.read_csv(path, sep=separator, header=None, nrows=1, dtype=str)
-    except pd.errors.EmptyDataError:
-        raise DataError(path, "", None, "the file is empty (no header line)") from None
-    except (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError) as exc:
-        raise csv_error(path, exc) from None
-    columns = tuple("" if pd.isna(c) else str(c) for c in header.iloc[0])
+    columns = read_header(path, _format(fmt, separator=separator))
     seen: set[str] = set()
     for column in columns:
         if column in seen:
@@ -101,33 +107,38 @@ def separator_hint(columns: tuple[str, ...], separator: str) -> str:
 
 def read_layout(
     path: str | os.PathLike[str],
-    separator: str = ",",
-    decimal: str = ".",
+    separator: str | None = None,
+    decimal: str | None = None,
     time_column: str | None = None,
     time_format: str | None = None,
+    *,
+    fmt: Mapping[str, Any] | None = None,
 ) -> RawLayout:
-    """Columns and time span of a raw CSV file, reading its header and only its time column.
+    """Columns and time span of a raw file, reading its header and only its time column.
 
+    ``fmt`` is a vehicle's ``format`` section (the kind of file and how to read it, see
+    :mod:`railtherm.readers`; its ``time`` gives the time column and format); the arguments
+    given put their value over it (CSV: ``separator`` default ``,``, ``decimal`` default ``.``).
     ``time_format`` is ``"iso"`` (ISO 8601 timestamps, returned as ``pandas.Timestamp``) or
     ``"seconds"`` (elapsed seconds, returned as float; ``decimal`` is honoured). Plain and
-    ``.gz`` files are read alike. Raises :class:`DataError` naming the file when it cannot be
-    read, the time column is missing, or a time value cannot be parsed (naming the first bad
+    ``.gz`` CSV files are read alike. Raises :class:`DataError` naming the file when it cannot
+    be read, the time column is missing, or a time value cannot be parsed (naming the first bad
     value and its line).
     """
+    fmt = _format(fmt, separator=separator, decimal=decimal)
+    time = fmt.get("time") or {}
+    time_column = time_column if time_column is not None else time.get("column")
+    time_format = time_format if time_format is not None else time.get("format")
     if time_column is None or time_format is None:
         raise TypeError("read_layout() needs time_column and time_format")
     if time_format not in ("iso", "seconds"):
         raise ValueError(f"time_format must be 'iso' or 'seconds', not {time_format!r}")
+    decimal = fmt["decimal"]
     path = str(path)
-    columns = read_columns(path, separator)
+    columns = read_columns(path, fmt=fmt)
     if time_column not in columns:
         raise DataError(path, time_column, None, f"no such column (columns: {', '.join(columns)})")
-    try:
-        raw = pd.read_csv(path, sep=separator, usecols=[time_column], dtype=str, index_col=False)[
-            time_column
-        ]
-    except (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError) as exc:
-        raise csv_error(path, exc) from None
+    raw = read_table(path, fmt, columns=[time_column])[time_column]
     if raw.empty:
         raise DataError(path, time_column, None, "the file has a header but no data rows")
     times = parse_times(path, raw, time_column, time_format, decimal)

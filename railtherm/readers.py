@@ -1,0 +1,669 @@
+"""Raw files of every kind, read as text: CSV, Excel, MATLAB and R.
+
+:func:`read_table` gives a raw file's cells as text (missing cells NaN), whatever kind of file
+it is, and :func:`read_header` its column names; the number and time parsing downstream
+(:func:`railtherm.rawfile.parse_times`, :mod:`railtherm.ingest`) is the one place that parses
+values. The kind of file is ``format.reader`` of the vehicle config, or by default its suffix:
+
+============  ====================================  ===========================================
+reader        suffixes                              keys of ``format`` it reads
+============  ====================================  ===========================================
+``csv``       ``.csv``, ``.txt``, ``.gz``, others   ``separator``, ``encoding`` (utf-8)
+``excel``     ``.xlsx``, ``.xlsm``, ``.xls``,       ``sheet`` (the first), ``header_row`` (0)
+              ``.xlsb``, ``.ods``
+``matlab``    ``.mat`` (v4 to v7; not v7.3)         ``variable`` (the only one), ``columns``
+``r``         ``.rda``, ``.rdata``, ``.rds``        ``variable`` (the only data frame),
+                                                    ``encoding`` (of strings R did not mark)
+============  ====================================  ===========================================
+
+A CSV file is read by ``pandas.read_csv(..., dtype=str)``. The other
+kinds hold typed values, which are written as the text a CSV file with the vehicle's
+``format.decimal`` would hold: a number as the shortest text that parses back to the same float
+(``repr``), an Excel or R date as ISO 8601 text, an Excel duration as seconds. Text that
+``pandas.read_csv`` takes for a missing value (``NA``, ``#N/A``, ``NaN``, an empty cell, ...) is
+missing in every kind. Every problem is a :class:`~railtherm.errors.DataError` naming the file,
+what is wrong and the fix; a reader whose package is missing names the extra to install
+(``pip install 'railtherm[formats]'``).
+"""
+
+from __future__ import annotations
+
+import codecs
+import datetime as dt
+import gzip
+import importlib
+import math
+import os
+import warnings
+import zlib
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from railtherm.errors import DataError
+
+__all__ = [
+    "READERS",
+    "csv_error",
+    "read_header",
+    "read_table",
+    "reader_kind",
+]
+
+READERS = ("csv", "excel", "matlab", "r")
+SUFFIXES = {
+    ".csv": "csv",
+    ".txt": "csv",
+    ".gz": "csv",
+    ".xlsx": "excel",
+    ".xlsm": "excel",
+    ".xls": "excel",
+    ".xlsb": "excel",
+    ".ods": "excel",
+    ".mat": "matlab",
+    ".rda": "r",
+    ".rdata": "r",
+    ".rds": "r",
+}
+# the keys of `format` that only some readers read: a key given for another reader is a mistake
+READER_KEYS = {
+    "encoding": ("csv", "r"),
+    "sheet": ("excel",),
+    "header_row": ("excel",),
+    "variable": ("matlab", "r"),
+    "columns": ("matlab",),
+}
+_WHAT = {"csv": "CSV", "excel": "a spreadsheet", "matlab": "a MATLAB file", "r": "R data"}
+EXTRA = "formats"
+# pandas.read_csv's default missing-value strings (its documented na_values)
+NA_TEXT = frozenset(
+    {
+        "",
+        "#N/A",
+        "#N/A N/A",
+        "#NA",
+        "-1.#IND",
+        "-1.#QNAN",
+        "-NaN",
+        "-nan",
+        "1.#IND",
+        "1.#QNAN",
+        "<NA>",
+        "N/A",
+        "NA",
+        "NULL",
+        "NaN",
+        "None",
+        "n/a",
+        "nan",
+        "null",
+    }
+)
+_TEXT_DTYPE = pd.Series(["x"], dtype=str).dtype  # the dtype read_csv(dtype=str) gives
+
+
+# ---------------------------------------------------------------------------------------------
+# Entry points
+
+
+def reader_kind(path: str | os.PathLike[str], fmt: Mapping[str, Any] | None = None) -> str:
+    """``format.reader``, or the reader the file's suffix names (``csv`` for any other)."""
+    fmt = fmt or {}
+    kind = fmt.get("reader")
+    if kind is not None:
+        if kind not in READERS:
+            raise DataError(
+                str(path),
+                "",
+                None,
+                f"format.reader '{kind}' is no reader; use one of {', '.join(READERS)}",
+            )
+        return str(kind)
+    return SUFFIXES.get(os.path.splitext(str(path))[1].lower(), "csv")
+
+
+def read_header(
+    path: str | os.PathLike[str], fmt: Mapping[str, Any] | None = None
+) -> tuple[str, ...]:
+    """The column names of a raw file, in file order (an empty name for an unnamed CSV column)."""
+    path = str(path)
+    fmt = fmt or {}
+    kind = _kind(path, fmt)
+    if kind == "csv":
+        return _csv_header(path, fmt)
+    if kind == "excel":
+        names, _ = _excel(path, fmt, header_only=True)
+        return names
+    if kind == "matlab":
+        return tuple(_matlab(path, fmt))
+    return tuple(_r(path, fmt))
+
+
+def read_table(
+    path: str | os.PathLike[str],
+    fmt: Mapping[str, Any] | None = None,
+    columns: Iterable[str] | None = None,
+) -> pd.DataFrame:
+    """The cells of a raw file as text (NaN where empty), one column per column of the file in
+    file order; ``columns`` reads only those (a CSV file parses no other column)."""
+    path = str(path)
+    fmt = fmt or {}
+    kind = _kind(path, fmt)
+    wanted = None if columns is None else list(columns)
+    if kind == "csv":
+        return _csv_table(path, fmt, wanted)
+    if kind == "excel":
+        names, rows = _excel(path, fmt)
+        data = {
+            name: [row[i] if i < len(row) else None for row in rows] for i, name in names.items()
+        }
+    elif kind == "matlab":
+        data = _matlab(path, fmt)
+    else:
+        data = _r(path, fmt)
+    if wanted is not None:
+        _check_wanted(path, wanted, tuple(data))
+        data = {name: values for name, values in data.items() if name in wanted}
+    decimal = fmt.get("decimal", ".")
+    return pd.DataFrame({name: _text(values, decimal) for name, values in data.items()})
+
+
+def csv_error(path: str, exc: Exception) -> DataError:
+    """The :class:`DataError` for a file pandas cannot read as CSV (a damaged compressed file
+    named as such)."""
+    return _read_error(path, "csv", exc)
+
+
+# ---------------------------------------------------------------------------------------------
+# Shared
+
+
+def _kind(path: str, fmt: Mapping[str, Any]) -> str:
+    kind = reader_kind(path, fmt)
+    for key, kinds in READER_KEYS.items():
+        if fmt.get(key) is not None and kind not in kinds:
+            readers = " or ".join(kinds)
+            raise DataError(
+                path,
+                "",
+                None,
+                f"format.{key} is read by the {readers} reader only, and this file is read as "
+                f"{kind} ({_why(path, fmt)}); remove format.{key} or set format.reader",
+            )
+    return kind
+
+
+def _why(path: str, fmt: Mapping[str, Any]) -> str:
+    if fmt.get("reader") is not None:
+        return "format.reader"
+    suffix = os.path.splitext(path)[1].lower()
+    return f"by its suffix {suffix}" if suffix in SUFFIXES else "the default"
+
+
+def _read_error(path: str, kind: str, exc: BaseException) -> DataError:
+    if isinstance(exc, EOFError | zlib.error | gzip.BadGzipFile):
+        reason = f"the compressed file is truncated or damaged ({exc}); copy it again"
+    elif isinstance(exc, FileNotFoundError) and kind != "csv":
+        reason = "no such file"
+    else:
+        reason = f"cannot read the file as {_WHAT[kind]}: {exc}"
+        if kind != "csv":
+            reason += "; is format.reader right?"
+    return DataError(path, "", None, reason.splitlines()[0])
+
+
+def _needs(module: str, package: str, path: str, kind: str) -> Any:
+    """Import an optional reader's package; :class:`DataError` naming the extra without it."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise DataError(
+            path,
+            "",
+            None,
+            f"reading {_WHAT[kind]} needs the package {package}: pip install 'railtherm[{EXTRA}]'",
+        ) from None
+
+
+def _check_wanted(path: str, wanted: Sequence[str], names: Sequence[str]) -> None:
+    for name in wanted:
+        if name not in names:
+            raise DataError(path, name, None, f"no such column (columns: {', '.join(names)})")
+
+
+def _number(value: float, decimal: str) -> str:
+    text = repr(float(value))
+    return text.replace(".", decimal) if decimal != "." else text
+
+
+def _cell(value: Any, decimal: str) -> str | None:
+    """One typed value as the text a CSV file would hold (None: missing)."""
+    if value is None or value is pd.NA or value is pd.NaT:
+        return None
+    if isinstance(value, str):
+        return None if value in NA_TEXT else value
+    if isinstance(value, bool | np.bool_):
+        return str(bool(value))
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    if isinstance(value, float | np.floating):
+        return None if math.isnan(value) else _number(value, decimal)
+    if isinstance(value, dt.datetime):  # before date: a datetime is a date
+        return value.isoformat()
+    if isinstance(value, dt.date):  # a spreadsheet's date or midnight timestamp
+        return f"{value.isoformat()}T00:00:00"
+    if isinstance(value, dt.time):
+        return value.isoformat()
+    if isinstance(value, dt.timedelta):  # a spreadsheet's duration: seconds
+        return _number(value.total_seconds(), decimal)
+    if isinstance(value, bytes):
+        return value.decode("utf-8", errors="replace")
+    return str(value)
+
+
+def _text(values: Any, decimal: str) -> pd.Series:
+    """A column of typed values as a text Series (the dtype ``read_csv(dtype=str)`` gives)."""
+    if isinstance(values, pd.Series):
+        numeric = values.dtype.kind in "fiu" and isinstance(values.dtype, np.dtype)
+        values = values.to_numpy() if numeric else values.to_numpy(dtype=object, na_value=None)
+    if isinstance(values, np.ndarray) and values.dtype.kind == "f":
+        cells = [None if v != v else _number(v, decimal) for v in values.tolist()]
+    elif isinstance(values, np.ndarray) and values.dtype.kind in "iu":
+        cells = [str(v) for v in values.tolist()]
+    else:
+        cells = [_cell(v, decimal) for v in values]
+    return pd.Series(np.array(cells, dtype=object), dtype=object).astype(_TEXT_DTYPE)
+
+
+# ---------------------------------------------------------------------------------------------
+# CSV
+
+
+def _encoding(path: str, fmt: Mapping[str, Any]) -> str:
+    encoding = fmt.get("encoding") or "utf-8"
+    try:
+        codecs.lookup(encoding)
+    except LookupError:
+        raise DataError(
+            path,
+            "",
+            None,
+            f"format.encoding '{encoding}' is no known text encoding; use for example utf-8, "
+            "cp1252 or latin-1",
+        ) from None
+    return encoding
+
+
+def _decode_error(path: str, encoding: str, exc: UnicodeDecodeError) -> DataError:
+    byte = exc.object[exc.start : exc.start + 1].hex() if exc.object else "?"
+    return DataError(
+        path,
+        "",
+        None,
+        f"the file is not {encoding} text (byte 0x{byte} at position {exc.start}); set "
+        "format.encoding to its encoding (cp1252 or latin-1 for many Windows exports)",
+    )
+
+
+_CSV_ERRORS = (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError)
+
+
+def _csv_header(path: str, fmt: Mapping[str, Any]) -> tuple[str, ...]:
+    encoding = _encoding(path, fmt)
+    sep = fmt.get("separator", ",")
+    try:
+        header = pd.read_csv(path, sep=sep, header=None, nrows=1, dtype=str, encoding=encoding)
+    except pd.errors.EmptyDataError:
+        raise DataError(path, "", None, "the file is empty (no header line)") from None
+    except UnicodeDecodeError as exc:
+        raise _decode_error(path, encoding, exc) from None
+    except _CSV_ERRORS as exc:
+        raise csv_error(path, exc) from None
+    return tuple("" if pd.isna(c) else str(c) for c in header.iloc[0])
+
+
+def _csv_table(path: str, fmt: Mapping[str, Any], columns: list[str] | None) -> pd.DataFrame:
+    encoding = _encoding(path, fmt)
+    sep = fmt.get("separator", ",")
+    # index_col=False: a separator at the end of every row must not shift the columns
+    kwargs: dict[str, Any] = {"sep": sep, "dtype": str, "index_col": False, "encoding": encoding}
+    if columns is not None:
+        kwargs["usecols"] = columns
+    try:
+        return pd.read_csv(path, **kwargs)
+    except pd.errors.EmptyDataError:
+        raise DataError(path, "", None, "the file is empty (no header line)") from None
+    except UnicodeDecodeError as exc:
+        raise _decode_error(path, encoding, exc) from None
+    except ValueError as exc:
+        if columns is not None and str(exc).startswith("Usecols do not match"):
+            _check_wanted(path, columns, _csv_header(path, fmt))
+        raise csv_error(path, exc) from None
+    except _CSV_ERRORS as exc:
+        raise csv_error(path, exc) from None
+
+
+# ---------------------------------------------------------------------------------------------
+# Excel (python-calamine: the Rust calamine reader)
+
+
+def _empty(value: Any) -> bool:
+    return value is None or (isinstance(value, str) and value == "")
+
+
+def _header_name(value: Any) -> str:
+    """A header cell as a column name: a whole number without ``.0`` (a column named 101)."""
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return _cell(value, ".") or ""
+
+
+def _excel(
+    path: str, fmt: Mapping[str, Any], header_only: bool = False
+) -> tuple[Any, list[list[Any]]]:
+    """``(names, rows)``: with ``header_only`` the tuple of column names, else a mapping of
+    each named column's position to its name and the data rows below the header (blank rows
+    left out, as read_csv leaves out blank lines). Columns without a name are left out."""
+    calamine = _needs("python_calamine", "python-calamine", path, "excel")
+    sheet = fmt.get("sheet", 0)
+    header_row = int(fmt.get("header_row", 0))
+    try:
+        book = calamine.CalamineWorkbook.from_path(path)
+    except Exception as exc:  # calamine's own errors: not a workbook, damaged, encrypted
+        raise _read_error(path, "excel", exc) from None
+    try:
+        sheets = [s.name for s in book.sheets_metadata if s.typ == calamine.SheetTypeEnum.WorkSheet]
+        listed = ", ".join(f"'{s}'" for s in sheets)
+        if isinstance(sheet, int):
+            if not 0 <= sheet < len(sheets):
+                raise DataError(
+                    path,
+                    "",
+                    None,
+                    f"no sheet {sheet} (format.sheet counts from 0; the workbook has "
+                    f"{len(sheets)}: {listed}); set format.sheet to one of them",
+                )
+            name = sheets[sheet]
+        else:
+            name = str(sheet)
+            if name not in sheets:
+                raise DataError(
+                    path,
+                    "",
+                    None,
+                    f"no sheet '{name}' (sheets: {listed}); set format.sheet to one of them",
+                )
+        try:
+            rows = book.get_sheet_by_name(name).to_python(
+                skip_empty_area=False, nrows=header_row + 1 if header_only else None
+            )
+        except Exception as exc:
+            raise _read_error(path, "excel", exc) from None
+    finally:
+        book.close()
+    if len(rows) <= header_row:
+        where = "is empty" if not rows else f"has {len(rows)} rows"
+        raise DataError(
+            path,
+            "",
+            None,
+            f"sheet '{name}' {where}, no header in row {header_row + 1} (format.header_row "
+            f"{header_row}, counted from 0); set format.header_row to the row of the names",
+        )
+    names = {i: _header_name(v) for i, v in enumerate(rows[header_row])}
+    names = {i: n for i, n in names.items() if n != ""}
+    if header_only:
+        return tuple(names.values()), []
+    data = [row for row in rows[header_row + 1 :] if not all(_empty(v) for v in row)]
+    return names, data
+
+
+# ---------------------------------------------------------------------------------------------
+# MATLAB (scipy.io.loadmat: level 4 and 5 files, which MATLAB writes up to -v7)
+
+_NAME_FIELDS = ("colheaders", "VariableNames", "names", "columns")
+
+
+def _matlab(path: str, fmt: Mapping[str, Any]) -> dict[str, Any]:
+    """The columns of ``format.variable`` of a .mat file: name -> values."""
+    from scipy.io import loadmat, whosmat
+    from scipy.io.matlab import matfile_version
+
+    try:
+        major, _ = matfile_version(path)
+    except Exception as exc:  # not a .mat file, truncated, missing
+        raise _read_error(path, "matlab", exc) from None
+    if major == 2:
+        raise DataError(
+            path,
+            "",
+            None,
+            "a MATLAB v7.3 (HDF5) file, which railtherm does not read; save it again as a "
+            "v7 file: save(file, 'name', '-v7')",
+        )
+    try:
+        found = {name: (shape, cls) for name, shape, cls in whosmat(path)}
+    except Exception as exc:
+        raise _read_error(path, "matlab", exc) from None
+    variable = fmt.get("variable")
+    listed = ", ".join(found) or "none"
+    if variable is None:
+        if len(found) != 1:
+            raise DataError(
+                path,
+                "",
+                None,
+                f"the file holds {len(found)} variables ({listed}); set format.variable to "
+                "the one with the data",
+            )
+        variable = next(iter(found))
+    elif variable not in found:
+        raise DataError(
+            path,
+            "",
+            None,
+            f"no variable '{variable}' (variables: {listed}); set format.variable to one of them",
+        )
+    try:
+        value = loadmat(path, variable_names=[variable], simplify_cells=True)[variable]
+    except Exception as exc:
+        raise _read_error(path, "matlab", exc) from None
+    shape, cls = found[variable]
+    names = fmt.get("columns")
+    if isinstance(value, dict):
+        if "data" in value and (names or any(f in value for f in _NAME_FIELDS)):
+            label = next((value[f] for f in _NAME_FIELDS if f in value), None)
+            return _matrix(path, variable, np.asarray(value["data"]), names or _strings(label))
+        if names:
+            raise DataError(
+                path,
+                "",
+                None,
+                f"'{variable}' is a struct whose fields are the columns; remove format.columns "
+                "(it names the columns of a matrix)",
+            )
+        return _struct_columns(path, variable, value)
+    if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+        return _struct_rows(path, variable, value)  # a struct array: one element per row
+    if isinstance(value, np.ndarray) and value.dtype.kind in "biuf":
+        return _matrix(path, variable, value.reshape(shape), names)
+    raise DataError(
+        path,
+        "",
+        None,
+        f"'{variable}' is a MATLAB {cls}, not a struct of columns nor a numeric matrix; in "
+        "MATLAB, save a table T as s = table2struct(T, 'ToScalar', true) with datetimes as "
+        "text (string(t, 'yyyy-MM-dd''T''HH:mm:ss')) or seconds",
+    )
+
+
+def _strings(value: Any) -> list[str] | None:
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return [value]
+    return [str(v) for v in np.asarray(value, dtype=object).ravel()]
+
+
+def _matrix(path: str, variable: str, value: np.ndarray, names: Sequence[str] | None) -> dict:
+    if value.ndim == 1:
+        value = value.reshape(-1, 1)
+    if value.ndim != 2 or value.dtype.kind not in "biuf":
+        raise DataError(path, "", None, f"'{variable}' is no 2-D numeric matrix")
+    rows, width = value.shape
+    if not names:
+        raise DataError(
+            path,
+            "",
+            None,
+            f"'{variable}' is a matrix of {rows} rows and {width} columns without column "
+            f"names; name them in format.columns ({width} names, in order)",
+        )
+    if len(names) != width:
+        transposed = " (is it transposed? one row per sample)" if len(names) == rows else ""
+        raise DataError(
+            path,
+            "",
+            None,
+            f"format.columns names {len(names)} columns, '{variable}' has {width}{transposed}; "
+            "give one name per matrix column",
+        )
+    return {str(name): value[:, i] for i, name in enumerate(names)}
+
+
+def _column(path: str, variable: str, field: str, value: Any) -> Any:
+    """One struct field as a column: a numeric vector or a list of texts."""
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, list):
+        return value
+    if isinstance(value, int | float | bool | np.generic):
+        return np.asarray([value])
+    if isinstance(value, np.ndarray) and (value.ndim <= 1 or max(value.shape) == value.size):
+        if value.dtype.kind in "biufOU":
+            return value.ravel()
+    raise DataError(
+        path,
+        field,
+        None,
+        f"field of '{variable}' is no column (a vector of numbers or texts; got "
+        f"{type(value).__name__} {getattr(value, 'shape', '')}); a struct's fields must "
+        "each be one column",
+    )
+
+
+def _struct_columns(path: str, variable: str, value: dict[str, Any]) -> dict[str, Any]:
+    columns = {field: _column(path, variable, field, v) for field, v in value.items()}
+    lengths = {field: len(v) for field, v in columns.items()}
+    if len(set(lengths.values())) > 1:
+        first = next(iter(lengths))
+        odd = next(f for f, n in lengths.items() if n != lengths[first])
+        raise DataError(
+            path,
+            odd,
+            None,
+            f"field of '{variable}' has {lengths[odd]} values where '{first}' has "
+            f"{lengths[first]}; every field must be one column of the same length",
+        )
+    return columns
+
+
+def _struct_rows(path: str, variable: str, value: list[dict[str, Any]]) -> dict[str, Any]:
+    names = list(value[0])
+    for row in value:
+        if list(row) != names:
+            raise DataError(path, "", None, f"the elements of '{variable}' differ in fields")
+    columns = {}
+    for name in names:
+        cells = [row[name] for row in value]
+        if any(isinstance(c, np.ndarray) and c.size != 1 for c in cells):
+            raise DataError(
+                path, name, None, f"field of '{variable}' holds more than one value per element"
+            )
+        columns[name] = [c.item() if isinstance(c, np.ndarray) else c for c in cells]
+    return columns
+
+
+# ---------------------------------------------------------------------------------------------
+# R (rdata: .rda/.RData workspaces and .rds single objects)
+
+
+def _posixct(obj: Any, attrs: Mapping[str, Any]) -> np.ndarray:
+    """R's date-time (seconds since 1970 UTC) as ISO text: in its time zone with the UTC
+    offset when it has one, else the UTC wall time without an offset."""
+    tz = attrs.get("tzone")
+    tz = str(np.asarray(tz, dtype=object).ravel()[0]) if tz is not None and len(tz) else ""
+    seconds = np.asarray(obj, dtype=float)
+    stamps = pd.to_datetime(seconds, unit="s", utc=True).round("us")
+    if tz:
+        stamps = stamps.tz_convert(tz)
+    else:
+        stamps = stamps.tz_localize(None)
+    return np.array([None if pd.isna(s) else s.isoformat() for s in stamps], dtype=object)
+
+
+def _rdate(obj: Any, attrs: Mapping[str, Any]) -> np.ndarray:
+    """R's date (days since 1970-01-01) as ISO text."""
+    days = np.asarray(obj, dtype=float)
+    stamps = pd.to_datetime(days, unit="D")
+    return np.array([None if pd.isna(s) else s.date().isoformat() for s in stamps], dtype=object)
+
+
+def _r(path: str, fmt: Mapping[str, Any]) -> dict[str, Any]:
+    """The columns of the data frame of an .rds file, or of ``format.variable`` (by default
+    the only data frame) of an .rda file: name -> values."""
+    rdata = _needs("rdata", "rdata", path, "r")
+    constructors = {**rdata.conversion.DEFAULT_CLASS_MAP, "POSIXct": _posixct, "Date": _rdate}
+    rds = os.path.splitext(path)[1].lower() == ".rds"
+    read = rdata.read_rds if rds else rdata.read_rda
+    kwargs: dict[str, Any] = {"constructor_dict": constructors}
+    if fmt.get("encoding"):
+        kwargs["default_encoding"] = _encoding(path, fmt)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # classes without a constructor: their values
+            found = read(path, **kwargs)
+    except Exception as exc:  # rdata's own errors: not R data, damaged, unknown object
+        raise _read_error(path, "r", exc) from None
+    variable = fmt.get("variable")
+    if not isinstance(found, dict):  # an .rds file: one object
+        if variable is not None:
+            raise DataError(
+                path,
+                "",
+                None,
+                "an .rds file holds one object, no variables; remove format.variable",
+            )
+        frame, what = found, "the object"
+    else:
+        listed = ", ".join(found) or "none"
+        frames = [name for name, v in found.items() if isinstance(v, pd.DataFrame)]
+        if variable is None:
+            if len(frames) != 1:
+                raise DataError(
+                    path,
+                    "",
+                    None,
+                    f"the file holds {len(frames)} data frames ({', '.join(frames) or 'none'}; "
+                    f"objects: {listed}); set format.variable to the one with the data",
+                )
+            variable = frames[0]
+        elif variable not in found:
+            raise DataError(
+                path,
+                "",
+                None,
+                f"no object '{variable}' (objects: {listed}); set format.variable to one of them",
+            )
+        frame, what = found[variable], f"'{variable}'"
+    if not isinstance(frame, pd.DataFrame):
+        raise DataError(
+            path,
+            "",
+            None,
+            f"{what} is a {type(frame).__name__}, not a data frame; save a data.frame "
+            "(as.data.frame(x)) with one column per channel",
+        )
+    return {str(name): frame[name] for name in frame.columns}
