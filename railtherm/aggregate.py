@@ -34,16 +34,30 @@ def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame |
     when |k - k_truth| <= max(u_k, 3 % k_truth) (u_k the standard uncertainty; U_k = 2 u_k, the
     expanded one, is listed too). ``note`` names the declared deviations that bias k, says when
     the window is not usable, and flags a disagreement that nothing declared explains.
+
+    A vehicle without ``surface_m2`` (class other) has no k: its k, u_k and U_k are blank, and
+    the table then gives every vehicle's ``kA``, ``u_kA`` and ``k_status`` ("estimated" or
+    "not given: no surface_m2"); such a vehicle is compared with its truth by kA.
     """
     truth_by_id = truth.set_index("vehicle") if truth is not None else None
+    without_surface = any(r.get("k") is None for r in results.values())
     rows = []
     for vid, r in results.items():
+        given = r.get("k") is not None
         row = {
             "vehicle": vid,
             "method": "static (eq. 10)",
-            "k": r["k"],
-            "u_k": r["u_k"],
-            "U_k": COVERAGE_FACTOR * r["u_k"],
+            "k": r["k"] if given else math.nan,
+            "u_k": r["u_k"] if given else math.nan,
+            "U_k": COVERAGE_FACTOR * r["u_k"] if given else math.nan,
+        }
+        if without_surface:
+            row |= {
+                "kA": float(r["kA"]),
+                "u_kA": float(r.get("u_kA", r["u_k_rel"] * r["kA"])),
+                "k_status": ESTIMATED if given else NOT_GIVEN["surface_m2"],
+            }
+        row |= {
             "steady": r["steady"],
             "forced": r["forced"],
             "usable": r["usable"],
@@ -53,9 +67,16 @@ def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame |
             t = truth_by_id.loc[vid]
             declared = [d for d in str(t["deviations"] or "").split(";") if d and d != "nan"]
             effects = str(t["k_effects"]) if pd.notna(t["k_effects"]) else ""
-            error = r["k"] - t["k"]
-            agrees = bool(abs(error) <= max(r["u_k"], K_TOLERANCE_REL * t["k"]))
+            if given:
+                error = r["k"] - t["k"]
+                agrees = bool(abs(error) <= max(r["u_k"], K_TOLERANCE_REL * t["k"]))
+                rel_error = float(error / t["k"])
+            else:  # no surface: kA against the truth's kA, relative, as k would be
+                rel_error = float(r["kA"] / t["kA"] - 1.0)
+                agrees = bool(abs(rel_error) <= max(r["u_k_rel"], K_TOLERANCE_REL))
             notes = []
+            if not given:
+                notes.append(f"k {NOT_GIVEN['surface_m2']}; kA compared with the truth's kA")
             if not r["usable"]:
                 notes.append("window not steady: k not usable")
             if effects:
@@ -65,7 +86,7 @@ def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame |
             note = "; ".join(notes)
             row |= {
                 "k_truth": float(t["k"]),
-                "rel_error": float(error / t["k"]),
+                "rel_error": rel_error,
                 "agrees": agrees,
                 "deviations": ";".join(declared),
                 "note": note,
@@ -187,6 +208,13 @@ Z95 = pem.Z95
 SYNTHETIC_SOURCE = "synthetic: virtual climatic wind tunnel campaign (not measurements)"
 MEASURED_SOURCE = "measured"
 ESTIMATED = "estimated"
+# the status of a quantity whose metadata the config does not give (an object of class
+# other): k needs the surface, c_veh the mass; blank in every table, left out of every statistic
+NOT_GIVEN_PREFIX = "not given"
+NOT_GIVEN = {
+    "surface_m2": "not given: no surface_m2",
+    "mass_kg": "not given: no mass_kg",
+}
 
 
 def data_source(vehicles: Mapping[str, Mapping[str, Any]]) -> str:
@@ -236,6 +264,24 @@ def quantity(value: float, ci95: Sequence[float], judged: Mapping[str, Any]) -> 
     }
 
 
+def not_given(key: str) -> dict[str, Any]:
+    """The table columns of a quantity the config's metadata cannot give (:data:`NOT_GIVEN`:
+    k without ``surface_m2``, c_veh without ``mass_kg``): no value, no interval, no limit."""
+    return {
+        "": math.nan,
+        "_lo": math.nan,
+        "_hi": math.nan,
+        "_status": NOT_GIVEN[key],
+        "_limit": math.nan,
+        "_limit_kind": "",
+    }
+
+
+def is_not_given(status: Any) -> bool:
+    """Whether a ``<q>_status`` cell says the quantity is not given (no metadata for it)."""
+    return isinstance(status, str) and status.startswith(NOT_GIVEN_PREFIX)
+
+
 def _columns(name: str, q: Mapping[str, Any]) -> dict[str, Any]:
     out = {f"{name}{suffix}": v for suffix, v in q.items()}
     out.setdefault(f"{name}_limit", math.nan)
@@ -279,14 +325,17 @@ def table2(
     uncertainty, coverage factor 2, as the k table); k from joint estimation kA / A with kA's
     interval. C, K_veh, C_veh intervals are the combined ones (statistical and systematic); a
     parameter the data do not determine has no value, its status and its one-sided limit
-    (:func:`quantity`)."""
+    (:func:`quantity`). A vehicle without ``surface_m2`` has no k: status "not given: no
+    surface_m2" (:func:`not_given`)."""
     rows = []
     for vid in by_class(vehicles):
         vehicle, fit = vehicles[vid], fits[vid]
         params = fit["parameters"]
-        A = float(vehicle["surface_m2"])
+        A = None if vehicle.get("surface_m2") is None else float(vehicle["surface_m2"])
         kv = kvalues.get(vid)
-        if params["kA"]["estimated"] or kv is None:
+        if A is None:
+            k = not_given("surface_m2")
+        elif params["kA"]["estimated"] or kv is None:
             entry = params["kA"]
             judged = dict(pem.parameter_identification(entry))
             if judged.get("limit_value") is not None:
@@ -340,17 +389,22 @@ def table3(
     exact); delta's interval is exp(log delta +- z_0.975 sd), sd combining the statistical
     variances and the correlation of log C and log C_veh with the systematic effects of each
     source on both. A ratio with a part the data do not determine is not identified either;
-    its limit follows from the parts' (C at its lower bound: delta at least C_veh / bound)."""
+    its limit follows from the parts' (C at its lower bound: delta at least C_veh / bound).
+    A vehicle without ``mass_kg`` has no m_veh and no c_veh: status "not given: no mass_kg"
+    (:func:`not_given`); delta needs no mass."""
     rows = []
     for vid, cls, verdict, source in zip(
         t2["vehicle"], t2["class"], t2["verdict"], t2["source"], strict=True
     ):
         fit = fits[vid]
         params = fit["parameters"]
-        m = float(vehicles[vid]["mass_kg"])
+        mass = vehicles[vid].get("mass_kg")
+        m = math.nan if mass is None else float(mass)
         C_veh, C = params["C_veh"], params["C"]
         c_kind, c_value = _ratio_limit(_part(C_veh), ("point", m))
-        if c_kind == "point":
+        if mass is None:
+            c_veh = not_given("mass_kg")
+        elif c_kind == "point":
             ci = [c / m for c in C_veh["ci95"]]
             c_veh = quantity(c_value, ci, pem.identification(c_value, ci))
         else:
@@ -435,16 +489,22 @@ def class_summary(t3: pd.DataFrame) -> pd.DataFrame:
     median, sample sd, min and max, the vehicles used and those left out because the data do
     not determine their value. A t interval (n - 1 degrees of freedom) is exact for normal
     data and honest at n = 2 (wide); a percentile bootstrap of 3 to 5 values returns little
-    more than their range and covers far less than 95 %."""
+    more than their range and covers far less than 95 %. A value not given (no metadata for
+    it, :data:`NOT_GIVEN`) is skipped: neither used nor listed as not identified."""
     rows = []
     for selection, pick in SELECTIONS.items():
         sub = pick(t3)
         for c in class_order(sub["class"].tolist()):
             part = sub[sub["class"] == c]
             for q in ("c_veh", "delta"):
-                ok = part[f"{q}_status"] == ESTIMATED if f"{q}_status" in part else part[q].notna()
+                if f"{q}_status" in part:
+                    ok = part[f"{q}_status"] == ESTIMATED
+                    given = ~part[f"{q}_status"].map(is_not_given).astype(bool)
+                else:
+                    ok = part[q].notna()
+                    given = pd.Series(True, index=part.index)
                 x = part.loc[ok, q].to_numpy(dtype=float)
-                left_out = part.loc[~ok, "vehicle"].tolist()
+                left_out = part.loc[~ok & given, "vehicle"].tolist()
                 row = {"selection": selection, "class": c, "quantity": q, "n": int(x.size)}
                 if x.size:
                     lo, hi = t_interval(x, positive=True)

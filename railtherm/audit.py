@@ -1391,10 +1391,12 @@ def compare_reestimate(
 
     ``agrees`` needs an identified re-estimate (``status`` missing or ``estimated``) with a
     finite, bounded 95 % interval [lo, hi] (lo > x / 1000 and hi < 1000 x) that meets the
-    printed interval of the published value."""
+    printed interval of the published value. A re-estimate "not given" (its vehicle config
+    lacks the metadata it needs: k without surface_m2, c_veh without mass_kg) is not
+    comparable, with that reason."""
     status = "" if status is None or pd.isna(status) else str(status).strip()
     x, lo, hi = _number(x), _number(lo), _number(hi)
-    if status.startswith("not identified"):
+    if status.startswith(("not identified", "not given")):
         return f"{NOT_COMPARABLE}: {status}", None
     if status not in ("", "estimated"):
         return f"{NOT_COMPARABLE}: status '{status}'", None

@@ -141,8 +141,13 @@ def _fit(args: argparse.Namespace) -> int:
     result = fit_vehicle(vehicle, args.model, out=out, workdir=args.directory)
     if result.kvalue is not None:
         k = result.kvalue
+        value = (
+            f"kA = {k.kA:.4g} +- {k.u_kA:.2g} W/K (eq. 10; k not given: no surface_m2)"
+            if k.k is None
+            else f"k = {k.k:.4g} +- {k.u_k:.2g} W/(m2 K) (eq. 10)"
+        )
         print(
-            f"{vehicle.id}: k = {k.k:.4g} +- {k.u_k:.2g} W/(m2 K) (eq. 10), "
+            f"{vehicle.id}: {value}, "
             f"{'steady' if k.steady else 'not steady'}{', forced' if k.forced else ''}"
         )
     for fit in result.fits.values():

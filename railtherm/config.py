@@ -20,9 +20,7 @@ directory), the form in which the workflow and :func:`railtherm.synth.planned_la
 from __future__ import annotations
 
 import copy
-import datetime as dt
 import difflib
-import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -30,6 +28,7 @@ from typing import Any
 
 import pandas as pd
 
+from railtherm import timeaxis
 from railtherm.errors import ConfigError, DataError
 from railtherm.ingest import irradiance_names
 from railtherm.rawfile import (
@@ -72,7 +71,9 @@ CHANNEL_GROUPS = (
     "heat_flows",
     "irradiance",
 )
-PARAMETERS = ("C_bar", "C", "K_veh", "C_veh", "K_i", "C_e", "K_o")
+# Parameters model.initial and model.bounds name, besides the solar ones of the vehicle's
+# irradiance inputs I_<name>: a_I_<name> and, for a gain on both nodes, f_I_<name>.
+PARAMETERS = ("kA", "C_bar", "C", "K_veh", "C_veh", "K_i", "C_e", "K_o")
 
 
 @dataclass(frozen=True)
@@ -85,14 +86,16 @@ class Vehicle:
     the whole validated YAML with schema defaults filled in and the study's defaults merged
     under its sections (``data["model"]`` is ``defaults.model`` deep-merged under the vehicle's
     own ``model``); ``format``, ``channels``, ``windows`` and ``model`` read from it.
+    ``mass_kg`` and ``surface_m2`` are None where an object of class other leaves them out
+    (:data:`METADATA`).
     """
 
     id: str
     vehicle_class: str
     path: str
     synthetic: bool
-    mass_kg: float
-    surface_m2: float
+    mass_kg: float | None
+    surface_m2: float | None
     volume_m3: float | None
     raw_files: dict[str, str]
     data: dict[str, Any]
@@ -145,6 +148,36 @@ RESERVED_WINDOW_NAMES = ("kvalue", "record")
 
 # Sections of a vehicle file that the study config's ``defaults`` may preset.
 DEFAULTABLE = ("model", "cleaning", "instruments", "kvalue", "check")
+
+# Metadata a rail vehicle must give, with what needs it. An object of another class (a test
+# cell, a building) may leave out what means nothing for it: the quantity that needs it is
+# then not given (railtherm.aggregate), and the checks that read it are skipped with a note.
+METADATA = {
+    "mass_kg": "the mass m_veh gives c_veh = C_veh / m_veh (eq. 24)",
+    "surface_m2": "the surface A gives k = kA / A (eq. 10)",
+}
+
+
+def metadata_classes() -> tuple[str, ...]:
+    """The vehicle classes that must give every key of :data:`METADATA`: the rail classes of
+    the vehicle schema (its ``if``/``then``)."""
+    return tuple(packaged_schema("vehicle")["if"]["properties"]["class"]["enum"])
+
+
+def _check_metadata(file: str, data: dict[str, Any]) -> None:
+    """A rail vehicle gives ``mass_kg`` and ``surface_m2``; the message names the class."""
+    vehicle_class = data.get("class")
+    if not isinstance(vehicle_class, str) or vehicle_class not in metadata_classes():
+        return
+    for key, why in METADATA.items():
+        if key not in data:
+            raise ConfigError(
+                file,
+                key,
+                None,
+                f"missing required key for class '{vehicle_class}': {why}; only class 'other' "
+                "(a test cell, a building) may leave it out",
+            )
 
 
 def _section_schema(section: str) -> dict[str, Any]:
@@ -216,6 +249,7 @@ def load_vehicle(
     for section in DEFAULTABLE[1:]:  # model is merged after validation (see _check_model)
         if section in (defaults or {}) and isinstance(data.get(section, {}), dict):
             data[section] = deep_merge(defaults[section], data.get(section) or {})
+    _check_metadata(file, data)
     validate_schema(file, data, vehicle_schema())
 
     for section, key in (("cleaning", "temperature_range_degC"), ("check", "k_range_W_m2K")):
@@ -224,12 +258,22 @@ def load_vehicle(
             raise ConfigError(
                 file, f"{section}.{key}", [lo, hi], "must be [lower, upper] with lower < upper"
             )
+    check = data["check"]
+    if not check["min_capacity_per_kg_J_kgK"] < check["max_capacity_per_kg_J_kgK"]:
+        raise ConfigError(
+            file,
+            "check.max_capacity_per_kg_J_kgK",
+            check["max_capacity_per_kg_J_kgK"],
+            "must be above check.min_capacity_per_kg_J_kgK = "
+            f"{check['min_capacity_per_kg_J_kgK']:g}",
+        )
 
     fmt = data["format"]
     if fmt["separator"] == fmt["decimal"]:
         raise ConfigError(
             file, "format.decimal", fmt["decimal"], "must differ from format.separator"
         )
+    timeaxis.declared(file, fmt["time"])  # format, timezone and dst rule of the time column
 
     yaml_dir = os.path.dirname(path)
     raw_files: dict[str, str] = {}
@@ -242,7 +286,8 @@ def load_vehicle(
     _check_channels(file, data, found)
     _check_windows(file, data, found)
     model = deep_merge((defaults or {}).get("model") or {}, data.get("model") or {})
-    _check_model(file, model, data.get("model") or {})
+    _check_model(file, model, data.get("model") or {}, solar=_solar_parameters(data))
+    _check_envelope(file, data, model)
     data["model"] = model  # data is self-contained: the workflow passes it as params
 
     return Vehicle(
@@ -250,8 +295,8 @@ def load_vehicle(
         vehicle_class=data["class"],
         path=_normalise(path, workdir),
         synthetic=data["synthetic"],
-        mass_kg=float(data["mass_kg"]),
-        surface_m2=float(data["surface_m2"]),
+        mass_kg=float(data["mass_kg"]) if "mass_kg" in data else None,
+        surface_m2=float(data["surface_m2"]) if "surface_m2" in data else None,
         volume_m3=float(data["volume_m3"]) if "volume_m3" in data else None,
         raw_files=raw_files,
         data=data,
@@ -321,11 +366,15 @@ def _layout(
     except DataError as exc:
         if exc.value is None:  # about the file, not one of its values
             raise ConfigError(file, key, raw, f"{normalised}: {exc.reason}") from None
+        tf = timeaxis.time_format(time)
+        which = ("format.time.format", time["format"])  # the key whose value is in doubt
+        if tf.timezone and "daylight-saving" in exc.reason:
+            which = ("format.time.dst", tf.dst)
+        elif tf.timezone and "format.time.timezone" in exc.reason:
+            which = ("format.time.timezone", tf.timezone)
+        fix = timeaxis.fix(exc.value, tf, fmt["decimal"])
         raise ConfigError(
-            file,
-            "format.time.format",
-            time["format"],
-            f"{normalised} column '{exc.key}' {exc.reason}: {exc.value!r}",
+            file, *which, f"{normalised} column '{exc.key}' {exc.reason}: {exc.value!r}{fix}"
         ) from None
     return RawLayout(
         path=normalised,
@@ -371,6 +420,41 @@ def _check_channels(file: str, data: dict[str, Any], layouts: dict[str, RawLayou
         inputs[name] = key
 
 
+def _check_envelope(file: str, data: dict[str, Any], model: dict[str, Any]) -> None:
+    """What the channels say about the envelope node fits the models asked for: a solar gain
+    declared on the envelope (``channels.irradiance[i].node`` envelope or both) needs a
+    second node, which the first-order model lacks; ``model.envelope_sensors: surface``
+    needs surface sensors; ``model.outputs`` compares T_e only when it is measured."""
+    one_node = 1 in (model.get("orders") or [])
+    for i, channel in enumerate(data["channels"].get("irradiance") or []):
+        node = channel.get("node", "air")
+        if node != "air" and one_node:
+            raise ConfigError(
+                file,
+                f"channels.irradiance[{i}].node",
+                node,
+                "the first-order model (model.orders 1) has one node, no envelope: declare "
+                "node air, or fit only order 2 and interior_envelope",
+            )
+    sensors = model.get("envelope_sensors")
+    if sensors and not data["channels"].get(sensors):
+        raise ConfigError(
+            file,
+            "model.envelope_sensors",
+            sensors,
+            f"no channels.{sensors} sensors are declared: add them, or remove the key (the "
+            "envelope then stays unmeasured)",
+        )
+    if "T_e" in (model.get("outputs") or []) and not sensors:
+        raise ConfigError(
+            file,
+            "model.outputs",
+            model["outputs"],
+            "T_e is compared only when measured: set model.envelope_sensors: surface, or drop "
+            "T_e from the list",
+        )
+
+
 def _windows(data: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
     windows = data["windows"]
     found = []
@@ -382,7 +466,7 @@ def _windows(data: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
 
 def _check_windows(file: str, data: dict[str, Any], layouts: dict[str, RawLayout]) -> None:
     """File keys, time format, start < end and windows inside the data."""
-    time_format = data["format"]["time"]["format"]
+    time_format = timeaxis.time_format(data["format"]["time"])
     names: dict[str, str] = {}
     for key, window in _windows(data):
         if "name" in window and key.startswith("windows.identification"):
@@ -482,24 +566,15 @@ def _check_record_size(file: str, layout: RawLayout) -> None:
         )
 
 
-def _window_time(file: str, key: str, value: Any, time_format: str, layout: RawLayout) -> Any:
-    """A window bound as the file's time type: ``pandas.Timestamp`` (iso) or float (seconds)."""
-    if time_format == "seconds":
-        if not _is_number(value) or not math.isfinite(value):
-            raise ConfigError(
-                file, key, value, "must be a number of seconds (format.time.format is seconds)"
-            )
-        return float(value)
-    if not isinstance(value, str):
-        raise ConfigError(
-            file, key, value, "must be an ISO 8601 timestamp string (format.time.format is iso)"
-        )
-    try:
-        stamp = pd.Timestamp(dt.datetime.fromisoformat(value.strip()))
-    except ValueError:
-        raise ConfigError(
-            file, key, value, "not an ISO 8601 timestamp (e.g. 2024-01-15T08:30:00)"
-        ) from None
+def _window_time(
+    file: str, key: str, value: Any, tf: timeaxis.TimeFormat, layout: RawLayout
+) -> Any:
+    """A window bound as the file's time type (:func:`railtherm.timeaxis.instant`): a
+    ``pandas.Timestamp`` for a file of instants, written in the file's notation or ISO 8601;
+    float seconds for elapsed time, written as a number in the file's unit."""
+    stamp = timeaxis.instant(file, key, value, tf)
+    if not tf.absolute:
+        return stamp
     file_tz = getattr(layout.t_first, "tzinfo", None)
     if (stamp.tzinfo is None) != (file_tz is None):
         if file_tz is None:
@@ -510,10 +585,26 @@ def _window_time(file: str, key: str, value: Any, time_format: str, layout: RawL
     return stamp
 
 
+def _solar_parameters(data: dict[str, Any]) -> tuple[str, ...]:
+    """The solar parameters of a vehicle's irradiance inputs I_<name>: the effective aperture
+    a_I_<name> of each, and the envelope share f_I_<name> of a gain declared on both nodes."""
+    channels = data["channels"].get("irradiance") or []
+    names = irradiance_names(data)
+    shares = [f"f_{n}" for n, c in zip(names, channels, strict=True) if c.get("node") == "both"]
+    return tuple(f"a_{n}" for n in names) + tuple(shares)
+
+
 def _check_model(
-    file: str, model: dict[str, Any], own: dict[str, Any], prefix: str = "model"
+    file: str,
+    model: dict[str, Any],
+    own: dict[str, Any],
+    prefix: str = "model",
+    solar: tuple[str, ...] | None = None,
 ) -> None:
-    """Bounds lo < hi; initial values inside their bounds (after merging the defaults)."""
+    """Bounds lo < hi; initial values inside their bounds (after merging the defaults). With
+    ``solar`` (a vehicle's solar parameters, :func:`_solar_parameters`), a solar parameter
+    that the vehicle's own initial or bounds name must be one of them (one the study's
+    defaults name is ignored where it does not apply)."""
     bounds = model.get("bounds") or {}
     initial = model.get("initial") or {}
 
@@ -521,24 +612,35 @@ def _check_model(
         mine = name in (own.get(section) or {})
         return "" if mine else f" (model.{section}.{name} from the study's defaults.model)"
 
-    for name in PARAMETERS:
+    if solar is not None:
+        for section in ("initial", "bounds"):
+            for name in own.get(section) or {}:
+                if name not in PARAMETERS and name not in solar:
+                    accepted = ", ".join(PARAMETERS + solar)
+                    raise ConfigError(
+                        file,
+                        f"{prefix}.{section}.{name}",
+                        (own.get(section) or {})[name],
+                        f"no such parameter for this vehicle's inputs (accepted: {accepted}); a "
+                        "solar parameter names an input of channels.irradiance, f_ one on "
+                        "node both",
+                    )
+    for name, (lo, hi) in bounds.items():
+        if not lo < hi:
+            raise ConfigError(
+                file,
+                f"{prefix}.bounds.{name}",
+                bounds[name],
+                f"lower bound must be < upper bound{origin('bounds', name)}",
+            )
+    for name, value in initial.items():
         if name in bounds:
             lo, hi = bounds[name]
-            if not lo < hi:
-                raise ConfigError(
-                    file,
-                    f"{prefix}.bounds.{name}",
-                    bounds[name],
-                    f"lower bound must be < upper bound{origin('bounds', name)}",
-                )
-    for name in PARAMETERS:
-        if name in initial and name in bounds:
-            lo, hi = bounds[name]
-            if not lo <= initial[name] <= hi:
+            if not lo <= value <= hi:
                 raise ConfigError(
                     file,
                     f"{prefix}.initial.{name}",
-                    initial[name],
+                    value,
                     f"outside {prefix}.bounds.{name} = [{lo:g}, {hi:g}]"
                     f"{origin('initial', name)}{origin('bounds', name)}",
                 )

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from railtherm import ingest, kvalue
+from railtherm import ingest, kvalue, timeaxis
 from railtherm.config import Study, Vehicle
 from railtherm.rawfile import DigestCache
 
@@ -39,17 +39,30 @@ PLAUSIBLE_STEP_S = (1.0, 3 * 3600.0)
 
 
 def step_warnings(vehicle: Vehicle) -> list[str]:
-    """A sentence per raw file whose logger step is implausible for a thermal record."""
+    """A sentence per raw file whose logger step is implausible for a thermal record, naming
+    the declared time unit and the steps the same numbers would give in the other units."""
     lo, hi = PLAUSIBLE_STEP_S
+    tf = timeaxis.time_format(vehicle.format["time"])
     out = []
     for name, layout in vehicle.layouts.items():
         step = layout.step_s
         if step and not lo <= step <= hi:
-            fmt = vehicle.format["time"]["format"]
+            if tf.absolute:
+                advice = "is format.time.format right?"
+            else:
+                number = step / timeaxis.ELAPSED_UNITS_S[tf.format]  # as the file writes it
+                others = [
+                    f"{number * factor:g} s in {unit}"
+                    for unit, factor in timeaxis.ELAPSED_UNITS_S.items()
+                    if unit != tf.format and lo <= number * factor <= hi
+                ]
+                advice = "is the time unit right?"
+                if others:
+                    advice += f" (a step of {number:g} is {', '.join(others)})"
             out.append(
                 f"{vehicle.path}: raw file {layout.path} ({name}) is logged every {step:g} s by "
-                f"its time column read as format.time.format '{fmt}': implausible for a thermal "
-                f"record ({lo:g} s to {hi / 3600:g} h); is the time unit right?"
+                f"its time column read as format.time.format '{tf.format}': implausible for a "
+                f"thermal record ({lo:g} s to {hi / 3600:g} h); {advice}"
             )
     return out
 
@@ -81,7 +94,15 @@ def _code_version() -> str:
     """Digest of the code that reads and judges the values (a change re-checks them)."""
     h = hashlib.sha256()
     here = Path(__file__).parent
-    for name in ("datacheck.py", "ingest.py", "kvalue.py", "rawfile.py", "config.py"):
+    for name in (
+        "datacheck.py",
+        "ingest.py",
+        "kvalue.py",
+        "rawfile.py",
+        "config.py",
+        "readers.py",
+        "timeaxis.py",
+    ):
         h.update((here / name).read_bytes())
     return h.hexdigest()
 

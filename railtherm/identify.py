@@ -10,6 +10,7 @@ estimated with the capacities; every output says which way k was obtained.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -19,8 +20,9 @@ import numpy as np
 import pandas as pd
 
 from railtherm import ingest, metrics, models, pem
-from railtherm.errors import DataError
+from railtherm.errors import ConfigError, DataError
 from railtherm.kvalue import sensor_counts, sensor_u_K
+from railtherm.yamlio import packaged_schema, validate_schema
 
 # the fitted models of a vehicle, by the key in their file names (fit_<key>.yaml)
 MODEL_STRUCTURE = {
@@ -44,10 +46,61 @@ def model_key(order: int | str) -> str:
     return f"order{text}" if text.isdigit() else text
 
 
+def irradiance_inputs(vehicle_data: Mapping[str, Any]) -> list[str]:
+    """The vehicle's irradiance inputs as :func:`railtherm.models.structure_for` takes them:
+    I_<name> for a gain into the air node, I_<name>@envelope or I_<name>@both for one declared
+    on the envelope node or shared (``channels.irradiance[i].node``, default air)."""
+    names = ingest.irradiance_names(vehicle_data)
+    channels = list((vehicle_data.get("channels") or {}).get("irradiance") or [])
+    nodes = [str(c.get("node") or "air") for c in channels]
+    return [n if node == "air" else f"{n}@{node}" for n, node in zip(names, nodes, strict=True)]
+
+
 def model_structure(order: int | str, vehicle_data: Mapping[str, Any] | None = None):
-    """The structure of a model key, with the vehicle's irradiance inputs (eq. 1)."""
-    irradiance = ingest.irradiance_names(vehicle_data) if vehicle_data else []
-    return models.structure_for(MODEL_STRUCTURE[model_key(order)], irradiance)
+    """The structure of a model key, with the vehicle's irradiance inputs (eq. 1), each on
+    the node its channel declares. A gain declared on the envelope (or both) where the model
+    has one node (order1) is a :class:`ConfigError` naming the channel."""
+    irradiance = irradiance_inputs(vehicle_data) if vehicle_data else []
+    name = MODEL_STRUCTURE[model_key(order)]
+    base = models.STRUCTURES[name]
+    for i, spec in enumerate(irradiance):
+        node = models.irradiance_spec(spec)[1]
+        if node != "air" and not base.envelope:
+            raise ConfigError(
+                vehicle_data.get("id", "(vehicle)"),
+                f"channels.irradiance[{i}].node",
+                node,
+                f"model {model_key(order)} ({name}) has one node, no envelope: declare node "
+                "air, or fit only order2 and interior_envelope (model.orders, model.structures)",
+            )
+    return models.structure_for(name, irradiance)
+
+
+# model.envelope_sensors -> the tidy column that measures the envelope state
+ENVELOPE_SENSORS = {"surface": "T_veh"}
+
+
+def envelope_tables(
+    structure: models.Structure,
+    vehicle_data: Mapping[str, Any],
+    tables: Mapping[str, pd.DataFrame],
+) -> dict[str, pd.DataFrame]:
+    """The windows with the envelope state measured where the config says so:
+    ``model.envelope_sensors: surface`` makes the weighted mean of ``channels.surface`` (the
+    tidy column T_veh) the measurement of the structure's envelope state (T_e of the
+    interior-envelope structure), compared in eq. 17 like T_veh in eqs. 7-8 and, with
+    ``model.x0: measured``, its measured initial state. Without the key, or for a structure
+    whose envelope state is that column already (T_veh) or that has none, the windows as
+    they are: the envelope unmeasured."""
+    group = (vehicle_data.get("model") or {}).get("envelope_sensors")
+    state = structure.states[1] if structure.envelope else None
+    column = ENVELOPE_SENSORS.get(str(group)) if group else None
+    if column is None or state is None or state == column:
+        return dict(tables)
+    return {
+        name: table.assign(**{state: table[column]}) if column in table.columns else table
+        for name, table in tables.items()
+    }
 
 
 def _outputs(structure: models.Structure, vehicle_data: Mapping[str, Any], tables) -> tuple:
@@ -121,20 +174,58 @@ def rows_used(
     return out
 
 
-def _settings(structure, vehicle_data, kvalue: Mapping[str, Any] | None):
+def surface(vehicle_data: Mapping[str, Any]) -> float | None:
+    """A, the vehicle's ``surface_m2`` (eq. 5), or None where the config gives none (an
+    object of class other): then k = kA / A is not given, kA still is."""
+    A = vehicle_data.get("surface_m2")
+    return None if A is None else float(A)
+
+
+def static_kA(kvalue: Mapping[str, Any], A: float | None) -> float:
+    """kA of the static test (eq. 10): k A, or the test's own kA where no surface is given."""
+    if A is None or kvalue.get("k") is None:
+        return float(kvalue["kA"])
+    return float(kvalue["k"]) * A
+
+
+def energy_balance_kA(tables: Mapping[str, pd.DataFrame] | None) -> float | None:
+    """A start for kA where neither the static test nor a surface gives one: the mean heat
+    input over the mean T - T_o of the identification windows (eq. 10 as if at rest); None
+    when that is not a positive number (no heating)."""
+    if not tables:
+        return None
+    frames = [t for t in tables.values() if {"T", "T_o", "Q_H"} <= set(t.columns)]
+    if not frames:
+        return None
+    rows = pd.concat([t[["T", "T_o", "Q_H"]] for t in frames]).dropna()
+    dT, Q = float((rows["T"] - rows["T_o"]).mean()), float(rows["Q_H"].mean())
+    kA = Q / dT if dT > 0 else math.nan
+    return kA if math.isfinite(kA) and kA > 0 else None
+
+
+def _settings(
+    structure,
+    vehicle_data,
+    kvalue: Mapping[str, Any] | None,
+    tables: Mapping[str, pd.DataFrame] | None = None,
+):
     """fixed, initial, bounds and the provenance of kA from the config and the k stage."""
     model = vehicle_data["model"]
-    A = float(vehicle_data["surface_m2"])
+    A = surface(vehicle_data)
     usable = bool(kvalue and kvalue["usable"])
     mode = model.get("mode", "static")
     notes = []
     initial = {p: float(v) for p, v in model.get("initial", {}).items()}
     bounds = {p: tuple(map(float, b)) for p, b in model.get("bounds", {}).items()}
     fixed = {}
-    kA_start = float(kvalue["k"]) * A if kvalue else 2.0 * A
+    if kvalue:
+        kA_start = static_kA(kvalue, A)
+    else:  # k = 2 W/(m2 K) on the surface; without one, the windows' energy balance
+        kA_start = 2.0 * A if A is not None else energy_balance_kA(tables)
     if "kA" not in structure.parameters:  # losses in series: kA = K_i K_o / (K_i + K_o)
         for p in ("K_i", "K_o"):
-            initial.setdefault(p, 2.0 * kA_start)
+            if kA_start is not None:
+                initial.setdefault(p, 2.0 * kA_start)
         k_source = "joint estimation (PEM), kA = K_i K_o / (K_i + K_o)"
         if mode == "static":
             notes.append(
@@ -142,14 +233,15 @@ def _settings(structure, vehicle_data, kvalue: Mapping[str, Any] | None):
                 "K_o); it is estimated with the capacities"
             )
     elif mode == "static" and usable:
-        fixed["kA"] = float(kvalue["k"]) * A
+        fixed["kA"] = static_kA(kvalue, A)
         k_source = "static test (eq. 10), forced" if kvalue["forced"] else "static test (eq. 10)"
     else:
         if mode == "static":
             why = "no k window" if kvalue is None else "its window failed the steady-state test"
             notes.append(f"static k not usable ({why}): kA estimated jointly")
         k_source = "joint estimation (PEM)"
-        initial.setdefault("kA", kA_start)
+        if kA_start is not None:
+            initial.setdefault("kA", kA_start)
         bounds.setdefault("kA", KA_BOUNDS)
     initial = {p: v for p, v in initial.items() if p in structure.parameters and p not in fixed}
     bounds = {p: b for p, b in bounds.items() if p in structure.parameters and p not in fixed}
@@ -169,8 +261,9 @@ def identify(
     measured and simulated states, residuals and inputs).
     """
     structure = model_structure(order, vehicle_data)
+    tables = envelope_tables(structure, vehicle_data, tables)
     outputs = _outputs(structure, vehicle_data, tables)
-    fixed, initial, bounds, k_source, notes = _settings(structure, vehicle_data, kvalue)
+    fixed, initial, bounds, k_source, notes = _settings(structure, vehicle_data, kvalue, tables)
     model = vehicle_data["model"]
     options = {
         "fixed": fixed,
@@ -197,7 +290,7 @@ def identify(
         "model": model_key(order),
         "structure": structure.name,
         "k_source": k_source,
-        "A": float(vehicle_data["surface_m2"]),
+        "A": surface(vehicle_data),
         "mass_kg": float(vehicle_data["mass_kg"]) if "mass_kg" in vehicle_data else None,
         "volume_m3": float(vehicle_data["volume_m3"]) if "volume_m3" in vehicle_data else None,
         "outputs": list(outputs),
@@ -330,7 +423,9 @@ def error_sources(structure, options, vehicle_data, kvalue) -> list[ErrorSource]
                 )
             )
     if static:
-        budget, k = kvalue["budget"], float(kvalue["k"])
+        # the budget is in the unit of k, or of kA where no surface is given
+        budget = kvalue["budget"]
+        k = float(kvalue["kA"]) if kvalue.get("k") is None else float(kvalue["k"])
         u_scatter = float(budget["scatter"]) / k
         u_storage = float(budget["storage"]) / k
         sources += [
@@ -483,21 +578,56 @@ RHO_CP_AIR = 1.2 * 1005.0  # J/(m^3 K): air at about 20 degC
 C_WATER = 4186.0  # J/(kg K): the highest specific heat of any common material
 
 
+def check_thresholds(thresholds: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Every threshold of the verdict: a vehicle's ``check`` section (the study's
+    ``defaults.check`` merged under it) with the schema's defaults, the climatic-wind-tunnel
+    values, filled in for what it leaves out. An unknown key or a value of the wrong type is a
+    :class:`~railtherm.errors.ConfigError` naming the key (with a did-you-mean)."""
+    schema = packaged_schema("vehicle")
+    data = copy.deepcopy(dict(thresholds or {}))
+    section = {**schema["properties"]["check"], "$defs": schema["$defs"]}
+    validate_schema("thresholds", data, section, prefix="check")
+    return data
+
+
+def skipped_checks(estimate: Mapping[str, Any]) -> list[str]:
+    """The plausibility checks a fit could not make, each a note: an object of class other
+    may give no ``surface_m2`` (then k = kA / A and ``check.k_range_W_m2K``) or no ``mass_kg``
+    (then c_veh and the stored heat per kg) - nothing is wrong, there is nothing to judge."""
+    out = []
+    if estimate.get("A") is None:
+        out.append(
+            "k = kA / A not given, and its range (check.k_range_W_m2K) not checked: no surface_m2"
+        )
+    if estimate.get("mass_kg") is None:
+        out.append(
+            "c_veh = C_veh / m_veh not given, and the heat stored per kg "
+            "(check.min_capacity_per_kg_J_kgK, max_capacity_per_kg_J_kgK) not checked: no mass_kg"
+        )
+    return out
+
+
 def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
     """Physical plausibility of a fit's numbers, each failure a sentence for the verdict
     (a unit mistake in a channel leaves every other check silent):
 
     - k = kA / A inside ``k_range_W_m2K`` (default 0.1-10 W/(m^2 K): from a well-insulated
       envelope to bare single glazing in wind); W logged as kW puts it 1000 times too high;
-    - the stored heat per kg, (sum of the capacities) / mass, at most that of water (4186 J/(kg
-      K)): no vehicle stores more;
+    - the stored heat per kg, (sum of the capacities) / mass, at most
+      ``max_capacity_per_kg_J_kgK`` (default that of water, 4186 J/(kg K)): no vehicle stores
+      more;
     - the stored heat per kg at least ``min_capacity_per_kg_J_kgK`` (default 50 J/(kg K), a
       tenth of the vehicle's mass in steel at 477 J/(kg K)): time logged in minutes but
       declared seconds divides every capacity by 60;
-    - the air node's capacity (C, or C_bar) at least half that of the air in ``volume_m3``
-      (rho c_p = 1206 J/(m^3 K)): the node holds the air and what is in equilibrium with it.
+    - the air node's capacity (C, or C_bar) at least ``min_air_capacity_ratio`` (default half)
+      that of the air in ``volume_m3`` (rho c_p = 1206 J/(m^3 K)): the node holds the air and
+      what is in equilibrium with it.
 
-    A parameter the data do not determine is not judged here (its flag already is)."""
+    ``thresholds``: the ``check`` section (defaults filled in by :func:`check_thresholds`).
+    A check whose quantity the config does not give (no surface, mass or volume) is skipped
+    (:func:`skipped_checks` says so). A parameter the data do not determine is not judged here
+    (its flag already is)."""
+    thresholds = check_thresholds(thresholds)
     par = estimate["fit"]["parameters"]
     out = []
 
@@ -508,23 +638,29 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
         return float(entry["value"])
 
     kA = value("kA")
-    lo, hi = (float(x) for x in thresholds.get("k_range_W_m2K", (0.1, 10.0)))
-    if kA is not None and not lo <= kA / estimate["A"] <= hi:
+    A = estimate.get("A")
+    lo, hi = (float(x) for x in thresholds["k_range_W_m2K"])
+    if kA is not None and A is not None and not lo <= kA / A <= hi:
         out.append(
-            f"k = kA / A = {kA / estimate['A']:.4g} W/(m² K) lies outside the physical range "
+            f"k = kA / A = {kA / A:.4g} W/(m² K) lies outside the physical range "
             f"{lo:g}-{hi:g} W/(m² K) (check.k_range_W_m2K): are the units of the power and "
             "temperature channels right (W or kW, degC or K), and A the whole surface?"
         )
     capacities = [value(p) for p in ("C_bar", "C", "C_veh", "C_e") if p in par]
     if capacities and None not in capacities and estimate.get("mass_kg"):
         per_kg = sum(capacities) / estimate["mass_kg"]
-        if per_kg > C_WATER:
+        ceiling = float(thresholds["max_capacity_per_kg_J_kgK"])
+        if per_kg > ceiling:
+            than = (
+                f"water ({C_WATER:g} J/(kg K))"
+                if ceiling == C_WATER
+                else f"{ceiling:g} J/(kg K) (check.max_capacity_per_kg_J_kgK)"
+            )
             out.append(
                 f"the capacities store {per_kg:.4g} J/(kg K) of the mass {estimate['mass_kg']:g} "
-                f"kg, more than water ({C_WATER:g} J/(kg K)): a unit mistake (power in W "
-                "declared kW?) or the wrong mass"
+                f"kg, more than {than}: a unit mistake (power in W declared kW?) or the wrong mass"
             )
-        floor = float(thresholds.get("min_capacity_per_kg_J_kgK", 50.0))
+        floor = float(thresholds["min_capacity_per_kg_J_kgK"])
         if per_kg < floor:
             out.append(
                 f"the capacities store only {per_kg:.4g} J/(kg K) of the mass "
@@ -534,14 +670,22 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
             )
     air = value("C") if "C" in par else value("C_bar")
     if air is not None and estimate.get("volume_m3"):
-        floor = 0.5 * RHO_CP_AIR * estimate["volume_m3"]
+        ratio = float(thresholds["min_air_capacity_ratio"])
+        floor = ratio * RHO_CP_AIR * estimate["volume_m3"]
         if air < floor:
+            share = "half" if ratio == 0.5 else f"{ratio:g} times (check.min_air_capacity_ratio)"
             out.append(
-                f"the air node's capacity {air:.4g} J/K is below half that of the air in "
+                f"the air node's capacity {air:.4g} J/K is below {share} that of the air in "
                 f"{estimate['volume_m3']:g} m³ ({floor:.4g} J/K): a unit mistake (power in kW "
                 "declared W, time in minutes declared seconds?) or the wrong volume"
             )
     return out
+
+
+# check.max_rmse_K's default, 0.2 K: twice a calibrated sensor's 0.1 K
+RMSE_DEFAULT_K = packaged_schema("vehicle")["properties"]["check"]["properties"]["max_rmse_K"][
+    "default"
+]
 
 
 # Flags that describe the data's information but do not invalidate the fit: the combined
@@ -559,10 +703,17 @@ def check(
     Verdict "assumptions in doubt" when: R^2 of T (or a cross-validation R^2) is below
     ``r2_min``; a simulated temperature misses its measurement by more than ``max_rmse_K``
     (then also when its residuals are strongly coloured, fewer than ``min_effective_samples``
-    independent samples: a missing slow dynamic); a flag other than a high correlation; or k
-    not obtained by the two-stage approach. Residuals within the sensors' accuracy are not
-    judged by their colour: constant calibration offsets colour them by nature.
+    independent samples: a missing slow dynamic); with ``require_white``, a compared
+    temperature's residuals fail the Ljung-Box test at ``whiteness_alpha``; a flag other than
+    a high correlation; a number physically implausible (:func:`plausibility`); or k not
+    obtained by the two-stage approach. Residuals within the sensors' accuracy are not judged
+    by their colour: constant calibration offsets colour them by nature.
+
+    ``thresholds``: the vehicle's ``check`` section; what it leaves out takes the schema's
+    default (:func:`check_thresholds`). The notes list what does not put the fit in doubt:
+    high correlations, and the checks skipped for metadata the config does not give.
     """
+    thresholds = check_thresholds(thresholds)
     fit = estimate["fit"]
     p = int(fit["n_unknowns"])
     measures: dict[str, Any] = {}
@@ -580,10 +731,11 @@ def check(
     for state, m in measures.items():
         rmse = m["overall"]["rmse"]
         if rmse > thresholds["max_rmse_K"]:
+            limit = thresholds["max_rmse_K"]
+            why = "twice a sensor's accuracy" if limit == RMSE_DEFAULT_K else "check.max_rmse_K"
             reasons.append(
                 f"The simulated {state} misses the measurement by RMSE {rmse:.3g} K (more than "
-                f"{thresholds['max_rmse_K']:g} K, twice a sensor's accuracy): the model lacks a "
-                "dynamic or a heat path."
+                f"{limit:g} K, {why}): the model lacks a dynamic or a heat path."
             )
             _, coloured = metrics.verdict(
                 1.0,
@@ -591,9 +743,21 @@ def check(
                 thresholds={"min_effective_samples": thresholds["min_effective_samples"]},
             )
             reasons += coloured
+    if thresholds["require_white"]:  # the colour alone, not the effective samples
+        _, not_white = metrics.verdict(
+            1.0,
+            whiteness={state: m["overall"] for state, m in measures.items()},
+            thresholds={
+                "require_white": True,
+                "whiteness_alpha": thresholds["whiteness_alpha"],
+                "min_effective_samples": 0.0,
+            },
+        )
+        reasons += not_white
     reasons += plausibility(estimate, thresholds)
     reasons += estimate["notes"]
     notes = [f["message"] for f in fit["flags"] if f["code"] in NOTE_ONLY_FLAGS]
+    notes += skipped_checks(estimate)
     return {
         "vehicle": estimate["vehicle"],
         "synthetic": estimate["synthetic"],

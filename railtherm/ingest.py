@@ -8,8 +8,10 @@ stage consumes; :func:`clean_window` does both for a window named in the vehicle
 Tidy table (columns in this order)
 ----------------------------------
 ``time``       s since the window start: 0, step, 2 step, ...
-``timestamp``  the raw time label of the grid point (ISO string for ``iso`` files, seconds for
-               ``seconds`` files)
+``timestamp``  the time of the grid point: ISO 8601 text for a file of instants (``iso``, a
+               strftime pattern, ``epoch``, ``serial_days``; in UTC, ``+00:00``, when the
+               file's times carry offsets or a declared ``format.time.timezone``, and for
+               ``epoch``), elapsed seconds for a file of elapsed time (whatever its unit)
 ``T``          weighted mean of the indoor air sensors, degC
 ``T_veh``      weighted mean of the interior surface sensors, degC (empty if there are none)
 ``T_o``        weighted mean of the outdoor (tunnel) air sensors, degC
@@ -77,7 +79,6 @@ raw file and the window's key.
 
 from __future__ import annotations
 
-import datetime as dt
 import gzip
 import os
 import re
@@ -87,6 +88,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from railtherm import timeaxis
 from railtherm.errors import ConfigError, DataError
 from railtherm.rawfile import parse_times, read_columns, separator_hint
 from railtherm.readers import read_table, reader_kind
@@ -145,22 +147,25 @@ def read_raw(
     """Read a raw file into a DataFrame indexed by its time in seconds.
 
     ``fmt`` is the vehicle's ``format`` section: the kind of file (CSV, plain or ``.gz``; Excel;
-    MATLAB; R) and how to read it (:mod:`railtherm.readers`), decimal, time.column, time.format.
-    The index (``t_s``, float) is the time column in seconds: the numbers themselves for
-    ``seconds`` files, seconds since the first row for ``iso`` files. The time column is kept as
-    text (the raw labels); every other column is read as numbers where each of its cells is one
-    (``format.decimal`` honoured), else kept as text with the decimal mark ``.``. ``label`` is
-    the file name used in messages (default: ``path``).
+    MATLAB; R) and how to read it (:mod:`railtherm.readers`), decimal, and ``time`` (column,
+    format, timezone, dst; :mod:`railtherm.timeaxis`). The index (``t_s``, float) is the time
+    column in seconds: elapsed time in seconds (the numbers themselves for ``seconds``,
+    converted from minutes, hours or days), seconds since the first row for instants (iso, a
+    strftime pattern, epoch, serial_days). The time column is kept as text (the raw labels);
+    every other column is read as numbers where each of its cells is one (``format.decimal``
+    honoured), else kept as text with the decimal mark ``.``. ``label`` is the file name used
+    in messages (default: ``path``).
 
-    Raises :class:`DataError` naming the file when it cannot be read, the time column is
-    missing, a time does not parse (naming the value and its line), or the time is not strictly
-    increasing (naming the offending time, its data row and line).
+    Raises :class:`ConfigError` for a ``format.time`` that declares no known notation;
+    :class:`DataError` naming the file when it cannot be read, the time column is missing, a
+    time does not parse (naming the value, its line and the likely fix), or the time is not
+    strictly increasing (naming the offending time, its data row and line).
     """
     file = label or str(path)
     sep = fmt.get("separator", ",")
     decimal = fmt.get("decimal", ".")
     time_column = fmt["time"]["column"]
-    time_format = fmt["time"]["format"]
+    tf = timeaxis.declared(file, fmt["time"])
     try:
         columns = read_columns(path, fmt=fmt)
     except DataError as exc:
@@ -187,31 +192,31 @@ def read_raw(
         raw[column] = values.astype(float) if (values.notna() | text.isna()).all() else text
     labels = raw[time_column]
     try:
-        times = parse_times(file, labels, time_column, time_format, decimal)
+        times = parse_times(file, labels, time_column, tf, decimal)
     except DataError as exc:
-        raise DataError(file, exc.key, exc.value, exc.reason) from None
-    if time_format == "iso":
-        seconds = (times - times.iloc[0]).dt.total_seconds().to_numpy(dtype=float)
-    else:
-        seconds = times.to_numpy(dtype=float)
+        fix = timeaxis.fix(exc.value, tf, decimal)
+        raise DataError(file, exc.key, exc.value, exc.reason + fix) from None
+    seconds = timeaxis.seconds(times, tf)
     steps = np.diff(seconds)
     bad = np.flatnonzero(steps <= 0)
     if bad.size:
         i = int(bad[0]) + 1
         what = "duplicated time" if steps[i - 1] == 0 else "time goes backwards"
+        why = "the time column must increase strictly"
+        if tf.timezone and tf.dst in ("earlier", "later"):  # both passes of the repeated hour
+            why += f"; format.time.dst: {tf.dst} takes every repeated local time as one: infer?"
         raise DataError(
             file,
             time_column,
             labels.iloc[i],
-            f"{what}: data row {i + 1} (line {i + 2}) follows {labels.iloc[i - 1]!s} "
-            "(the time column must increase strictly)",
+            f"{what}: data row {i + 1} (line {i + 2}) follows {labels.iloc[i - 1]!s} ({why})",
         )
     raw.index = pd.Index(seconds, name="t_s")
-    origin = times.iloc[0] if time_format == "iso" else None  # the time at index 0 s
+    origin = times.iloc[0] if tf.absolute else None  # the time at index 0 s
     raw.attrs = {
         "file": file,
         "time_column": time_column,
-        "time_format": time_format,
+        "time_format": tf.format,
         "origin": origin,
     }
     return raw
@@ -277,20 +282,14 @@ def _window_key(vehicle_data: dict[str, Any], window: dict[str, Any] | None) -> 
     return "window"
 
 
-def _bound(file: str, key: str, value: Any, time_format: str, origin: Any) -> float:
-    """A window bound in the raw index's seconds."""
-    if time_format == "seconds":
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ConfigError(file, key, value, "must be a number of seconds (time format seconds)")
-        return float(value)
-    if not isinstance(value, str):
-        raise ConfigError(file, key, value, "must be an ISO 8601 timestamp (time format iso)")
+def _bound(file: str, key: str, value: Any, tf: timeaxis.TimeFormat, origin: Any) -> float:
+    """A window bound (in the file's notation or ISO 8601, :func:`railtherm.timeaxis.instant`)
+    in the raw index's seconds."""
+    t = timeaxis.instant(file, key, value, tf)
+    if not tf.absolute:
+        return float(t)
     try:
-        stamp = pd.Timestamp(dt.datetime.fromisoformat(value.strip()))
-    except ValueError:
-        raise ConfigError(file, key, value, "not an ISO 8601 timestamp") from None
-    try:
-        return float((stamp - origin).total_seconds())
+        return float((t - origin).total_seconds())
     except TypeError:
         raise ConfigError(
             file, key, value, "time zone given on one side only (window vs. the file's timestamps)"
@@ -395,10 +394,11 @@ def _complete_axis(t: np.ndarray, dt_log: float) -> tuple[np.ndarray, np.ndarray
 
 
 class _Labels:
-    """Raw time labels of arbitrary times (seconds on the raw index)."""
+    """Time labels of arbitrary times (seconds on the raw index): ISO 8601 text for a file of
+    instants (``absolute``, with ``origin`` the instant at 0 s), else the seconds."""
 
-    def __init__(self, time_format: str, origin: Any):
-        self.iso = time_format == "iso"
+    def __init__(self, absolute: bool, origin: Any):
+        self.iso = absolute
         self.origin = origin
 
     def many(self, seconds: np.ndarray) -> np.ndarray:
@@ -573,7 +573,8 @@ def tidy(
     """The tidy table (module docstring) of one window of a raw file read by :func:`read_raw`.
 
     ``vehicle_data`` is the validated vehicle config as plain data (``Vehicle.data``);
-    ``window`` is a window of it (``start``/``end`` in the file's time format) or ``None`` for
+    ``window`` is a window of it (``start``/``end`` in the file's time notation, or ISO 8601
+    for a file of instants; :func:`railtherm.timeaxis.instant`) or ``None`` for
     the whole recording; ``file`` names the raw file in messages, ``window_key`` the window
     (default: found in ``vehicle_data``, e.g. ``windows.kvalue``).
 
@@ -584,7 +585,7 @@ def tidy(
     """
     fmt = vehicle_data["format"]
     time_column = fmt["time"]["column"]
-    time_format = fmt["time"]["format"]
+    tf = timeaxis.declared(file, fmt["time"])
     timing = fmt.get("power_timing", "instant")
     cleaning = vehicle_data.get("cleaning") or {}
     max_gap = float(cleaning.get("max_gap_s", 900.0))
@@ -596,12 +597,14 @@ def tidy(
     if not np.all(np.diff(t) > 0):
         raise DataError(file, time_column, None, "the time index must increase strictly")
     origin = None
-    if time_format == "iso":  # the time at index 0 s
+    if tf.absolute:  # the time at index 0 s
         origin = raw.attrs.get("origin")
         if origin is None:
-            origin = pd.Timestamp(str(raw[time_column].iloc[0]).strip())
+            first = raw[time_column].iloc[:1].astype(str).reset_index(drop=True)
+            decimal = fmt.get("decimal", ".")
+            origin = timeaxis.parse(file, first, time_column, tf, decimal).iloc[0]
             origin -= pd.Timedelta(seconds=float(t[0]))
-    labels = _Labels(time_format, origin)
+    labels = _Labels(tf.absolute, origin)
 
     # channels: numbers in SI units (degC, W), in config order
     groups: dict[str, list[tuple[str, float, np.ndarray]]] = {}
@@ -635,8 +638,8 @@ def tidy(
     if window is None:
         start, end = float(t[0]), float(t[-1])
     else:
-        start = _bound(file, f"{key}.start", window["start"], time_format, origin)
-        end = _bound(file, f"{key}.end", window["end"], time_format, origin)
+        start = _bound(file, f"{key}.start", window["start"], tf, origin)
+        end = _bound(file, f"{key}.end", window["end"], tf, origin)
         if start < t[0] - tol or start > t[-1] + tol:
             raise ConfigError(file, f"{key}.start", window["start"], f"outside the data: {span}")
         if end > t[-1] + tol or end < t[0] - tol:

@@ -52,6 +52,13 @@ W/(m^2 K)); k is a product of powers, so each relative uncertainty enters with s
   u = bound / sqrt(3) / (A dT).
 
 u(k) is the root sum of squares of the components.
+
+Without a surface (``surface_m2`` may be left out for an object of class other, a test cell or
+a building) k is not given: the test gives kA = mean(Q_H) / (mean(T) - mean(T_o)) and its
+relative uncertainty ``u_k_rel``, the budget is in W/K (that of kA) and has no ``surface``
+term. Without a mass (``mass_kg``) the heat still going into storage is not bounded: the
+``storage`` term is 0 and a note says so. Both stay usable for the two-stage fit, which needs
+kA only.
 """
 
 from __future__ import annotations
@@ -91,6 +98,8 @@ class Budget:
     (W), ``storage_bound_k`` the same bound expressed in k (W/(m^2 K)), ``storage_rate_K_per_h``
     the slope used and ``storage_from`` its source column (``T_veh`` or ``T``);
     ``n_indoor``/``n_outdoor`` the effective sensor counts used for the calibration term.
+    ``unit`` is that of the components: W/(m2 K), that of k, or W/K, that of kA, where no
+    surface is given. Without a mass, ``storage_bound_W``/``_k`` are None and ``storage`` is 0.
     """
 
     power: float
@@ -98,13 +107,14 @@ class Budget:
     surface: float
     scatter: float
     storage: float
-    storage_bound_W: float
-    storage_bound_k: float
+    storage_bound_W: float | None
+    storage_bound_k: float | None
     storage_rate_K_per_h: float
     storage_from: str
     n_indoor: float
     n_outdoor: float
     power_basis: str = "total"
+    unit: str = "W/(m2 K)"
 
     def components(self) -> dict[str, float]:
         """The standard-uncertainty components (W/(m^2 K)), in ``COMPONENTS`` order."""
@@ -113,13 +123,14 @@ class Budget:
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = self.components()
         out.update(
-            storage_bound_W=float(self.storage_bound_W),
-            storage_bound_k=float(self.storage_bound_k),
+            storage_bound_W=_optional(self.storage_bound_W),
+            storage_bound_k=_optional(self.storage_bound_k),
             storage_rate_K_per_h=float(self.storage_rate_K_per_h),
             storage_from=self.storage_from,
             n_indoor=float(self.n_indoor),
             n_outdoor=float(self.n_outdoor),
             power_basis=self.power_basis,
+            unit=self.unit,
         )
         return out
 
@@ -131,13 +142,15 @@ class KValue:
     ``steady`` is the verdict, ``forced`` is true when the config forces a window that failed
     it, ``usable`` = steady or forced; ``reasons`` lists every failed test (empty if steady).
     ``window_start``/``window_end`` are the raw time labels of the first and last grid point.
+    ``k``, ``u_k`` and ``A`` are None where no surface is given (kA and ``u_k_rel`` still are);
+    ``notes`` says what the test could not give for want of metadata.
     """
 
-    k: float
-    u_k: float
+    k: float | None
+    u_k: float | None
     u_k_rel: float
     kA: float
-    A: float
+    A: float | None
     delta_T: float
     Q_H_mean: float
     T_mean: float
@@ -156,15 +169,23 @@ class KValue:
     budget: Budget
     window_start: Any = None
     window_end: Any = None
+    notes: tuple[str, ...] = ()
+
+    @property
+    def u_kA(self) -> float:
+        """Standard uncertainty of kA, W/K."""
+        return float(self.u_k_rel * self.kA)
 
     def to_dict(self) -> dict[str, Any]:
-        """A plain dict for YAML: Python floats/bools/str, keys in a fixed order."""
+        """A plain dict for YAML: Python floats/bools/str (None for k, u_k and A without a
+        surface), keys in a fixed order."""
         return {
-            "k": float(self.k),
-            "u_k": float(self.u_k),
+            "k": _optional(self.k),
+            "u_k": _optional(self.u_k),
             "u_k_rel": float(self.u_k_rel),
             "kA": float(self.kA),
-            "A": float(self.A),
+            "A": _optional(self.A),
+            "u_kA": self.u_kA,
             "delta_T": float(self.delta_T),
             "Q_H_mean": float(self.Q_H_mean),
             "T_mean": float(self.T_mean),
@@ -179,6 +200,7 @@ class KValue:
             "steady": bool(self.steady),
             "forced": bool(self.forced),
             "usable": bool(self.usable),
+            "notes": list(self.notes),
             "reasons": list(self.reasons),
             "budget": self.budget.to_dict(),
             "window": {"start": _plain(self.window_start), "end": _plain(self.window_end)},
@@ -187,15 +209,21 @@ class KValue:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> KValue:
         """The inverse of :meth:`to_dict` (a kvalue.yaml read back)."""
-        names = {f.name for f in dataclasses.fields(cls)} - {"budget", "reasons"}
+        names = {f.name for f in dataclasses.fields(cls)} - {"budget", "reasons", "notes"}
         window = data.get("window") or {}
         return cls(
             **{k: data[k] for k in names if k in data},
             reasons=tuple(data["reasons"]),
+            notes=tuple(data.get("notes") or ()),
             budget=Budget(**data["budget"]),
             window_start=window.get("start"),
             window_end=window.get("end"),
         )
+
+
+def _optional(value: float | None) -> float | None:
+    """A float for YAML, or None for a quantity not given."""
+    return None if value is None else float(value)
 
 
 def _plain(value: Any) -> Any:
@@ -303,8 +331,8 @@ def _fmt(x: float) -> str:
 
 def static_k(
     window: pd.DataFrame,
-    A: float,
-    mass_kg: float,
+    A: float | None,
+    mass_kg: float | None,
     settings: Mapping[str, Any],
     instruments: Mapping[str, Any],
     n_sensors: Mapping[str, float],
@@ -316,9 +344,10 @@ def static_k(
     ``settings`` is the vehicle's ``kvalue`` section, ``instruments`` its ``instruments``
     section (both with schema defaults filled), ``n_sensors`` the effective sensor counts
     ``{"indoor": ..., "outdoor": ...}`` (:func:`sensor_counts`). ``source`` names the table in
-    error messages. Raises :class:`~railtherm.errors.DataError` for a missing or non-finite
-    column, fewer than 3 rows, a non-increasing time, mean(T - T_o) <= 0 or mean(Q_H) <= 0
-    (no k exists then)."""
+    error messages. ``A`` None (no surface): k is not given, the budget is that of kA (W/K);
+    ``mass_kg`` None: the storage term is not bounded (0, with a note). Raises
+    :class:`~railtherm.errors.DataError` for a missing or non-finite column, fewer than 3
+    rows, a non-increasing time, mean(T - T_o) <= 0 or mean(Q_H) <= 0 (no k exists then)."""
     if len(window) < 3:
         raise DataError(source, "time", len(window), "the k window needs at least 3 rows")
     t = _column(window, "time", source)
@@ -329,8 +358,9 @@ def static_k(
     T_o = _column(window, "T_o", source)
     Q_H = _column(window, "Q_H", source)
     T_veh = _column(window, "T_veh", source, required=False)
-    if not A > 0 or not mass_kg > 0:
-        raise ValueError(f"A and mass_kg must be > 0, got A={A}, mass_kg={mass_kg}")
+    if (A is not None and not A > 0) or (mass_kg is not None and not mass_kg > 0):
+        raise ValueError(f"A and mass_kg must be > 0 or None, got A={A}, mass_kg={mass_kg}")
+    per = 1.0 if A is None else A  # the budget's unit: that of k, or of kA without a surface
 
     duration = float(t[-1] - t[0])
     T_mean = _trapezoid_mean(t, T)
@@ -356,7 +386,7 @@ def static_k(
             "channel's sign or column wrong, or the k window outside the heated test?",
         )
     kA = Q_mean / delta_T
-    k = kA / A
+    k = kA / per
 
     # -- verdict --------------------------------------------------------------------------
     t_q = t[:-1] + np.diff(t) / 2.0  # Q_H[n] is the mean over [t_n, t_n+1)
@@ -404,23 +434,35 @@ def static_k(
         raise ValueError(f"sensor counts must be > 0, got {dict(n_sensors)}")
     u_power = k * float(instruments["power_u_rel"])
     u_temp = k * math.sqrt(u_in_K**2 / n_in + u_out_K**2 / n_out) / delta_T
-    u_surface = k * float(instruments["surface_u_rel"])
+    u_surface = k * float(instruments["surface_u_rel"]) if A is not None else 0.0
 
     dT_step = (T[:-1] - T_o[:-1] + T[1:] - T_o[1:]) / 2.0  # over the step Q_H[n] covers
     _, balance = _line(t_q, Q_H[:-1] - kA * dT_step)
     stored = np.cumsum(balance * np.diff(t))  # E(t): heat into storage since the start, J
     u_stored = math.sqrt(2.0) * float(np.std(stored, ddof=1)) / duration
     u_noise = math.sqrt(float(np.mean(np.diff(balance) ** 2)) / 2.0 / balance.size)
-    u_scatter = math.hypot(u_stored, u_noise) / (A * delta_T)
+    u_scatter = math.hypot(u_stored, u_noise) / (per * delta_T)
 
     finite_veh = np.isfinite(T_veh)
     if np.count_nonzero(finite_veh) >= 2:
         rate, storage_from = _line(t[finite_veh], T_veh[finite_veh])[0], "T_veh"
     else:
         rate, storage_from = drift_T / duration, "T"
-    bound_W = mass_kg * float(settings["storage_c_J_per_kgK"]) * abs(rate)
-    bound_k = bound_W / (A * delta_T)
-    u_storage = bound_k / SQRT3
+    notes = []
+    if A is None:
+        notes.append("k = kA / A not given: no surface_m2 (the budget is that of kA, in W/K)")
+    if mass_kg is None:
+        bound_W = bound_k = None
+        u_storage = 0.0
+        storage_from = "not bounded: no mass_kg"
+        notes.append(
+            "the heat still going into storage is not bounded: no mass_kg (u(k) has no "
+            "storage term)"
+        )
+    else:
+        bound_W = mass_kg * float(settings["storage_c_J_per_kgK"]) * abs(rate)
+        bound_k = bound_W / (per * delta_T)
+        u_storage = bound_k / SQRT3
 
     budget = Budget(
         power=u_power,
@@ -434,16 +476,17 @@ def static_k(
         storage_from=storage_from,
         n_indoor=n_in,
         n_outdoor=n_out,
+        unit="W/(m2 K)" if A is not None else "W/K",
     )
     u_k = math.sqrt(sum(v * v for v in budget.components().values()))
 
     stamps = window["timestamp"] if "timestamp" in window.columns else window["time"]
     return KValue(
-        k=k,
-        u_k=u_k,
+        k=k if A is not None else None,
+        u_k=u_k if A is not None else None,
         u_k_rel=u_k / k,
         kA=kA,
-        A=float(A),
+        A=float(A) if A is not None else None,
         delta_T=delta_T,
         Q_H_mean=Q_mean,
         T_mean=T_mean,
@@ -462,6 +505,7 @@ def static_k(
         budget=budget,
         window_start=stamps.iloc[0],
         window_end=stamps.iloc[-1],
+        notes=tuple(notes),
     )
 
 
@@ -476,11 +520,12 @@ _LIMITS = (
 
 def for_vehicle(window: pd.DataFrame, vehicle_data: Mapping[str, Any], source: str) -> KValue:
     """:func:`static_k` with A, mass, settings, instruments and sensor counts from a vehicle's
-    validated config (``Vehicle.data``)."""
+    validated config (``Vehicle.data``); a surface or mass the config does not give is None."""
+    A, mass = vehicle_data.get("surface_m2"), vehicle_data.get("mass_kg")
     return static_k(
         window,
-        A=float(vehicle_data["surface_m2"]),
-        mass_kg=float(vehicle_data["mass_kg"]),
+        A=None if A is None else float(A),
+        mass_kg=None if mass is None else float(mass),
         settings=vehicle_data["kvalue"],
         instruments=vehicle_data["instruments"],
         n_sensors=sensor_counts(vehicle_data["channels"]),

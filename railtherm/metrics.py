@@ -57,17 +57,19 @@ __all__ = [
 ACCEPTABLE = "fit acceptable"
 IN_DOUBT = "assumptions in doubt"
 
-#: Defaults of :func:`verdict`. ``r2_min``: R^2 (eq. 21) below this puts the assumptions in
+#: Defaults of :func:`verdict`, named and valued as the keys of a vehicle's ``check`` section
+#: (railtherm/schemas/vehicle.schema.yaml, where each value's reason is given): the
+#: climatic-wind-tunnel values. ``r2_min``: R^2 (eq. 21) below this puts the assumptions in
 #: doubt. ``min_effective_samples``: residuals whose autocorrelation time leaves fewer than this
 #: many independent samples (m / tau) are *strongly coloured*: the error is a few slow
 #: excursions, i.e. dynamics the model does not have. ``require_white``: also count a rejected
-#: Ljung-Box test (p < ``alpha``) as a reason; off by default, since simulation-error residuals
-#: of thermal data are practically never white.
+#: Ljung-Box test (p < ``whiteness_alpha``) as a reason; off by default, since
+#: simulation-error residuals of thermal data are practically never white.
 DEFAULT_THRESHOLDS: dict[str, Any] = {
     "r2_min": 0.9,
     "min_effective_samples": 10.0,
     "require_white": False,
-    "alpha": 0.05,
+    "whiteness_alpha": 0.05,
 }
 
 
@@ -265,12 +267,15 @@ def verdict(
     fold); a NaN R^2 is a reason. flags: the fit's identifiability flags (sentences, or objects
     / mappings carrying a ``message``); each one is a reason. whiteness: a :class:`Whiteness`
     (or its ``to_dict()``), or a mapping {name: Whiteness}. thresholds: overrides of
-    :data:`DEFAULT_THRESHOLDS`. Reasons are plain sentences with the numbers; the label is
-    "fit acceptable" exactly when there are none."""
+    :data:`DEFAULT_THRESHOLDS` (an unknown name is a ValueError naming the known ones).
+    Reasons are plain sentences with the numbers; the label is "fit acceptable" exactly when
+    there are none."""
     t = {**DEFAULT_THRESHOLDS, **(thresholds or {})}
     unknown = set(t) - set(DEFAULT_THRESHOLDS)
     if unknown:
-        raise ValueError(f"unknown verdict thresholds: {sorted(unknown)}")
+        raise ValueError(
+            f"unknown verdict thresholds: {sorted(unknown)} (known: {sorted(DEFAULT_THRESHOLDS)})"
+        )
     reasons: list[str] = []
     for name, value in _named(r2):
         where = f" ({name})" if name else ""
@@ -291,8 +296,9 @@ def verdict(
                 f"{t['min_effective_samples']:g}); the model misses a slow dynamic."
             )
         p = _get(w, "p_value", "ljung_box_p")
-        if t["require_white"] and p < t["alpha"]:
+        if t["require_white"] and p < t["whiteness_alpha"]:
             reasons.append(
-                f"The residuals{where} are not white (Ljung-Box p = {p:.3g} < {t['alpha']:g})."
+                f"The residuals{where} are not white (Ljung-Box p = {p:.3g} < "
+                f"{t['whiteness_alpha']:g})."
             )
     return (IN_DOUBT if reasons else ACCEPTABLE), reasons

@@ -2,8 +2,8 @@
 discretisation, fast exact simulation and exact parameter sensitivities.
 
 Inputs are u = [T_o, Q_H] (degC, W), optionally followed by irradiance channels I_i (W/m2,
-:func:`with_irradiance`: solar gains a_i I_i into the air node, eq. 1); outputs y = x (C = I,
-D = 0, eqs. 11-12).
+:func:`with_irradiance`: solar gains a_i I_i into the air node, the envelope node or shared
+between them, eq. 1); outputs y = x (C = I, D = 0, eqs. 11-12).
 
 Structures are data (:class:`Structure`, :data:`STRUCTURES`): a name, the parameter and state
 names, and functions giving the continuous (A, B) and their analytic derivatives with respect
@@ -54,11 +54,13 @@ __all__ = [
     "first_order",
     "free_response",
     "free_response_head",
+    "irradiance_spec",
     "parameter_sensitivities",
     "second_order",
     "sensitivities",
     "simulate",
     "steady_state",
+    "steady_state_kA",
     "structure_for",
     "with_irradiance",
 ]
@@ -168,7 +170,13 @@ class Structure:
     parameters by name; ``initial`` holds the paper's start values (section 5.3) and
     ``bounds`` loose default bounds (SI units) for parameters the caller does not bound;
     ``air`` names the air node's capacity, the parameter through which heating and any solar
-    gain enter the air node (state 0): B[0, 1] = 1 / theta[air].
+    gain enter the air node (state 0): B[0, 1] = 1 / theta[air]. ``capacities`` (J/K) and
+    ``conductances`` (W/K) name the parameters of each kind: the automatic start of
+    :func:`railtherm.pem.fit` scales them to the data (the time constants C / K and the
+    overall kA of eq. 10); any other parameter (an aperture, m2) is neither. ``envelope``
+    names the envelope node's capacity (state 1: C_veh of T_veh, C_e of T_e), through which
+    solar gain declared on the envelope enters, B[1, j] = a_j / theta[envelope]; empty for a
+    one-node structure.
     """
 
     name: str
@@ -181,6 +189,9 @@ class Structure:
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     equations: str = ""
     air: str = "C"
+    capacities: tuple[str, ...] = ()
+    conductances: tuple[str, ...] = ()
+    envelope: str = ""
 
     def _theta(self, theta: Mapping[str, float]) -> dict:
         missing = [p for p in self.parameters if p not in theta]
@@ -197,6 +208,20 @@ class Structure:
         return self.jacobian(**self._theta(theta))
 
 
+def steady_state_kA(structure: Structure, theta: Mapping[str, float]) -> float:
+    """The overall heat-loss coefficient (W/K) of any structure at ``theta``, from its steady
+    state: eq. 10, Q_H = kA (T - T_o), holds at equilibrium, so kA = 1 / (dT/dQ_H) with
+    dT/dQ_H = -(A^-1 B)[0, 1] (heating enters the air node, state 0). It equals kA itself for
+    eqs. 13-14 and K_i K_o / (K_i + K_o) for the interior-envelope structure
+    (:func:`overall_kA`). NaN when the network has no steady state."""
+    A, B = structure.matrices(theta)
+    try:
+        gain = -float(np.linalg.solve(A, B[:, 1])[0])
+    except np.linalg.LinAlgError:
+        return math.nan
+    return 1.0 / gain if gain > 0 and math.isfinite(gain) else math.nan
+
+
 STRUCTURES: dict[str, Structure] = {
     "first_order": Structure(
         name="first_order",
@@ -209,6 +234,8 @@ STRUCTURES: dict[str, Structure] = {
         bounds={"kA": (1.0, 1.0e6), "C_bar": (1.0e4, 1.0e10)},
         equations="eq. 9, eq. 13",
         air="C_bar",
+        capacities=("C_bar",),
+        conductances=("kA",),
     ),
     "second_order": Structure(
         name="second_order",
@@ -226,6 +253,9 @@ STRUCTURES: dict[str, Structure] = {
             "C_veh": (1.0e4, 1.0e10),
         },
         equations="eqs. 7-8, eq. 14",
+        capacities=("C", "C_veh"),
+        conductances=("kA", "K_veh"),
+        envelope="C_veh",
     ),
     "interior_envelope": Structure(
         name="interior_envelope",
@@ -243,63 +273,129 @@ STRUCTURES: dict[str, Structure] = {
             "K_o": (1.0e-1, 1.0e6),
         },
         equations="interior-envelope (TiTe, pySIP TwTi_RoRi)",
+        capacities=("C", "C_e"),
+        conductances=("K_i", "K_o"),
+        envelope="C_e",
     ),
 }
 
 
 APERTURE_INITIAL = 1.0  # m2: start value of an effective aperture a_i
 APERTURE_BOUNDS = (1.0e-3, 1.0e3)  # m2
+IRRADIANCE_NODES = ("air", "envelope", "both")  # where a solar gain a_i I_i enters (eq. 1)
+SHARE_INITIAL = 0.5  # start value of the envelope's share f_i of a gain on both nodes
+SHARE_BOUNDS = (1.0e-3, 1.0)  # f_i in (0, 1], estimated in log f_i like every parameter
+
+
+def irradiance_spec(text: str) -> tuple[str, str]:
+    """An irradiance input as a structure's name spells it, split into (input, node):
+    ``"I_sol"`` -> ("I_sol", "air"), ``"I_sol@envelope"`` -> ("I_sol", "envelope")."""
+    name, sep, node = str(text).partition("@")
+    return name, (node if sep else "air")
 
 
 @dataclass(frozen=True)
 class _WithApertures:
     """(A, B) or their derivatives of a base structure with irradiance inputs appended: the
-    base (A, B), and B[0, m0 + i] = a_i / C_air (m0 the base's number of inputs). A frozen
-    dataclass (not a closure) so that structures built alike compare equal and pickle."""
+    base (A, B), and for input i the column m0 + i of B (m0 the base's number of inputs),
+
+        B[0, m0 + i] = (1 - f_i) a_i / C_air,   B[1, m0 + i] = f_i a_i / C_env,
+
+    eq. 1's Q_solar of the air node and of the envelope node, with the envelope's share
+    ``shares[i]`` f_i = 0 (node air), 1 (envelope) or the parameter named there (both). A
+    frozen dataclass (not a closure) so that structures built alike compare equal and
+    pickle."""
 
     base: Callable[..., Any]
     base_parameters: tuple[str, ...]
     air: str
     apertures: tuple[str, ...]
     derivatives: bool
+    envelope: str = ""
+    shares: tuple[str | float, ...] = ()
 
     def __call__(self, **theta: float):
         out = self.base(**{p: theta[p] for p in self.base_parameters})
         a = np.array([theta[p] for p in self.apertures], dtype=float)
+        shares = self.shares or (0.0,) * len(a)
+        f = np.array([theta[s] if isinstance(s, str) else s for s in shares], dtype=float)
+        # the envelope row is written only when a gain reaches it (air alone: as the base)
+        env = self.envelope if any(isinstance(s, str) or s != 0.0 for s in shares) else ""
         C = theta[self.air]
-        k = len(self.apertures)
+        C_env = theta[env] if env else math.nan
+        to_air = (1.0 - f) * a  # W per W/m2 into the air node: (1 - f_i) a_i
+        to_env = f * a  # ... and into the envelope node: f_i a_i
+        k = len(a)
         if not self.derivatives:
             A, B = out
             extra = np.zeros((B.shape[0], k))
-            extra[0] = a / C
+            extra[0] = to_air / C
+            if env:
+                extra[1] = to_env / C_env
             return A, np.concatenate([B, extra], axis=1)
         der = {}
         for p, (dA, dB) in out.items():
             extra = np.zeros((dB.shape[0], k))
             if p == self.air:
-                extra[0] = -a / C**2
+                extra[0] = -to_air / C**2
+            if env and p == env:
+                extra[1] = -to_env / C_env**2
             der[p] = (dA, np.concatenate([dB, extra], axis=1))
         dA0, dB0 = out[self.air]
+        n, m0 = dB0.shape
         for i, p in enumerate(self.apertures):
-            dB = np.zeros((dB0.shape[0], dB0.shape[1] + k))
-            dB[0, dB0.shape[1] + i] = 1.0 / C
+            dB = np.zeros((n, m0 + k))
+            dB[0, m0 + i] = (1.0 - f[i]) / C
+            if env:
+                dB[1, m0 + i] = f[i] / C_env
             der[p] = (np.zeros_like(dA0), dB)
+        for i, s in enumerate(shares):
+            if isinstance(s, str):
+                dB = np.zeros((n, m0 + k))
+                dB[0, m0 + i] = -a[i] / C
+                dB[1, m0 + i] = a[i] / C_env
+                der[s] = (np.zeros_like(dA0), dB)
         return der
 
 
-def with_irradiance(structure: Structure, names: Sequence[str]) -> Structure:
+def with_irradiance(
+    structure: Structure, names: Sequence[str], nodes: Sequence[str] | None = None
+) -> Structure:
     """``structure`` with irradiance inputs ``names`` (W/m2, e.g. "I_sol") appended to its
-    inputs, each entering the air node with an unknown effective aperture a_<name> (m2): the
-    heat flow into the air node is a I (eq. 1's solar gains), B[0, m0 + i] = a_i / C_air.
+    inputs, each a solar gain a_<name> I (eq. 1's Q_solar, W) through an unknown effective
+    aperture a_<name> (m2), heating the node ``nodes[i]`` (default "air"; a name may also
+    carry it, "I_sol@envelope", as the structure's name spells it):
 
-    The new parameters a_<name> follow the base ones (start 1 m2, bounds 1e-3 to 1e3 m2);
-    the Jacobian is exact. No names: ``structure`` itself."""
-    names = tuple(names)
+    - ``air``: the air node (state 0), B[0, m0 + i] = a_i / C_air;
+    - ``envelope``: the envelope node (state 1, ``structure.envelope``: T_veh of eqs. 7-8,
+      T_e of the interior-envelope structure), B[1, m0 + i] = a_i / C_env;
+    - ``both``: the share f_<name> (estimated, in (0, 1]) to the envelope, the rest to the air,
+      B[0, m0 + i] = (1 - f_i) a_i / C_air, B[1, m0 + i] = f_i a_i / C_env.
+
+    The new parameters follow the base ones: the apertures a_<name> (start 1 m2, bounds 1e-3
+    to 1e3 m2), then the shares f_<name> (start 0.5, bounds 1e-3 to 1); the Jacobian is exact.
+    A one-node structure (first_order) has no envelope: ``envelope`` or ``both`` there is a
+    ValueError. No names: ``structure`` itself."""
+    specs = [irradiance_spec(n) if isinstance(n, str) else (n, "air") for n in names]
+    if nodes is not None:
+        nodes = tuple(nodes)
+        if len(nodes) != len(specs):
+            raise ValueError(f"nodes {nodes} must give one node per irradiance input {names}")
+        for i, ((name, node), given) in enumerate(zip(specs, nodes, strict=True)):
+            if "@" in str(names[i]) and node != given:
+                raise ValueError(f"irradiance input {names[i]!r} is declared on node {given!r}")
+            specs[i] = (name, given)
+    names = tuple(name for name, _ in specs)
     if not names:
         return structure
     bad = [n for n in names if not isinstance(n, str) or not n]
     if bad:
         raise ValueError(f"irradiance names must be non-empty strings, got {bad}")
+    unknown = [f"{n}@{node}" for n, node in specs if node not in IRRADIANCE_NODES]
+    if unknown:
+        raise ValueError(
+            f"irradiance inputs {unknown}: the node must be one of {list(IRRADIANCE_NODES)}"
+        )
     clash = sorted({n for n in names if names.count(n) > 1 or n in structure.inputs})
     if clash:
         raise ValueError(
@@ -307,29 +403,57 @@ def with_irradiance(structure: Structure, names: Sequence[str]) -> Structure:
             f"of {structure.name!r}"
         )
     apertures = tuple(f"a_{n}" for n in names)
-    taken = [p for p in apertures if p in structure.parameters]
+    shared = tuple(f"f_{n}" for n, node in specs if node == "both")
+    taken = [p for p in apertures + shared if p in structure.parameters]
     if taken:
         raise ValueError(f"parameters {taken} already exist in {structure.name!r}")
     if structure.air not in structure.parameters:
         raise ValueError(f"structure {structure.name!r} has no air-node capacity {structure.air!r}")
-    common = dict(base_parameters=structure.parameters, air=structure.air, apertures=apertures)
-    equations = "solar gains a_i I_i into the air node (eq. 1)"
+    on_envelope = [n for n, node in specs if node != "air"]
+    if on_envelope and structure.envelope not in structure.parameters:
+        raise ValueError(
+            f"structure {structure.name!r} has one node ({', '.join(structure.states)}), no "
+            f"envelope: irradiance {on_envelope} can heat only the air node (node 'air')"
+        )
+    share_of = {"air": 0.0, "envelope": 1.0}
+    shares = tuple(share_of.get(node, f"f_{n}") for n, node in specs)
+    common = dict(
+        base_parameters=structure.parameters,
+        air=structure.air,
+        apertures=apertures,
+        envelope=structure.envelope if on_envelope else "",
+        shares=shares,
+    )
+    if on_envelope:
+        equations = "solar gains a_i I_i into the air node, the envelope node or both (eq. 1)"
+    else:
+        equations = "solar gains a_i I_i into the air node (eq. 1)"
+    spelled = tuple(n if node == "air" else f"{n}@{node}" for n, node in specs)
     return replace(
         structure,
-        name=f"{structure.name}+{'+'.join(names)}",
-        parameters=structure.parameters + apertures,
+        name=f"{structure.name}+{'+'.join(spelled)}",
+        parameters=structure.parameters + apertures + shared,
         build=_WithApertures(base=structure.build, derivatives=False, **common),
         jacobian=_WithApertures(base=structure.jacobian, derivatives=True, **common),
         inputs=tuple(structure.inputs) + names,
-        initial={**structure.initial, **dict.fromkeys(apertures, APERTURE_INITIAL)},
-        bounds={**structure.bounds, **dict.fromkeys(apertures, APERTURE_BOUNDS)},
+        initial={
+            **structure.initial,
+            **dict.fromkeys(apertures, APERTURE_INITIAL),
+            **dict.fromkeys(shared, SHARE_INITIAL),
+        },
+        bounds={
+            **structure.bounds,
+            **dict.fromkeys(apertures, APERTURE_BOUNDS),
+            **dict.fromkeys(shared, SHARE_BOUNDS),
+        },
         equations=f"{structure.equations}; {equations}" if structure.equations else equations,
     )
 
 
 def structure_for(name: str, irradiance: Sequence[str] = ()) -> Structure:
     """The structure ``name`` of :data:`STRUCTURES` with irradiance inputs ``irradiance``
-    (:func:`with_irradiance`)."""
+    (:func:`with_irradiance`; "I_sol" heats the air node, "I_sol@envelope" or "I_sol@both"
+    as declared)."""
     if name not in STRUCTURES:
         raise KeyError(f"unknown structure {name!r}; known: {sorted(STRUCTURES)}")
     return with_irradiance(STRUCTURES[name], irradiance)

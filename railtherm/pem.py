@@ -15,17 +15,22 @@ that fails or leaves the bounds.
 * Several experiments share one parameter set; each has its own initial state, either
   measured (``x0="measured"``: the experiment's ``x0`` or the first row of ``y``; a state
   with no measurement there is estimated) or estimated (``x0="estimated"``: extra unknowns).
+  An estimated initial state is bounded to the window's measured temperatures widened by
+  X0_MARGIN_K; one that ends at that bound is flagged (``x0_at_bound``).
 * Start (``start``): ``"initial"`` starts from ``initial`` (default: the paper's values);
   ``"auto"`` also computes an equation-error least-squares start (:func:`equation_error_start`,
-  needs every state measured) or, failing that, evaluates the cost on a small log grid around
-  the initial values on a block-averaged copy of the data, and starts from the candidate
-  with the lowest simulation-error cost (``FitResult.start_used`` says which).
+  needs every state measured) or, failing that, a start scaled to the data
+  (:func:`_scale_aware_start`: kA from the heat balance of the records, C_bar by equation
+  error, a log grid of the capacities and conductances around them ranked on a
+  block-averaged copy of the data), and starts from the candidate with the lowest
+  simulation-error cost (``FitResult.start_used`` says which).
 * Covariance in log parameters: ``"iid"``: s^2 (J^T J)^-1, s^2 = SSR / (m - p);
   ``"hac"``: Newey-West sandwich (J^T J)^-1 S (J^T J)^-1 with a Bartlett kernel per
   experiment and output (block), the bandwidth from the block's lag-1 residual
   autocorrelation (Andrews' AR(1) plug-in rule). 95 % intervals exp(log theta +- 1.96 sd).
 * Identifiability flags (:class:`Flag`): wide interval (hi / lo > 10), parameter at a bound,
-  |correlation| > 0.95, ill-conditioned Jacobian (cond > 1e8), non-convergence.
+  |correlation| > 0.95, ill-conditioned Jacobian (cond > 1e8), non-convergence, an estimated
+  initial state at its bound.
 """
 
 from __future__ import annotations
@@ -51,7 +56,9 @@ __all__ = [
     "equation_error_start",
     "fit",
     "experiment_from_table",
+    "heat_balance_kA",
     "identification",
+    "lumped_capacity",
     "parameter_identification",
 ]
 
@@ -62,6 +69,15 @@ CORR_MAX = 0.95
 COND_MAX = 1e8
 _LSMR_ABOVE = 300_000  # Jacobian entries above which the trust-region step uses LSMR
 _NULL_REL = 1e-13  # singular values below this (relative) span unidentifiable directions
+# An estimated initial state lies within the window's measured temperatures (every measured
+# state and T_o) widened by this margin: a start far outside them is a hidden heat source.
+X0_MARGIN_K = 10.0
+X0_AT_BOUND_K = 1e-3  # an estimated initial state this close to its bound sits at it
+START_FACTORS = (0.1, 1.0, 10.0)  # the automatic start's grid around its centre
+KA_FACTORS = (1.0 / 3.0, 1.0, 3.0)  # ... and around the heat balance's overall kA
+START_KEEP = 3  # grid points refined
+RANK_SAMPLES = 500  # samples per experiment of the block-averaged copy the grid is ranked on
+COARSE_SAMPLES = 2000  # ... and of the copy the best grid points are refined on
 
 
 @dataclass
@@ -91,6 +107,20 @@ class Experiment:
             )
         if not (self.dt > 0):
             raise ValueError(f"experiment {self.name!r}: dt must be > 0, got {self.dt}")
+
+
+def _measured_range(e: Experiment) -> tuple[float, float]:
+    """The bounds of an estimated initial state of ``e``: the lowest and highest measured
+    temperature of the window (every measured state and T_o) widened by X0_MARGIN_K. A state
+    far outside every temperature of the record is a hidden heat source or sink (a body
+    starting at thousands of degC that heats the air for days), not a thermal state."""
+    temperatures = np.concatenate([e.y[np.isfinite(e.y)], e.u[np.isfinite(e.u[:, 0]), 0]])
+    if not temperatures.size:
+        return -np.inf, np.inf
+    return (
+        float(temperatures.min()) - X0_MARGIN_K,
+        float(temperatures.max()) + X0_MARGIN_K,
+    )
 
 
 def experiment_from_table(
@@ -243,7 +273,7 @@ class _Problem:
         self.out_idx = tuple(out_idx)
         n = len(structure.states)
         self.n = n
-        self.x0_base, self.x0_free, self.x0_guess = [], [], []
+        self.x0_base, self.x0_free, self.x0_guess, self.x0_range = [], [], [], []
         self.rows = []  # per experiment, per output: index array of compared samples or None
         for e in self.exps:
             if e.y.shape[1] != n:
@@ -264,16 +294,22 @@ class _Problem:
             fallback = e.y[0][np.isfinite(e.y[0])]
             fill = float(fallback.mean()) if fallback.size else float(e.u[0, 0])
             guess[~np.isfinite(guess)] = fill
+            lo, hi = _measured_range(e)
             base[free_states] = 0.0
             self.x0_base.append(base)
             self.x0_free.append(free_states)
-            self.x0_guess.append(guess[free_states])
+            self.x0_guess.append(np.clip(guess[free_states], lo, hi))
+            self.x0_range.append((lo, hi))
             rows = []
             for i in self.out_idx:
                 ok = np.isfinite(e.y[:, i])
                 rows.append(None if ok.all() else np.flatnonzero(ok))
             self.rows.append(rows)
         self.n_x0 = sum(len(f) for f in self.x0_free)
+        # bounds of the estimated initial states (K), in the order of the unknowns
+        ranges = [r for r, f in zip(self.x0_range, self.x0_free, strict=True) for _ in f]
+        self.x0_lo = np.array([r[0] for r in ranges])
+        self.x0_hi = np.array([r[1] for r in ranges])
         self.m = sum(
             (len(e.y) if r is None else len(r))
             for e, rr in zip(self.exps, self.rows, strict=True)
@@ -362,6 +398,46 @@ class _Problem:
                 diff = xT[i] - yT[i] if r is None else xT[i, r] - yT[i, r]
                 total += float(diff @ diff)
         return total if np.isfinite(total) else math.inf
+
+    def cost_x0_projected(self, v) -> tuple[float, np.ndarray]:
+        """e^T e at the parameters of v with the estimated initial states at their best
+        (within their bounds), and that v. The outputs are linear in x0 (x[n] depends on x0
+        through Ad^n, :func:`railtherm.models.free_response_head`), so for fixed parameters
+        the best initial states are one small linear least-squares problem per experiment:
+        a start's cost is judged with the initial states the data give it, not a guess."""
+        _, sims = self._evaluate(v, derivatives=False)
+        if sims is None:
+            return math.inf, v
+        v = v.copy()
+        total, k = 0.0, 0
+        for e, yT, (d, xT), rows, fr in zip(
+            self.exps, self.yT, sims, self.rows, self.x0_free, strict=True
+        ):
+            res, cols = [], []
+            F = models.free_response_head(d, len(e.u))[:, self.out_idx][:, :, fr] if fr else None
+            for j, (i, r) in enumerate(zip(self.out_idx, rows, strict=True)):
+                idx = np.arange(xT.shape[1]) if r is None else r
+                res.append(xT[i, idx] - yT[i, idx])
+                if fr:
+                    G = np.zeros((len(idx), len(fr)))
+                    keep = idx < len(F)
+                    G[keep] = F[idx[keep], j]
+                    cols.append(G)
+            e_k = np.concatenate(res)
+            if fr:
+                G = np.concatenate(cols)
+                at = slice(self.P + k, self.P + k + len(fr))
+                with np.errstate(over="ignore", invalid="ignore"):
+                    step = np.linalg.lstsq(G, -e_k, rcond=None)[0]
+                    x0 = np.clip(
+                        v[at] + step, self.x0_lo[k : k + len(fr)], self.x0_hi[k : k + len(fr)]
+                    )
+                if np.all(np.isfinite(x0)):
+                    e_k = e_k + G @ (x0 - v[at])
+                    v[at] = x0
+                k += len(fr)
+            total += float(e_k @ e_k)
+        return (total if math.isfinite(total) else math.inf), v
 
     def jacobian(self, v) -> np.ndarray:
         """d(residuals)/dv (m x unknowns): the exact discrete sensitivities, times theta_p
@@ -817,12 +893,17 @@ def fit(
     if prob.m <= len(free) + prob.n_x0:
         raise ValueError(f"{prob.m} compared samples cannot determine the unknowns")
 
+    span = ub - lb
+    margin = np.where(np.isfinite(span), 1e-6 * span, 0.0)
+
+    def clip(v: np.ndarray) -> np.ndarray:
+        """v moved into the bounds: the log parameters just inside, the initial states in."""
+        w = np.clip(v[: len(free)], lb + margin, ub - margin)
+        return np.concatenate([w, np.clip(v[len(free) :], prob.x0_lo, prob.x0_hi)])
+
     def pack(theta_free: Mapping[str, float]) -> np.ndarray:
         w = np.array([math.log(theta_free[p]) for p in free])
-        span = ub - lb
-        margin = np.where(np.isfinite(span), 1e-6 * span, 0.0)
-        w = np.clip(w, lb + margin, ub - margin)
-        return np.concatenate([w, *prob.x0_guess]) if prob.n_x0 else w
+        return clip(np.concatenate([w, *prob.x0_guess]) if prob.n_x0 else w)
 
     candidates = {"initial": pack(init)}
     if start == "auto" and free:
@@ -830,11 +911,11 @@ def fit(
         if ee is not None:
             candidates["equation_error"] = pack(ee)
         else:
-            candidates.update(
-                _grid_candidates(structure, experiments, fixed, free, init, pack, prob)
-            )
-    # the last candidate (the equation-error start, when there is one) is the likeliest
-    # winner: prob.cost keeps its evaluation for the solver's first step
+            grid = _scale_aware_start(structure, experiments, fixed, free, init, pack, clip, prob)
+            if grid is not None:
+                candidates["grid"] = grid
+    # the last candidate (the equation-error or grid start, when there is one) is the
+    # likeliest winner: prob.cost keeps its evaluation for the solver's first step
     last = list(candidates)[-1]
     costs = {
         name: (prob.cost(v) if name == last else prob.cost_only(v))
@@ -862,16 +943,16 @@ def fit(
         )
         J = np.zeros((prob.m, 0))
         return _result(structure, prob, sol, v0, r, J, covariance, start_used, costs, outputs, bnds)
-    lo = np.concatenate([lb, np.full(prob.n_x0, -np.inf)])
-    hi = np.concatenate([ub, np.full(prob.n_x0, np.inf)])
-    # Levenberg-Marquardt without bounds first: an optimum strictly inside the bounds is a
-    # local optimum of the bounded problem too. Otherwise (the search left the box or
-    # failed) scipy's bounded trust-region reflective solve from the same start; its
-    # subproblem uses the SVD of J for small problems and LSMR for large ones, where the SVD
-    # of the tall Jacobian dominates the cost.
+    lo = np.concatenate([lb, prob.x0_lo])
+    hi = np.concatenate([ub, prob.x0_hi])
+    # Levenberg-Marquardt without bounds first: an optimum strictly inside the bounds (of the
+    # parameters and of the estimated initial states) is a local optimum of the bounded
+    # problem too. Otherwise (the search left the box or failed) scipy's bounded trust-region
+    # reflective solve from the same start; its subproblem uses the SVD of J for small
+    # problems and LSMR for large ones, where the SVD of the tall Jacobian dominates the cost.
     tr = {"tr_solver": "lsmr"} if prob.m * (prob.P + prob.n_x0) > _LSMR_ABOVE else {}
     sol = _levenberg_marquardt(prob.residuals, prob.jacobian, v0, max_nfev)
-    inside = np.all(sol.x[: prob.P] > lb) and np.all(sol.x[: prob.P] < ub)
+    inside = np.all(sol.x > lo) and np.all(sol.x < hi)
     if not (sol.success and inside and np.all(np.isfinite(sol.fun))):
         first = sol
         sol = least_squares(
@@ -892,24 +973,167 @@ def fit(
     return _result(structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds)
 
 
-def _grid_candidates(structure, experiments, fixed, free, init, pack, prob):
-    """Log grid (factors 1, 10, 100 of the initial values of the free capacities and
-    conductances) ranked on a block-averaged copy; returns the best grid point."""
-    N = max(len(e.u) for e in experiments)
-    factor = max(1, N // 2000)
-    coarse = [_block_average(e, factor) for e in experiments] if factor > 1 else experiments
-    cprob = _Problem(structure, coarse, fixed, free, prob.out_idx, "measured")
-    cprob.x0_base = prob.x0_base  # same initial states as the full problem
-    cprob.x0_free = prob.x0_free
-    best, best_cost = None, np.inf
-    factors = (1.0, 10.0, 100.0)
-    for combo in np.array(np.meshgrid(*[factors] * len(free))).reshape(len(free), -1).T:
-        th = {p: init[p] * f for p, f in zip(free, combo, strict=True)}
+def heat_balance_kA(experiments: Sequence[Experiment]) -> float:
+    """The overall heat-loss coefficient from the heat balance of the records (the idea of
+    eq. 10 applied to the identification windows, which need not be steady): the heat
+    supplied up to each time t against the losses and the air node's storage,
+
+        integral_0^t Q_H dt = kA integral_0^t (T - T_o) dt + C_bar (T(t) - T(0)),
+
+    by least squares over every t of every window (T interpolated over missing rows). On a
+    steady window the storage term vanishes and this is eq. 10: kA = mean Q_H / mean
+    (T - T_o). Heat going into an unmeasured body and unmodelled gains still bias it; as
+    the centre of a start grid it need only be right to a factor of a few. NaN when the
+    records give no positive kA (no heated record)."""
+    rows = []
+    for e in experiments:
+        T = e.y[:, 0].copy()
+        ok = np.isfinite(T)
+        if ok.sum() < 3:
+            continue
+        T = np.interp(np.arange(len(T)), np.flatnonzero(ok), T[ok])
+        losses = (T[1:] + T[:-1]) / 2.0 - e.u[:-1, 0]  # over each step, as eq. 15 holds u
+        heat = np.concatenate([[0.0], np.cumsum(e.u[:-1, 1] * e.dt)])
+        loss = np.concatenate([[0.0], np.cumsum(losses * e.dt)])
+        rows.append(np.column_stack([loss, T - T[0], heat]))
+    if not rows:
+        return math.nan
+    X = np.concatenate(rows)
+    if np.isfinite(X).all():
+        kA = float(np.linalg.lstsq(X[:, :2], X[:, 2], rcond=None)[0][0])
+        if kA > 0 and math.isfinite(kA):
+            return kA
+    # the storage term taken as zero: eq. 10 over the whole records
+    q, loss = sum(float(r[-1, 2]) for r in rows), sum(float(r[-1, 0]) for r in rows)
+    return q / loss if q > 0 and loss > 0 and math.isfinite(q / loss) else math.nan
+
+
+def lumped_capacity(experiments: Sequence[Experiment], kA: float) -> float:
+    """C_bar of eq. 9 by equation error, kA given: C_bar dT/dt = Q_H - kA (T - T_o), with
+    dT/dt ~ (T[n+1] - T[n]) / dt and T at the step midpoint, the discretisation of
+    :func:`equation_error_start` (its noise is uncorrelated with the regressor). The slope of
+    dT/dt on the net heat z = Q_H - kA (T - T_o) through the origin is 1 / C_bar. With an
+    unmeasured body the one capacity lies between the air node's and the sum of all; it
+    sets the time constant C_bar / kA of a start. NaN when the regression gives none."""
+    szz = szd = 0.0
+    for e in experiments:
+        T = e.y[:, 0]
+        d = (T[1:] - T[:-1]) / e.dt
+        z = e.u[:-1, 1] - kA * ((T[1:] + T[:-1]) / 2.0 - e.u[:-1, 0])
+        ok = np.isfinite(d) & np.isfinite(z)
+        szz += float(z[ok] @ z[ok])
+        szd += float(z[ok] @ d[ok])
+    return szz / szd if szd > 0 and szz > 0 else math.nan
+
+
+def _coarse_problem(prob: _Problem, samples: int) -> _Problem:
+    """``prob`` on block-averaged copies of its experiments (at most about ``samples``
+    samples each; :func:`_block_average`), with the same initial states and their bounds."""
+    N = max(len(e.u) for e in prob.exps)
+    factor = max(1, N // samples)
+    if factor == 1:
+        return prob
+    coarse = [_block_average(e, factor) for e in prob.exps]
+    cprob = _Problem(prob.s, coarse, prob.fixed, prob.free, prob.out_idx, "measured")
+    cprob.x0_base, cprob.x0_free, cprob.n_x0 = prob.x0_base, prob.x0_free, prob.n_x0
+    cprob.x0_lo, cprob.x0_hi = prob.x0_lo, prob.x0_hi
+    return cprob
+
+
+def _scale_aware_start(
+    structure: Structure,
+    experiments: Sequence[Experiment],
+    fixed: Mapping[str, float],
+    free: tuple[str, ...],
+    init: Mapping[str, float],
+    pack,
+    clip,
+    prob: _Problem,
+) -> np.ndarray | None:
+    """The automatic start when not every state is measured (no equation-error start).
+
+    Centre, from the data alone: every free conductance equal and every free capacity
+    equal. The overall kA (:func:`railtherm.models.steady_state_kA`) is kA_ref, that of the
+    heat balance (:func:`heat_balance_kA`) when the free conductances set it (doubling them
+    doubles it), else that of the initial values with the fixed ones (the static kA of the
+    two-stage method), which the free conductances then equal; the capacities share C_bar, the
+    equation-error fit of eq. 9 with kA_ref (:func:`lumped_capacity`). Any other parameter
+    (an aperture) keeps its initial value.
+
+    Grid around the centre: every free capacity and every free conductance times each of
+    START_FACTORS (decades both ways: the ratios of the capacities and of the conductances
+    are not known at all); when the free conductances set the overall kA, one of them is not
+    gridded (its ratio to the others is) and all are rescaled together to kA_ref times each
+    of KA_FACTORS (the heat balance is right to a factor of a few). The grid is ranked by the
+    simulation-error cost on a block-averaged copy of the data (at most RANK_SAMPLES samples
+    per record), each point with its best initial states (:meth:`_Problem.cost_x0_projected`);
+    the START_KEEP best that lie at least two grid steps apart are refined by
+    Levenberg-Marquardt on a finer copy (COARSE_SAMPLES), and the refined point with the
+    lowest cost on the full data is returned (None without a finite centre)."""
+    conductances = [p for p in structure.conductances if p in free]
+    capacities = [p for p in structure.capacities if p in free]
+    if not (conductances or capacities):
+        return None
+    centre = {p: float(init[p]) for p in free if p not in conductances + capacities}
+    unit = {**fixed, **centre, **dict.fromkeys(conductances + capacities, 1.0)}
+    kA_unit = models.steady_state_kA(structure, unit)
+    doubled = {**unit, **dict.fromkeys(conductances, 2.0)}
+    movable = bool(conductances) and math.isclose(
+        models.steady_state_kA(structure, doubled), 2.0 * kA_unit, rel_tol=1e-9
+    )
+    initial = {**init, **fixed}
+    if movable:
+        kA_ref = heat_balance_kA(experiments)
+        if not math.isfinite(kA_ref):  # no heated record: the initial values' kA
+            kA_ref = models.steady_state_kA(structure, initial)
+        g = kA_ref / kA_unit
+    else:  # the fixed parameters set it, or help to: two-stage, the static kA
+        kA_ref = models.steady_state_kA(structure, initial)
+        g = kA_ref
+    C_bar = lumped_capacity(experiments, kA_ref)
+    if not math.isfinite(C_bar):  # the initial values' time constant C_bar / kA
+        C_initial = sum(initial[p] for p in structure.capacities)
+        C_bar = kA_ref * C_initial / models.steady_state_kA(structure, initial)
+    if not (math.isfinite(g) and g > 0 and math.isfinite(C_bar) and C_bar > 0):
+        return None
+    centre |= dict.fromkeys(conductances, g)
+    centre |= dict.fromkeys(capacities, C_bar / len(structure.capacities))
+
+    gridded = capacities + (conductances[1:] if movable else conductances)
+    axes = [START_FACTORS] * len(gridded) + ([KA_FACTORS] if movable else [])
+    combos = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(axes), -1).T
+    rank = _coarse_problem(prob, RANK_SAMPLES)
+    ranked, seen = [], set()
+    for combo in combos:
+        th = centre | {p: centre[p] * f for p, f in zip(gridded, combo, strict=False)}
+        if movable:
+            kA_th = models.steady_state_kA(structure, {**fixed, **th})
+            if not math.isfinite(kA_th):
+                continue
+            th |= {p: th[p] * kA_ref * combo[-1] / kA_th for p in conductances}
         v = pack(th)
-        c = cprob.cost_only(v)
+        key = tuple(np.round(v[: len(free)], 6))
+        if key not in seen:
+            seen.add(key)
+            ranked.append(rank.cost_x0_projected(v))
+    ranked = sorted(((c, v) for c, v in ranked if math.isfinite(c)), key=lambda cv: cv[0])
+    kept: list[np.ndarray] = []
+    apart = 1.5 * math.log(10.0)  # two grid steps in some parameter
+    for _, v in ranked:
+        if all(np.abs(v[: len(free)] - k[: len(free)]).max() > apart for k in kept):
+            kept.append(v)
+        if len(kept) == START_KEEP:
+            break
+    refine = _coarse_problem(prob, COARSE_SAMPLES)
+    best, best_cost = None, math.inf
+    for v in kept:
+        with np.errstate(over="ignore", invalid="ignore"):
+            sol = _levenberg_marquardt(refine.residuals, refine.jacobian, v, 30 * len(v))
+        w = clip(sol.x) if np.all(np.isfinite(sol.x)) else v
+        c = prob.cost_only(w)
         if c < best_cost:
-            best, best_cost = v, c
-    return {} if best is None else {"grid": best}
+            best, best_cost = w, c
+    return best
 
 
 def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds):
@@ -991,6 +1215,7 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
             ci[p] = (float(np.exp(lv - Z95 * sd[i])), float(np.exp(lv + Z95 * sd[i])))
         sd_log[p] = float(sd[i])
     flags = _flags(sol, v, th, free, ci, corr, cond, bnds)
+    flags += _x0_flags(prob, sol, v)
     if capped:
         flags.append(
             Flag(
@@ -1104,6 +1329,37 @@ def parameter_identification(entry: Mapping[str, Any]) -> Mapping[str, Any]:
     if "ci95" not in entry:
         return {"identified": True}
     return identification(float(entry["value"]), entry["ci95"])
+
+
+def _x0_flags(prob: _Problem, sol, v: np.ndarray) -> list[Flag]:
+    """``x0_at_bound``: an estimated initial state at the bound of its window's measured
+    temperatures widened by X0_MARGIN_K (within X0_AT_BOUND_K, or active in the bounded
+    solve). The data then ask for a state beyond any measured temperature - a hidden heat
+    source or sink that the model lacks - and the parameters fitted with it are in doubt."""
+    flags = []
+    k = prob.P
+    for e, fr, (lo, hi) in zip(prob.exps, prob.x0_free, prob.x0_range, strict=True):
+        for j in fr:
+            x, active = float(v[k]), int(sol.active_mask[k]) if len(sol.active_mask) > k else 0
+            at_lo = x - lo <= X0_AT_BOUND_K or active < 0
+            at_hi = hi - x <= X0_AT_BOUND_K or active > 0
+            if at_lo or at_hi:
+                state = prob.s.states[j]
+                side = "lower" if at_lo else "upper"
+                flags.append(
+                    Flag(
+                        "x0_at_bound",
+                        (state,),
+                        f"the estimated initial {state} of {e.name!r}, {x:.4g} degC, sits at "
+                        f"its {side} bound: the window's measured temperatures "
+                        f"({lo + X0_MARGIN_K:.4g} to {hi - X0_MARGIN_K:.4g} degC) widened by "
+                        f"{X0_MARGIN_K:g} K. The data ask for a start beyond any measured "
+                        "temperature, a hidden heat source or sink the model lacks, and the "
+                        "parameters fitted with it are in doubt",
+                    )
+                )
+            k += 1
+    return flags
 
 
 def _flags(sol, v, th, free, ci, corr, cond, bnds) -> list[Flag]:

@@ -130,6 +130,7 @@ def kvalue_figure(
     """T, T_veh, T_o (left axis, degC) and Q_H (right axis, kW) over the whole record with the
     k window shaded and a box with k +- u(k) and the steady-state verdict.
 
+    Without a surface (``result.k`` None) the box gives kA +- u(kA) and says k is not given.
     ``record`` and ``window`` are tidy tables (the whole file and the k window);
     ``offset_s`` places the window on the record's time axis (default: from ``timestamp``);
     ``synthetic`` adds the :data:`SYNTHETIC_NOTE` footer."""
@@ -200,9 +201,15 @@ def kvalue_figure(
 
 
 def _verdict_text(r: KValue) -> str:
+    if r.k is None:  # no surface: kA is what the test gives
+        first = f"kA = {r.kA:.1f} ± {r.u_kA:.1f} W/K  (u, {100 * r.u_k_rel:.1f} %)"
+        second = "k not given: no surface_m2"
+    else:
+        first = f"k = {r.k:.3f} ± {r.u_k:.3f} W/(m² K)  (u, {100 * r.u_k_rel:.1f} %)"
+        second = f"kA = {r.kA:.0f} W/K"
     lines = [
-        f"k = {r.k:.3f} ± {r.u_k:.3f} W/(m² K)  (u, {100 * r.u_k_rel:.1f} %)",
-        f"kA = {r.kA:.0f} W/K,  ΔT = {r.delta_T:.1f} K,  Q_H = {r.Q_H_mean / 1000:.2f} kW",
+        first,
+        f"{second},  ΔT = {r.delta_T:.1f} K,  Q_H = {r.Q_H_mean / 1000:.2f} kW",
     ]
     if r.steady:
         lines.append("steady: all tests passed")
@@ -680,6 +687,35 @@ def _identified(table3: pd.DataFrame, quantity: str) -> np.ndarray:
     return ok
 
 
+def _without_not_given(table3: pd.DataFrame, quantity: str) -> tuple[pd.DataFrame, str | None]:
+    """Table 3 without the rows whose ``quantity`` is not given (no metadata for it, e.g.
+    c_veh without mass_kg: ``<q>_status`` "not given: ..."), and one line naming them and why
+    (None when there are none)."""
+    status = f"{quantity}_status"
+    if status not in table3:
+        return table3, None
+    mask = table3[status].map(aggregate.is_not_given).astype(bool).to_numpy()
+    if not mask.any():
+        return table3, None
+    why = "; ".join(dict.fromkeys(table3.loc[mask, status].astype(str)))
+    names = ", ".join(table3.loc[mask, "vehicle"].astype(str))
+    return table3[~mask].reset_index(drop=True), f"{names} ({why})"
+
+
+def _empty_class_figure(title: str, ylabel: str, message: str) -> Figure:
+    """A Figure 5 panel with nothing to show, saying why (``message``)."""
+    with matplotlib.rc_context(_RC):
+        fig = Figure(figsize=FIGSIZE_FIG5_IN, dpi=DPI, layout="constrained")
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot()
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_ylabel(ylabel)
+        ax.set_title(title, loc="left")
+        ax.text(0.5, 0.5, message, transform=ax.transAxes, ha="center", va="center", wrap=True)
+    return fig
+
+
 def _class_figure(
     table3: pd.DataFrame, quantity: str, title: str, ylabel: str, log_if_span: float | None
 ) -> Figure:
@@ -688,7 +724,12 @@ def _class_figure(
     Boxes, axis range and points come from the values the data determine only. A value they
     do not determine (``<q>_status`` "not identified") is drawn apart: an open triangle at the
     one-sided limit the data give (clipped to the axis) with an arrow to the axis edge where
-    the value may lie, or a dotted line over the whole axis where they give no limit."""
+    the value may lie, or a dotted line over the whole axis where they give no limit. A value
+    not given (``<q>_status`` "not given", no metadata for it) is not drawn: the legend names
+    it, and a panel left with no vehicle says so."""
+    table3, skipped = _without_not_given(table3, quantity)
+    if len(table3) == 0:
+        return _empty_class_figure(title, ylabel, f"no vehicle to show:\n{skipped}")
     ok = _identified(table3, quantity)
     values = table3[quantity].to_numpy(dtype=float)
     finite = values[ok]
@@ -814,7 +855,9 @@ def _class_figure(
             handles.append(
                 Line2D([], [], ls="none", label="not identified: limit", **_OPEN["lower"])
             )
-        _legend_row(fig, grid[1], handles, ncols=2, handlelength=1.2)
+        if skipped:  # its own line: the names may be long
+            handles.append(Line2D([], [], ls="none", label=f"not shown: {skipped}"))
+        _legend_row(fig, grid[1], handles, ncols=1 if skipped else 2, handlelength=1.2)
     return fig
 
 

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from railtherm import timeaxis
 from railtherm.errors import DataError
 
 # csv_error stays importable from here, where it was before railtherm.readers
@@ -31,9 +32,12 @@ from railtherm.readers import read_header, read_table
 class RawLayout:
     """Columns and time span of one raw file.
 
-    ``t_first``/``t_last`` are ``pandas.Timestamp`` for ``time_format == "iso"`` and float
-    seconds for ``time_format == "seconds"``; ``step_s`` the logger's median step in seconds
-    (None where unknown).
+    ``time_format`` is the declared ``format.time.format`` (:mod:`railtherm.timeaxis`).
+    ``t_first``/``t_last`` are ``pandas.Timestamp`` for a format of instants (iso, a strftime
+    pattern, epoch, serial_days; in UTC when the file's times carry an offset or a declared
+    ``format.time.timezone``) and float seconds for elapsed time (seconds, minutes, hours,
+    days: converted to seconds); ``step_s`` the logger's median step in seconds (None where
+    unknown).
     """
 
     path: str
@@ -44,9 +48,14 @@ class RawLayout:
     t_last: pd.Timestamp | float
     step_s: float | None = None
 
+    @property
+    def absolute(self) -> bool:
+        """True when the file's times are instants (``pandas.Timestamp``)."""
+        return timeaxis.time_format(self.time_format).absolute
+
     def seconds(self, t: pd.Timestamp | float) -> float:
         """A time of this file as seconds since its first row."""
-        if self.time_format == "iso":
+        if self.absolute:
             return float((t - self.t_first).total_seconds())
         return float(t) - float(self.t_first)
 
@@ -56,9 +65,6 @@ class RawLayout:
 # before anything is allocated: a year at one second is 3e7 rows.
 MAX_ROWS = 5_000_000
 MIN_WINDOW_STEPS = 3  # a window needs at least this many logger steps: a fit and its tests
-
-
-_ISO_DATE = r"^\s*\d{4}-\d{2}-\d{2}"
 
 
 def _format(fmt: Mapping[str, Any] | None, **given: Any) -> dict[str, Any]:
@@ -117,22 +123,23 @@ def read_layout(
     """Columns and time span of a raw file, reading its header and only its time column.
 
     ``fmt`` is a vehicle's ``format`` section (the kind of file and how to read it, see
-    :mod:`railtherm.readers`; its ``time`` gives the time column and format); the arguments
-    given put their value over it (CSV: ``separator`` default ``,``, ``decimal`` default ``.``).
-    ``time_format`` is ``"iso"`` (ISO 8601 timestamps, returned as ``pandas.Timestamp``) or
-    ``"seconds"`` (elapsed seconds, returned as float; ``decimal`` is honoured). Plain and
-    ``.gz`` CSV files are read alike. Raises :class:`DataError` naming the file when it cannot
-    be read, the time column is missing, or a time value cannot be parsed (naming the first bad
-    value and its line).
+    :mod:`railtherm.readers`; its ``time`` gives the time column, format, timezone and DST
+    rule); the arguments given put their value over it (CSV: ``separator`` default ``,``,
+    ``decimal`` default ``.``). ``time_format`` is any notation of :mod:`railtherm.timeaxis`:
+    ``"iso"`` or a strftime pattern, ``"epoch"`` or ``"serial_days"`` (instants, returned as
+    ``pandas.Timestamp``), or ``"seconds"``, ``"minutes"``, ``"hours"``, ``"days"`` (elapsed
+    time, returned as float seconds); ``decimal`` is honoured. Plain and ``.gz`` CSV files are
+    read alike. Raises :class:`DataError` naming the file when it cannot be read, the time
+    column is missing, or a time value cannot be parsed (naming the first bad value and its
+    line); ValueError for a time format that is none of these.
     """
     fmt = _format(fmt, separator=separator, decimal=decimal)
-    time = fmt.get("time") or {}
+    time = dict(fmt.get("time") or {})
     time_column = time_column if time_column is not None else time.get("column")
     time_format = time_format if time_format is not None else time.get("format")
     if time_column is None or time_format is None:
         raise TypeError("read_layout() needs time_column and time_format")
-    if time_format not in ("iso", "seconds"):
-        raise ValueError(f"time_format must be 'iso' or 'seconds', not {time_format!r}")
+    tf = timeaxis.time_format({**time, "format": time_format})
     decimal = fmt["decimal"]
     path = str(path)
     columns = read_columns(path, fmt=fmt)
@@ -141,70 +148,34 @@ def read_layout(
     raw = read_table(path, fmt, columns=[time_column])[time_column]
     if raw.empty:
         raise DataError(path, time_column, None, "the file has a header but no data rows")
-    times = parse_times(path, raw, time_column, time_format, decimal)
-    if time_format == "iso":
-        seconds = (times - times.iloc[0]).dt.total_seconds().to_numpy(dtype=float)
-    else:
-        seconds = times.to_numpy(dtype=float)
-    steps = np.diff(seconds)
+    times = parse_times(path, raw, time_column, tf, decimal)
+    steps = np.diff(timeaxis.seconds(times, tf))
+    first, last = times.iloc[0], times.iloc[-1]
     return RawLayout(
         path=path,
         columns=columns,
         time_column=time_column,
-        time_format=time_format,
-        t_first=times.iloc[0] if time_format == "iso" else float(times.iloc[0]),
-        t_last=times.iloc[-1] if time_format == "iso" else float(times.iloc[-1]),
+        time_format=tf.format,
+        t_first=first if tf.absolute else float(first),
+        t_last=last if tf.absolute else float(last),
         step_s=float(np.median(steps)) if steps.size else None,
     )
 
 
 def parse_times(
-    path: str, raw: pd.Series, time_column: str, time_format: str, decimal: str
+    path: str,
+    raw: pd.Series,
+    time_column: str,
+    time_format: str | Mapping[str, Any] | timeaxis.TimeFormat,
+    decimal: str,
 ) -> pd.Series:
-    """Parse a time column; :class:`DataError` naming the first value that does not parse."""
-    text = raw.astype(object).where(raw.notna(), None)
-    if time_format == "iso":
-        expected = "an ISO 8601 timestamp (time format iso)"
-        looks_iso = raw.str.match(_ISO_DATE).fillna(False).astype(bool)
-        try:
-            times = pd.to_datetime(raw.where(looks_iso), format="ISO8601", errors="coerce")
-        except ValueError:
-            # mixed UTC offsets (a daylight-saving change): every stamp names its instant, so
-            # they are compared in UTC; stamps with and without an offset cannot be
-            try:
-                times = pd.to_datetime(
-                    raw.where(looks_iso), format="ISO8601", errors="coerce", utc=True
-                )
-            except (ValueError, TypeError) as exc:
-                raise DataError(
-                    path, time_column, text.iloc[0], f"timestamps cannot be parsed together: {exc}"
-                ) from None
-            offset = raw.str.contains(r"(?:Z|[+-]\d\d:?\d\d)\s*$").fillna(False).astype(bool)
-            naive = looks_iso & ~offset
-            if naive.any():
-                row = int(naive.to_numpy(dtype=bool).argmax())
-                raise DataError(
-                    path,
-                    time_column,
-                    text.iloc[row],
-                    f"line {row + 2}: no UTC offset, where other timestamps have one; give "
-                    "every timestamp its offset, or none",
-                ) from None
-        except TypeError as exc:
-            raise DataError(
-                path, time_column, text.iloc[0], f"timestamps cannot be parsed together: {exc}"
-            ) from None
-    else:
-        expected = "a number of seconds (time format seconds)"
-        numbers = raw.str.strip()
-        if decimal != ".":
-            numbers = numbers.str.replace(decimal, ".", regex=False)
-        times = pd.to_numeric(numbers, errors="coerce").astype(float)
-    bad = times.isna().to_numpy()
-    if bad.any():
-        row = int(bad.argmax())
-        raise DataError(path, time_column, text.iloc[row], f"line {row + 2}: not {expected}")
-    return times
+    """Parse a time column by :func:`railtherm.timeaxis.parse`: ``pandas.Timestamp`` for
+    instants, float seconds for elapsed time. ``time_format`` is a format name, a config's
+    ``format.time`` mapping or a :class:`~railtherm.timeaxis.TimeFormat`. :class:`DataError`
+    naming the first value that does not parse and its line."""
+    if not isinstance(time_format, timeaxis.TimeFormat):
+        time_format = timeaxis.time_format(time_format)
+    return timeaxis.parse(path, raw, time_column, time_format, decimal)
 
 
 class DigestCache:

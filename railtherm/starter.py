@@ -8,14 +8,20 @@ The file format is detected, the rest is guessed or left as an explicit TODO:
   (``.`` when both read alike, and always with the separator ``,``);
 - **gzip** by the extension ``.gz`` (pandas reads it as :mod:`railtherm.rawfile` does);
 - **time column**: the first column whose name looks like a time (time, zeit, date, datum,
-  stamp), else the first column; its **format** is ``seconds`` if every value is a number,
-  ``iso`` if every value is an ISO 8601 timestamp (parsed by :func:`railtherm.rawfile.read_layout`,
-  exactly as the validator will), otherwise a TODO: railtherm reads no other format;
+  stamp), else the first column; its **format** is ``seconds`` if every value is a number
+  (with a comment to check the unit: minutes, hours, days, epoch or serial_days read numbers
+  too, and no file tells which), ``iso`` if every value is an ISO 8601 timestamp, else the
+  first of :data:`railtherm.timeaxis.COMMON_PATTERNS` (``%d.%m.%Y %H:%M:%S`` and other
+  German, British and US notations) that reads every value, each parsed by
+  :func:`railtherm.rawfile.read_layout` exactly as the validator will; otherwise a TODO. For
+  instants a commented ``timezone``/``dst`` line says how to declare a logger clock on local
+  time;
 - **channel groups** from the column names (English and German, case-insensitive), each guess
   marked ``# guessed from the column name: check``; temperatures whose values are above 200
   get ``unit: K``, power columns named with ``kW`` get ``unit: kW`` (else ``W``);
-- **windows**: one identification window over the whole file, in the file's own notation; the
-  static k window stays a commented-out TODO, as only the engineer can choose the steady part.
+- **windows**: one identification window over the whole file, in the file's own notation (its
+  first and last time as written); the static k window stays a commented-out TODO, as only
+  the engineer can choose the steady part.
 
 What no file can tell (class, mass, outer surface, air volume) is written as the placeholder
 ``TODO``, which ``railtherm validate`` refuses until it is replaced.
@@ -37,6 +43,7 @@ from typing import Any
 import pandas as pd
 import yaml
 
+from railtherm import timeaxis
 from railtherm.config import CHANNEL_GROUPS
 from railtherm.errors import ConfigError, DataError
 from railtherm.rawfile import (
@@ -58,6 +65,10 @@ NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")  # ids and names in the s
 CLASSES = tuple(packaged_schema("vehicle")["properties"]["class"]["enum"])
 
 _TIME_NAME = re.compile(r"time|zeit|date|datum|stamp")
+# the notations tried for the time column, in this order (numbers are read as seconds)
+TIME_FORMATS = ("seconds", "iso", *timeaxis.COMMON_PATTERNS)
+UNIX_TIME_S = (1e8, 1e10)  # numbers in this range look like Unix time (1973 to 2286)
+SERIAL_DAYS = (2e4, 8e4)  # and these, with a step below a day, like spreadsheet dates
 # Channel groups in the order a name is tried: the more specific words first (a wall
 # temperature is not the indoor air, a fan power is not the heater's). Names are lowercased
 # and German umlauts spelt out (Außen -> aussen, Lüfter -> luefter) before matching; short
@@ -103,10 +114,10 @@ _UMLAUTS = str.maketrans({"ä": "ae", "ö": "oe", "ü": "ue", "ß": "ss"})
 class Detected:
     """What :func:`detect` found in a raw file.
 
-    ``layout`` is None when no time column could be read as ``iso`` or ``seconds``;
-    ``time_problem`` then says why, and ``time_column_known`` whether the column or only its
-    format is in doubt. ``sample`` holds the first rows read with the detected
-    separator and decimal mark.
+    ``layout`` is None when no time column could be read in any notation of
+    :data:`TIME_FORMATS`; ``time_problem`` then says why, and ``time_column_known`` whether
+    the column or only its format is in doubt. ``sample`` holds the first rows read with the
+    detected separator and decimal mark.
     """
 
     path: str
@@ -210,7 +221,7 @@ def detect(raw_path: str | os.PathLike[str]) -> Detected:
     named = [c for c in columns if _TIME_NAME.search(c.lower())]
     time_column = named[0] if named else columns[0]
     layout, problems = None, []
-    for time_format in ("seconds", "iso"):
+    for time_format in TIME_FORMATS:
         try:
             layout = read_layout(path, separator, decimal, time_column, time_format)
             break
@@ -221,8 +232,8 @@ def detect(raw_path: str | os.PathLike[str]) -> Detected:
     problem, column_known = "", True
     if layout is None:
         problem = (
-            f"the time column '{time_column}' holds neither elapsed seconds nor ISO 8601 "
-            f"timestamps (for example {problems[0]!r})"
+            f"the time column '{time_column}' holds neither numbers, ISO 8601 timestamps nor "
+            f"a common date notation such as dd.mm.yyyy HH:MM:SS (for example {problems[0]!r})"
         )
     elif not _increasing(path, sample, layout, decimal):
         problem = f"the column '{time_column}' does not increase from row to row"
@@ -356,9 +367,11 @@ def _raw_path(path: str, yaml_dir: str) -> str:
     return relative.replace(os.sep, "/")
 
 
-def _time_text(value: pd.Timestamp | float) -> str:
+def _time_text(value: pd.Timestamp | float, time_format: str = "iso") -> str:
+    """A time of the file as a YAML scalar in the file's notation (ISO 8601 for ``iso``)."""
     if isinstance(value, pd.Timestamp):
-        return _scalar(value.isoformat())
+        pattern = timeaxis.time_format(time_format).pattern
+        return _scalar(value.strftime(pattern) if pattern else value.isoformat())
     return _scalar(value)
 
 
@@ -385,10 +398,14 @@ def _header(found: Detected) -> list[str]:
         f"{len(found.columns)} columns.",
     ]
     if layout is not None:
-        what = "elapsed seconds" if layout.time_format == "seconds" else "ISO 8601 timestamps"
-        unit = " s" if layout.time_format == "seconds" else ""
-        span = f"from {_time_text(layout.t_first)}{unit} to {_time_text(layout.t_last)}{unit}"
-        lines.append(f"# Time: column '{found.time_column}' in {what}, {span}.")
+        tf = timeaxis.time_format(layout.time_format)
+        what = {"seconds": "numbers, read as elapsed seconds", "iso": "ISO 8601 timestamps"}
+        what = what.get(tf.format) or f"times of the pattern {tf.pattern!r}"
+        unit = " s" if tf.format == "seconds" else ""
+        first, last = (_time_text(t, tf.format) for t in (layout.t_first, layout.t_last))
+        lines.append(
+            f"# Time: column '{found.time_column}' in {what}, from {first}{unit} to {last}{unit}."
+        )
     else:
         lines.append(f"# Time: not understood: {found.time_problem}.")
     return [
@@ -409,8 +426,16 @@ def _metadata(vid: str, from_file_name: bool, todos: _Todos) -> list[str]:
         "# description: free text (optional)",
     ]
     for key, meaning in (
-        ("mass_kg", "the vehicle mass m_veh in kg (> 0), for c_veh = C_veh / m_veh"),
-        ("surface_m2", "A, the overall uncoiled outer surface in m2 (> 0), for k = kA / A"),
+        (
+            "mass_kg",
+            "the vehicle mass m_veh in kg (> 0), for c_veh = C_veh / m_veh; an object of "
+            "class other without a meaningful mass may delete the line",
+        ),
+        (
+            "surface_m2",
+            "A, the overall uncoiled outer surface in m2 (> 0), for k = kA / A; an object of "
+            "class other may delete the line (then only kA is given)",
+        ),
     ):
         lines.append(_comment_line(f"{key}: {TODO}", todos.add(key, meaning)))
     lines.append(
@@ -434,27 +459,59 @@ def _format(found: Detected, todos: _Todos) -> list[str]:
         first = "# the first column (no name looks like time): check"
         why = GUESSED if found.time_by_name else first
         lines.append(_comment_line(f"    column: {_scalar(found.time_column)}", why))
-        note = "# detected: every value parses"
-        if layout.time_format == "seconds" and abs(float(layout.t_first)) > 1e8:
-            note += "; Unix time (seconds since 1970) is fine as seconds"
-        elif layout.time_format == "seconds" and float(layout.t_first) != 0:
-            note += f"; starts at {_scalar(layout.t_first)} s: check the unit is seconds"
-        lines.append(_comment_line(f"    format: {layout.time_format}", note))
+        lines += _time_format_lines(layout)
         if layout.step_s:
             lines.append(f"    # logger step: {layout.step_s:g} s (the median time difference)")
     elif not found.time_column_known:
         column = todos.add("format.time.column", f"name the time column ({found.time_problem})")
-        form = todos.add("format.time.format", "iso or seconds, the format of that column")
+        form = todos.add(
+            "format.time.format",
+            "the notation of that column: iso, a strftime pattern, seconds, minutes, hours, "
+            "days, epoch or serial_days",
+        )
         lines.append(_comment_line(f"    column: {TODO}", column))
         lines.append(_comment_line(f"    format: {TODO}", form))
     else:
         meaning = (
-            f"{found.time_problem}; railtherm reads only iso and seconds: convert the time "
-            "column to one of them"
+            f"{found.time_problem}; declare its notation: iso, a strftime pattern such as "
+            "'%d.%m.%Y %H:%M:%S', or a unit of numbers (seconds, minutes, hours, days, epoch, "
+            "serial_days)"
         )
         lines.append(_comment_line(f"    column: {_scalar(found.time_column)}", GUESSED))
         lines.append(_comment_line(f"    format: {TODO}", todos.add("format.time.format", meaning)))
     return [*lines, ""]
+
+
+def _time_format_lines(layout: RawLayout) -> list[str]:
+    """``format:`` of the time column with what to check, and for instants written without a
+    UTC offset the commented ``timezone``/``dst`` lines of a logger clock on local time."""
+    tf = timeaxis.time_format(layout.time_format)
+    note = "# detected: every value parses"
+    if tf.format == "seconds":
+        first = float(layout.t_first)
+        note = (
+            "# detected: numbers; check the unit: seconds, minutes, hours or days elapsed, "
+            "epoch (Unix seconds) or serial_days (spreadsheet dates)"
+        )
+        if UNIX_TIME_S[0] <= abs(first) < UNIX_TIME_S[1]:
+            note += f"; {first:.10g} looks like Unix time: then epoch"
+        elif SERIAL_DAYS[0] <= first < SERIAL_DAYS[1] and (layout.step_s or 1.0) < 1.0:
+            note += f"; {first:.10g} looks like a spreadsheet date: then serial_days"
+    elif tf.pattern and "/" in tf.pattern:
+        note += "; check the order of day and month"
+    lines = [_comment_line(f"    format: {_scalar(tf.format)}", note)]
+    offset = getattr(layout.t_first, "tzinfo", None) is not None
+    if tf.absolute and not offset:
+        lines += [
+            _comment_line(
+                "    # timezone: Europe/Berlin", "# if the logger clock ran on local time: its zone"
+            ),
+            _comment_line(
+                "    # dst: infer",
+                "# and the rule for its hour repeated in autumn: raise | infer | earlier | later",
+            ),
+        ]
+    return lines
 
 
 def _channels(found: Detected, todos: _Todos) -> list[str]:
@@ -493,8 +550,9 @@ def _windows(found: Detected, todos: _Todos) -> list[str]:
         "    - name: whole",
     ]
     if found.layout is not None:
-        lines.append(f"      start: {_time_text(found.layout.t_first)}")
-        lines.append(f"      end: {_time_text(found.layout.t_last)}")
+        notation = found.layout.time_format
+        lines.append(f"      start: {_time_text(found.layout.t_first, notation)}")
+        lines.append(f"      end: {_time_text(found.layout.t_last, notation)}")
     else:
         meaning = "the window's start and end, once the time column is understood"
         lines.append(

@@ -15,7 +15,7 @@ from collections.abc import Mapping
 import pandas as pd
 
 from railtherm import pem
-from railtherm.aggregate import ESTIMATED
+from railtherm.aggregate import ESTIMATED, NOT_GIVEN, is_not_given
 from railtherm.tables import round_significant, write_csv
 
 
@@ -166,14 +166,23 @@ def _tex_escape(text: str) -> str:
     return text.replace("∞", "$\\infty$")
 
 
+NOT_GIVEN_CELL = "not given"  # the table's note names the missing metadata, once
+
+
 def _intervals(df: pd.DataFrame, q: str, kind: str, tex: bool) -> list[str]:
     """Column ``q`` with its 95 % interval (columns ``q_lo``, ``q_hi``), printed as ``kind``;
-    "not identified" with its limit where ``q_status`` says so."""
+    "not identified" with its limit where ``q_status`` says so; "not given" where the config
+    lacks the metadata the quantity needs (the note says which); "–" for any other value
+    missing (never "nan")."""
     out = []
     for _, r in df.iterrows():
         status = r.get(f"{q}_status", ESTIMATED)
         if isinstance(status, str) and status.startswith("not identified"):
             out.append(_not_identified(kind, r[f"{q}_limit"], r[f"{q}_limit_kind"], tex))
+        elif is_not_given(status):
+            out.append(NOT_GIVEN_CELL)
+        elif not math.isfinite(float(r[q])):
+            out.append("–")
         else:
             out.append(_value_interval(kind, r[q], r[f"{q}_lo"], r[f"{q}_hi"], tex))
     return out
@@ -205,7 +214,9 @@ def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame
             {
                 "Name": df["vehicle"].map(esc),
                 "class": df["class"].map(esc),
-                "m_veh (t)": [f"{m / 1000:.1f}" for m in df["m_veh"]],
+                "m_veh (t)": [
+                    f"{m / 1000:.1f}" if math.isfinite(m) else NOT_GIVEN_CELL for m in df["m_veh"]
+                ],
                 "c_veh (J/(kg K))": _intervals(df, "c_veh", "int", tex),
                 "δ (1)": _intervals(df, "delta", "delta", tex),
                 "verdict": df["verdict"].map(esc),
@@ -359,6 +370,39 @@ NOTES = {
         "2 / C(n_a + n_b, n_a) (0.2 at 3 vs 2).",
     ],
 }
+# what a quantity not given needs, for the note of a table that has one
+_NEEDS = {
+    "surface_m2": "k = kA / A (eq. 10) needs the surface A",
+    "mass_kg": "m_veh and c_veh = C_veh / m_veh (eq. 24) need the mass",
+}
+_NOT_GIVEN_QUANTITIES = {
+    "table2": (("k", "surface_m2"),),
+    "table3": (("c_veh", "mass_kg"),),
+    "class_summary": (("c_veh", "mass_kg"),),
+    "class_test": (("c_veh", "mass_kg"),),
+}
+
+
+def not_given_notes(name: str, tables: Mapping[str, pd.DataFrame]) -> list[str]:
+    """One note per quantity of table ``name`` that some vehicles do not have for want of
+    metadata (:data:`railtherm.aggregate.NOT_GIVEN`): which vehicles, which key, why; none
+    when every vehicle gives it. Read from Table 2 (k) and Table 3 (c_veh)."""
+    notes = []
+    for q, key in _NOT_GIVEN_QUANTITIES.get(name, ()):
+        source = tables.get("table2" if q == "k" else "table3")
+        if source is None or f"{q}_status" not in source:
+            continue
+        ids = source.loc[source[f"{q}_status"].map(is_not_given).astype(bool), "vehicle"]
+        if len(ids):
+            left_out = "" if name.startswith("table") else "; left out of the statistics"
+            notes.append(
+                f"{NOT_GIVEN[key]} ({', '.join(map(str, ids))}): {_NEEDS[key]}, which the "
+                f"vehicle config does not give (allowed for class other: a test cell, a "
+                f"building){left_out}."
+            )
+    return notes
+
+
 SYNTHETIC_NOTE = (
     "These re-estimates come from the synthetic campaign, whose ground truth was set from the "
     "paper's published values: they test the method (does railtherm recover what the data "
@@ -377,7 +421,8 @@ def write_study_tables(
         if "source" not in df.columns:
             df["source"] = source
         write_csv(df, paths[f"{name}_csv"])
-        notes = NOTES[name] + ([SYNTHETIC_NOTE] if "synthetic" in source else [])
+        notes = NOTES[name] + not_given_notes(name, tables)
+        notes += [SYNTHETIC_NOTE] if "synthetic" in source else []
         with open(paths[f"{name}_md"], "w", encoding="utf-8") as stream:
             stream.write(to_markdown(name, df, CAPTIONS[name], source, notes))
         with open(paths[f"{name}_tex"], "w", encoding="utf-8") as stream:

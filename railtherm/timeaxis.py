@@ -18,13 +18,21 @@ exist; ``format.time.dst`` declares the rule for both (``raise``, the default: a
 the time; ``infer``: the repeated hour from the order of the rows, the skipped hour cannot
 occur in a real log and stays an error; ``earlier`` / ``later``: take the first or second
 occurrence). Parsing is pandas' and zoneinfo's; nothing here reads dates by hand.
+
+:func:`declared` checks a config's ``format.time``; :func:`parse` reads a time column and
+:func:`seconds` puts it on the seconds axis of the cleaning (seconds since the first row for
+instants); :func:`instant` reads a window bound; :func:`recognise` names the notation values
+are written in, and :func:`fix` the likely fix for a value that does not match the declared
+notation.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import difflib
 import math
 import re
+import zoneinfo
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -38,6 +46,26 @@ ELAPSED_UNITS_S = {"seconds": 1.0, "minutes": 60.0, "hours": 3600.0, "days": 864
 NAMED_ABSOLUTE = ("iso", "epoch", "serial_days")
 SERIAL_DAY_ORIGIN = pd.Timestamp("1899-12-30")  # day 0 of the 1900 date system
 DST_RULES = ("raise", "infer", "earlier", "later")
+ACCEPTED = (
+    "iso, a strftime pattern such as '%d.%m.%Y %H:%M:%S', seconds, minutes, hours or days "
+    "(elapsed time), epoch (Unix seconds) or serial_days (spreadsheet serial days)"
+)
+# Notations a logger or a spreadsheet export commonly writes, tried in this order to recognise
+# a time column (railtherm new-vehicle) or to name the notation of a value that does not match
+# the declared one. Day-first before month-first: a European export is the likelier.
+COMMON_PATTERNS = (
+    "%d.%m.%Y %H:%M:%S",
+    "%d.%m.%Y %H:%M",
+    "%d.%m.%Y %H:%M:%S.%f",
+    "%d.%m.%y %H:%M:%S",
+    "%d.%m.%y %H:%M",
+    "%d/%m/%Y %H:%M:%S",
+    "%d/%m/%Y %H:%M",
+    "%m/%d/%Y %I:%M:%S %p",
+    "%m/%d/%Y %I:%M %p",
+    "%Y/%m/%d %H:%M:%S",
+)
+_SAMPLE_TIME = dt.datetime(2024, 1, 15, 8, 30, 45)  # a pattern must read back its own date
 _ISO_DATE = re.compile(r"^\s*\d{4}-\d{2}-\d{2}")
 _OFFSET = re.compile(r"(?:Z|[+-]\d\d:?\d\d)\s*$")
 
@@ -85,6 +113,78 @@ def time_format(spec: Mapping[str, Any] | str) -> TimeFormat:
     return TimeFormat(format=name, timezone=spec.get("timezone"), dst=spec.get("dst", "raise"))
 
 
+def declared(file: str, spec: Mapping[str, Any]) -> TimeFormat:
+    """The :class:`TimeFormat` of a vehicle config's ``format.time`` (``format``, optional
+    ``timezone`` and ``dst``), checked: :class:`ConfigError` naming the file, the key, the
+    value and the accepted forms. A pattern must read back the date it writes (a time of day
+    alone cannot order a record over midnight); a timezone is an IANA name and applies to
+    wall-clock times only (not to elapsed time, nor to epoch seconds, which count in UTC);
+    ``dst`` needs a timezone."""
+    name = spec.get("format")
+    if not isinstance(name, str) or not (
+        name in ELAPSED_UNITS_S or name in NAMED_ABSOLUTE or "%" in name
+    ):
+        raise ConfigError(file, "format.time.format", name, f"must be {ACCEPTED}")
+    if "%" in name:
+        sample = _SAMPLE_TIME.replace(tzinfo=dt.UTC)  # so that %z and %Z write something
+        try:
+            back = dt.datetime.strptime(sample.strftime(name), name)
+        except ValueError:
+            back = None
+        if back is None or back.date() != _SAMPLE_TIME.date():
+            example = _SAMPLE_TIME.strftime("%d.%m.%Y %H:%M:%S")
+            raise ConfigError(
+                file,
+                "format.time.format",
+                name,
+                "not a strftime pattern that reads back a date and time (day %d, month %m, "
+                f"year %Y, hour %H, minute %M, second %S: '%d.%m.%Y %H:%M:%S' reads {example})",
+            )
+    tf = time_format(spec)
+    if tf.timezone is not None:
+        zone = tf.timezone
+        if not tf.absolute or tf.format == "epoch":
+            what = "elapsed time has" if not tf.absolute else "epoch seconds count in UTC and have"
+            raise ConfigError(
+                file,
+                "format.time.timezone",
+                zone,
+                f"{what} no wall-clock time to place in a time zone: remove the key",
+            )
+        if not _known_zone(zone):
+            close = difflib.get_close_matches(
+                str(zone), sorted(zoneinfo.available_timezones()), n=1
+            )
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            raise ConfigError(
+                file,
+                "format.time.timezone",
+                zone,
+                f"not an IANA time zone name ({hint}e.g. Europe/Berlin, UTC)",
+            )
+    if tf.dst not in DST_RULES:
+        raise ConfigError(file, "format.time.dst", tf.dst, f"must be one of {', '.join(DST_RULES)}")
+    if "dst" in spec and tf.timezone is None:
+        raise ConfigError(
+            file,
+            "format.time.dst",
+            tf.dst,
+            "applies to local wall-clock times only: declare format.time.timezone too, or "
+            "remove the key",
+        )
+    return tf
+
+
+def _known_zone(name: Any) -> bool:
+    if not isinstance(name, str):
+        return False
+    try:
+        zoneinfo.ZoneInfo(name)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        return False
+    return True
+
+
 def _named(tf: TimeFormat) -> str:
     return "" if tf.pattern else f" (time format {tf.format})"
 
@@ -94,6 +194,16 @@ def _numbers(raw: pd.Series, decimal: str) -> pd.Series:
     if decimal != ".":
         numbers = numbers.str.replace(decimal, ".", regex=False)
     return pd.to_numeric(numbers, errors="coerce").astype(float)
+
+
+def elapsed_seconds(values: Any, unit: str) -> Any:
+    """Elapsed time in ``unit`` (seconds, minutes, hours, days) as float seconds. Seconds are
+    the file's own numbers; a converted unit is rounded to whole microseconds, far below any
+    logger's resolution, so that 0.1 h is 360 s and not the float product 360.00000000000006 s
+    (a step of 0.1 h would otherwise differ from row to row in its last digits)."""
+    if unit == "seconds":
+        return values
+    return np.round(values * ELAPSED_UNITS_S[unit], 6)
 
 
 def _localize(path: str, column: str, raw: pd.Series, times: pd.Series, tf: TimeFormat):
@@ -136,7 +246,7 @@ def parse(path: str, raw: pd.Series, column: str, tf: TimeFormat, decimal: str =
     value that does not parse, with its line."""
     text = raw.astype(object).where(raw.notna(), None)
     if not tf.absolute:
-        times = _numbers(raw, decimal) * ELAPSED_UNITS_S[tf.format]
+        times = elapsed_seconds(_numbers(raw, decimal), tf.format)
     elif tf.format in ("epoch", "serial_days"):
         numbers = _numbers(raw, decimal)
         # to whole microseconds (epoch) or milliseconds (a day's float fraction) before the
@@ -216,20 +326,32 @@ def instant(
     string, or a value in the file's own notation (a string of its pattern, an epoch or serial
     day number), localized like the file's times; for elapsed time a number in the file's unit,
     returned in seconds. :class:`ConfigError` naming file, key and value otherwise."""
+    shown = repr(tf.format) if tf.pattern else tf.format
+    declared_as = f"(format.time.format is {shown})"
     if not tf.absolute:
         if (
             isinstance(value, bool)
             or not isinstance(value, int | float)
             or not math.isfinite(value)
         ):
-            raise ConfigError(file, key, value, f"must be a number of {tf.format} (time format)")
-        return float(value) * ELAPSED_UNITS_S[tf.format]
-    if isinstance(value, int | float) and not isinstance(value, bool):
-        if tf.format not in ("epoch", "serial_days"):
-            raise ConfigError(file, key, value, f"must be {tf.describe()} or ISO 8601 text")
-        return parse(file, pd.Series([str(value)]), key, tf)[0]
-    if not isinstance(value, str):
-        raise ConfigError(file, key, value, f"must be {tf.describe()} or ISO 8601 text")
+            raise ConfigError(file, key, value, f"must be a number of {tf.format} {declared_as}")
+        return float(elapsed_seconds(float(value), tf.format))
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    if tf.format in ("epoch", "serial_days"):
+        if number or (isinstance(value, str) and _numbers(pd.Series([value]), decimal).notna()[0]):
+            return parse(file, pd.Series([str(value)]), key, tf, decimal)[0]
+        if not isinstance(value, str):
+            raise ConfigError(
+                file,
+                key,
+                value,
+                f"must be {tf.describe()} or an ISO 8601 timestamp string {declared_as}",
+            )
+    elif not isinstance(value, str):
+        text = f"text: {tf.describe()} or an" if tf.pattern else "an"
+        raise ConfigError(
+            file, key, value, f"must be {text} ISO 8601 timestamp string {declared_as}"
+        )
     stamp = None
     if tf.pattern:
         try:
@@ -252,3 +374,49 @@ def instant(
     elif tf.format == "epoch" and stamp.tzinfo is None:
         stamp = stamp.tz_localize("UTC")  # an epoch file's instants are in UTC
     return stamp
+
+
+def recognise(raw: pd.Series, decimal: str = ".") -> str | None:
+    """The notation every value of ``raw`` is written in: ``seconds`` for numbers (elapsed,
+    or epoch or serial days: a number does not tell its unit), ``iso``, or the first of
+    :data:`COMMON_PATTERNS` that reads every value; None when none does."""
+    values = raw.dropna()
+    if values.empty:
+        return None
+    for name in ("seconds", "iso", *COMMON_PATTERNS):
+        try:
+            parse("", values.reset_index(drop=True), "", time_format(name), decimal)
+        except DataError:
+            continue
+        return name
+    return None
+
+
+def fix(value: Any, tf: TimeFormat, decimal: str = ".") -> str:
+    """The likely fix when the time ``value`` is not of the declared notation ``tf``, as a
+    clause to append to the message ("; it reads as ...: declare format.time.format ...");
+    empty when the value is of ``tf`` after all (the trouble is elsewhere, e.g. a DST hour)."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "; every row needs its time: fill in the cell or delete the row"
+    one = pd.Series([str(value)], dtype=object)
+    try:
+        parse("", one, "", tf, decimal)
+        return ""
+    except DataError:
+        pass
+    found = recognise(one, decimal)
+    if found == tf.format:  # of the declared notation, but not a valid time in its zone
+        return ""
+    if found == "seconds":
+        return (
+            "; it is a number: declare format.time.format seconds, minutes, hours or days "
+            "(elapsed time), epoch (Unix seconds) or serial_days (spreadsheet serial days)"
+        )
+    if found is not None:
+        shown = found if found == "iso" else repr(found)
+        return f"; it reads as {time_format(found).describe()}: declare format.time.format: {shown}"
+    example = _SAMPLE_TIME.strftime("%d.%m.%Y %H:%M:%S")
+    return (
+        "; if every time of the file is written like this one, declare its strftime pattern "
+        f"as format.time.format ('%d.%m.%Y %H:%M:%S' reads {example}), else correct this line"
+    )

@@ -175,18 +175,18 @@ def test_iso_timestamps_and_two_indoor_sensors(tmp_path, monkeypatch, capsys, se
 
 
 def test_an_unsupported_time_format_is_a_todo(tmp_path, monkeypatch):
-    """German date notation is neither iso nor seconds: said so, not invented."""
+    """A notation no common pattern reads (hours written 02h00) is said so, not invented."""
     monkeypatch.chdir(tmp_path)
     raw = tmp_path / "messung.csv"
     raw.write_text(
         "Datum;T_innen;T_aussen;P_Heizung_kW\n"
-        "16.01.2024 02:00;20,1;-5,0;3,0\n16.01.2024 02:01;20,2;-5,0;3,0\n",
+        "16.01.2024 02h00;20,1;-5,0;3,0\n16.01.2024 02h01;20,2;-5,0;3,0\n",
         encoding="utf-8",
     )
     text, todos = starter_vehicle(raw)
     assert "format.time.format" in todo_keys(todos)
     todo = next(t for t in todos if t.startswith("format.time.format"))
-    assert "'16.01.2024 02:00'" in todo and "iso and seconds" in todo
+    assert "'16.01.2024 02h00'" in todo and "strftime pattern" in todo
     data = yaml.safe_load(text)
     assert data["format"]["time"] == {"column": "Datum", "format": "TODO"}
     assert data["format"]["decimal"] == ","

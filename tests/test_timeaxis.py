@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from railtherm.errors import ConfigError, DataError
-from railtherm.timeaxis import instant, parse, seconds, time_format
+from railtherm.timeaxis import declared, fix, instant, parse, recognise, seconds, time_format
 
 START = pd.Timestamp("2024-01-15 08:00:00")
 STEPS_S = np.arange(0, 6 * 3600 + 1, 600.0)  # 6 h at 10 min
@@ -94,3 +94,65 @@ def test_a_value_of_another_notation_names_its_line():
         parse("f.csv", column(values), "t", time_format({"format": "%d.%m.%Y %H:%M:%S"}))
     with pytest.raises(ValueError, match="unknown time format 'dd.mm.yyyy'"):
         time_format({"format": "dd.mm.yyyy"})
+
+
+def test_converted_units_name_whole_microseconds():
+    """0.1 h is 360 s: the float product 0.1 * 3600 = 360.00000000000006 is rounded to whole
+    microseconds; seconds stay the file's own numbers."""
+    tenths = column([f"{k / 10:.1f}" for k in range(200)])
+    times = parse("f.csv", tenths, "t", time_format("hours"))
+    np.testing.assert_array_equal(times.to_numpy(), np.arange(200) * 360.0)
+    assert instant("v.yaml", "k", 0.1, time_format("hours")) == 360.0
+    raw = column(["0.1", "0.30000000000000004"])
+    assert parse("f.csv", raw, "t", time_format("seconds")).tolist() == [0.1, 0.30000000000000004]
+
+
+@pytest.mark.parametrize(
+    ("spec", "key", "reason"),
+    [
+        ({"format": "dd.mm.yyyy"}, "format.time.format", "iso, a strftime pattern such as"),
+        ({"format": "%H:%M"}, "format.time.format", "reads back a date and time"),
+        ({"format": "minutes", "timezone": "UTC"}, "format.time.timezone", "elapsed time"),
+        ({"format": "epoch", "timezone": "UTC"}, "format.time.timezone", "count in UTC"),
+        ({"format": "iso", "timezone": "Europe/Berln"}, "format.time.timezone", "Europe/Berlin"),
+        ({"format": "iso", "dst": "infer"}, "format.time.dst", "format.time.timezone too"),
+        ({"format": "iso", "timezone": "UTC", "dst": "no"}, "format.time.dst", "raise, infer"),
+    ],
+)
+def test_a_declaration_is_checked_naming_key_value_and_accepted_forms(spec, key, reason):
+    with pytest.raises(ConfigError) as caught:
+        declared("v.yaml", spec)
+    assert caught.value.key == key and reason in str(caught.value)
+    assert str(caught.value).startswith(f"v.yaml: key '{key}' = ")
+
+
+def test_the_common_notations_are_recognised():
+    for name in ("iso", "%d.%m.%Y %H:%M:%S", "%m/%d/%Y %I:%M %p"):
+        assert recognise(column(NOTATIONS[name])) == name
+    assert recognise(column(NOTATIONS["epoch"])) == "seconds"  # a number does not tell its unit
+    assert recognise(column(["15.01.2024 08:00", "gestern"])) is None
+
+
+@pytest.mark.parametrize(
+    ("value", "declared_as", "clause"),
+    [
+        ("2024-01-15T08:00:00", "%d.%m.%Y %H:%M:%S", "declare format.time.format: iso"),
+        ("15.01.2024 08:00", "%d.%m.%Y %H:%M:%S", "declare format.time.format: '%d.%m.%Y %H:%M'"),
+        ("3600", "iso", "it is a number: declare format.time.format seconds"),
+        ("31.02.2024 08:00:00", "%d.%m.%Y %H:%M:%S", "else correct this line"),
+        (None, "iso", "every row needs its time"),
+        ("15.01.2024 08:00:00", "%d.%m.%Y %H:%M:%S", ""),  # of the notation: no fix to give
+    ],
+)
+def test_the_fix_names_the_notation_a_value_is_written_in(value, declared_as, clause):
+    got = fix(value, time_format(declared_as))
+    assert (clause in got) if clause else got == ""
+
+
+def test_serial_day_and_epoch_bounds_may_be_text_of_numbers():
+    serial = time_format("serial_days")
+    noon = pd.Timestamp("2024-01-15 12:00")
+    assert instant("v.yaml", "k", "45306.5", serial) == noon
+    assert instant("v.yaml", "k", "45306,5", serial, decimal=",") == noon
+    assert instant("v.yaml", "k", 45306.5, serial) == noon
+    assert instant("v.yaml", "k", "2024-01-15T12:00:00", serial) == noon

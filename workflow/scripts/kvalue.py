@@ -8,4 +8,7 @@ vehicle = snakemake.params.vehicle
 window = ingest.read_tidy(snakemake.input.window)
 result = kvalue.for_vehicle(window, vehicle, source=snakemake.input.window)
 write_yaml(result.to_dict(), snakemake.output[0])
-log.info("k = %.4g +- %.2g W/(m2 K), steady: %s", result.k, result.u_k, result.steady)
+if result.k is None:  # no surface_m2: kA only
+    log.info("kA = %.4g +- %.2g W/K, steady: %s", result.kA, result.u_kA, result.steady)
+else:
+    log.info("k = %.4g +- %.2g W/(m2 K), steady: %s", result.k, result.u_k, result.steady)
