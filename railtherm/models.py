@@ -50,12 +50,15 @@ __all__ = [
     "Discretisation",
     "Structure",
     "discretize",
+    "discretize_noise",
     "discretize_zoh",
     "first_order",
     "free_response",
     "free_response_head",
     "irradiance_spec",
+    "modal_form",
     "parameter_sensitivities",
+    "propagate",
     "second_order",
     "sensitivities",
     "simulate",
@@ -471,6 +474,57 @@ def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray,
     return E[:n, :n], E[:n, n:]
 
 
+def discretize_noise(
+    A: np.ndarray,
+    W: np.ndarray,
+    dt: float,
+    directions: Sequence[tuple[np.ndarray, np.ndarray]] = (),
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The covariance Qd = integral_0^dt exp(A s) W exp(A^T s) ds of the noise a diffusion
+    dx = ... dt + Sigma dw (W = Sigma Sigma^T) adds over one step, by Van Loan's method:
+
+        expm([[-A, W], [0, A^T]] dt) = [[F11, F12], [0, F22]],   Qd = F22^T F12
+
+    (F22 = exp(A^T dt)). ``directions`` [(dA, dW), ...]: the exact derivative of Qd along
+    each, dQd = dF22^T F12 + F22^T dF12, from the Frechet derivative of the same exponential
+    along [[-dA, dW], [0, dA^T]] dt; all of them from one expm of the block-triangular matrix
+    that :func:`discretize` uses. Returns (Qd, [dQd, ...]), each symmetric."""
+    A = np.atleast_2d(np.asarray(A, dtype=float))
+    W = np.atleast_2d(np.asarray(W, dtype=float))
+    n = A.shape[0]
+    k = 2 * n
+
+    def block(a: np.ndarray, w: np.ndarray) -> np.ndarray:
+        out = np.zeros((k, k))
+        out[:n, :n] = -a
+        out[:n, n:] = w
+        out[n:, n:] = a.T
+        return out * dt
+
+    M = block(A, W)
+    P = len(directions)
+    if P:
+        big = np.zeros((k * (P + 1), k * (P + 1)))
+        for i in range(P + 1):
+            big[i * k : (i + 1) * k, i * k : (i + 1) * k] = M
+        for i, (dA, dW) in enumerate(directions):
+            big[:k, (i + 1) * k : (i + 2) * k] = block(np.asarray(dA, float), np.asarray(dW, float))
+        E = expm(big)[:k]
+    else:
+        E = expm(M)
+    if not np.all(np.isfinite(E)):
+        raise FloatingPointError("the Van Loan exponential is not finite")
+    F12, F22 = E[:n, n:k], E[n:k, n:k]
+    Qd = F22.T @ F12
+    Qd = (Qd + Qd.T) / 2.0
+    out = []
+    for i in range(P):
+        D = E[:, (i + 1) * k : (i + 2) * k]
+        dQ = D[n:k, n:k].T @ F12 + F22.T @ D[:n, n:k]
+        out.append((dQ + dQ.T) / 2.0)
+    return Qd, out
+
+
 def steady_state(A: np.ndarray, B: np.ndarray, u: np.ndarray) -> np.ndarray:
     """The equilibrium x* = -A^-1 B u for a constant input u."""
     return -np.linalg.solve(np.atleast_2d(A), np.atleast_2d(B) @ np.asarray(u, dtype=float))
@@ -553,6 +607,24 @@ def discretize(
     dBd = {p: E[:n, (i + 1) * k + n : (i + 2) * k].copy() for i, p in enumerate(params)}
     Q, Qinv, T, lam, diagonal = _modal(Ad)
     return Discretisation(Ad, Bd, dAd, dBd, Q, Qinv, T, lam, diagonal)
+
+
+def modal_form(F: np.ndarray) -> Discretisation:
+    """The modal form F = Q T Qinv (eigenvectors, or the complex Schur form when F is not
+    safely diagonalisable) of any recursion matrix F, as a :class:`Discretisation` with
+    Ad = F and no input matrix, for :func:`propagate` (e.g. a Kalman predictor, whose F =
+    Ad - L C)."""
+    F = np.atleast_2d(np.asarray(F, dtype=float))
+    Q, Qinv, T, lam, diagonal = _modal(F)
+    return Discretisation(F, np.zeros((F.shape[0], 0)), {}, {}, Q, Qinv, T, lam, diagonal)
+
+
+def propagate(d: Discretisation, w: np.ndarray, z0: np.ndarray) -> np.ndarray:
+    """Modal recursion z[n+1] = T z[n] + w[n], z[0] = z0, for channels stacked in w (n_modes,
+    C, N), z0 (n_modes, C), in the modal coordinates of ``d`` (w and z0 already multiplied by
+    d.Qinv; complex when ``d.diagonal`` is False). One ``scipy.signal.lfilter`` per mode for
+    all channels; w is overwritten by the result."""
+    return _propagate(d, w, z0)
 
 
 def _propagate(d: Discretisation, w: np.ndarray, z0: np.ndarray) -> np.ndarray:
