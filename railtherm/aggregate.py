@@ -156,7 +156,14 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
     vehicle's preferred model."""
     rows = []
     for fit in fits:
-        T = fit["measures"]["T"]["overall"]
+        T = dict(fit["measures"]["T"]["overall"])
+        estimator = fit.get("estimator", "output_error")
+        if estimator == "kalman":  # the criteria of its likelihood, the tests of its innovations
+            from railtherm.diagnostics import information_criteria
+
+            T |= information_criteria(fit["loglik"], fit["n_params"], fit["n_obs"])
+            T["p"] = fit["n_params"]
+            T["ljung_box_p"] = fit["innovations"]["T"]["ljung_box_p"]
         kA = fit["parameters"].get("kA", {})
         if kA.get("estimated"):
             q = quantity(kA["value"], kA["ci95"], pem.parameter_identification(kA))
@@ -167,6 +174,7 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
             {
                 "vehicle": fit["vehicle"],
                 "model": fit["model"],
+                "estimator": estimator,
                 "structure": fit["structure"],
                 "k_source": fit["k_source"],
                 "kA": q[""],
@@ -187,7 +195,8 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
         )
     df = pd.DataFrame(rows)
     for criterion in ("aic", "bic"):
-        best = df.groupby("vehicle", sort=False)[criterion].transform("min")
+        # the criteria of the two estimators rest on different likelihoods: compared apart
+        best = df.groupby(["vehicle", "estimator"], sort=False)[criterion].transform("min")
         df.insert(df.columns.get_loc("ljung_box_p"), f"best_{criterion}", df[criterion] == best)
     return df
 

@@ -242,8 +242,15 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument(
         "--model",
         action="append",
-        choices=["order1", "order2", "interior_envelope"],
-        help="model to fit (repeatable; default: the models the vehicle file asks for)",
+        choices=[
+            key + suffix
+            for key in ("order1", "order2", "interior_envelope")
+            for suffix in ("", "_kalman")
+        ],
+        help=(
+            "model to fit (repeatable; default: the models the vehicle file asks for); the "
+            "suffix _kalman fits it by the Kalman-filter estimator"
+        ),
     )
     fit.add_argument("--out", metavar="DIR", help="results directory to write into")
     fit.add_argument(

@@ -33,11 +33,35 @@ MODEL_STRUCTURE = {
 KA_BOUNDS = (1.0, 1.0e5)  # W/K, for joint estimation when the config gives none
 
 
+# the estimators of model.estimator: the paper's simulation-error PEM (K = 0, railtherm.pem)
+# and the Kalman-filter maximum-likelihood PEM of the stochastic model (railtherm.kalman)
+ESTIMATORS = ("output_error", "kalman")
+KALMAN_SUFFIX = "_kalman"  # the model key of a kalman fit: order2_kalman, fit_order2_kalman.yaml
+
+
+def estimators(vehicle_data: Mapping[str, Any]) -> list[str]:
+    """``model.estimator`` of a vehicle as a list (default: output_error alone)."""
+    chosen = (vehicle_data.get("model") or {}).get("estimator", "output_error")
+    return [chosen] if isinstance(chosen, str) else list(chosen)
+
+
 def model_keys(vehicle_data: Mapping[str, Any]) -> list[str]:
     """The models a vehicle's config asks for: its orders (order1, order2), then any further
-    structures (interior_envelope)."""
+    structures (interior_envelope), each once per estimator (``model.estimator``): the key
+    itself for output_error, with the suffix ``_kalman`` for kalman."""
     model = vehicle_data["model"]
-    return [f"order{int(n)}" for n in model["orders"]] + list(model.get("structures") or [])
+    keys = [f"order{int(n)}" for n in model["orders"]] + list(model.get("structures") or [])
+    suffix = {"output_error": "", "kalman": KALMAN_SUFFIX}
+    return [key + suffix[e] for key in keys for e in estimators(vehicle_data)]
+
+
+def split_key(key: int | str) -> tuple[str, str]:
+    """A model key -> (the structure's key, the estimator): ``"order2_kalman"`` ->
+    ``("order2", "kalman")``, ``2`` -> ``("order2", "output_error")``."""
+    text = str(key)
+    if text.endswith(KALMAN_SUFFIX):
+        return model_key(text[: -len(KALMAN_SUFFIX)]), "kalman"
+    return model_key(text), "output_error"
 
 
 def model_key(order: int | str) -> str:
@@ -61,7 +85,7 @@ def model_structure(order: int | str, vehicle_data: Mapping[str, Any] | None = N
     the node its channel declares. A gain declared on the envelope (or both) where the model
     has one node (order1) is a :class:`ConfigError` naming the channel."""
     irradiance = irradiance_inputs(vehicle_data) if vehicle_data else []
-    name = MODEL_STRUCTURE[model_key(order)]
+    name = MODEL_STRUCTURE[split_key(order)[0]]
     base = models.STRUCTURES[name]
     for i, spec in enumerate(irradiance):
         node = models.irradiance_spec(spec)[1]
@@ -274,9 +298,12 @@ def identify(
         "covariance": model.get("covariance", "hac"),
         "start": model.get("start", "auto"),
     }
+    estimator = split_key(order)[1]
+    if estimator == "kalman":
+        options["estimator"] = "kalman"
     rows = rows_used(structure, tables, outputs, vehicle_data)
     exps = experiments(structure, tables)
-    result = pem.fit(structure, exps, **options)
+    result = estimate_parameters(structure, exps, options)
     fitted = result.to_dict()
     budget = systematic_budget(structure, exps, options, result, vehicle_data, kvalue)
     combine_uncertainty(fitted["parameters"], budget)
@@ -288,6 +315,7 @@ def identify(
         "synthetic": bool(vehicle_data.get("synthetic", False)),
         "order": len(structure.states),
         "model": model_key(order),
+        "estimator": estimator,
         "structure": structure.name,
         "k_source": k_source,
         "A": surface(vehicle_data),
@@ -301,7 +329,74 @@ def identify(
         "systematic": budget,
         "cross_validation": _cross_validate(structure, exps, options) if len(exps) > 1 else [],
     }
-    return estimate, _series(structure, exps, result)
+    series = _series(structure, exps, result)
+    if estimator == "kalman":
+        series = _innovation_series(structure, series, result)
+        alpha = float(check_thresholds(vehicle_data.get("check"))["whiteness_alpha"])
+        estimate["innovations"] = innovation_tests(series, outputs, alpha)
+        estimate["fit"]["loglik"] = float(result.loglik)
+        estimate["fit"]["n_params"] = int(result.n_params)
+    return estimate, series
+
+
+def _innovation_series(structure, series: pd.DataFrame, result) -> pd.DataFrame:
+    """The series table with the kalman fit's one-step predictions ``<state>_one_step``, its
+    innovations ``<state>_innovation`` (measured - predicted; empty where not measured) and
+    their standard deviations ``<state>_innovation_sd`` (the filter's sqrt(R_k)) per output."""
+    extra = {}
+    for j, state in enumerate(result.outputs):
+        i = structure.states.index(state)
+        extra[f"{state}_one_step"] = np.concatenate([x[:, i] for x in result.one_step])
+        extra[f"{state}_innovation"] = np.concatenate([e[:, j] for e in result.innovations])
+        extra[f"{state}_innovation_sd"] = np.sqrt(
+            np.concatenate([r[:, j] for r in result.innovation_var])
+        )
+    return series.assign(**extra)
+
+
+def innovation_tests(
+    series: pd.DataFrame, outputs: Sequence[str], alpha: float
+) -> dict[str, dict[str, Any]]:
+    """Whiteness of each output's standardised one-step innovations (innovation / its
+    sd), the windows one after the other: Ljung-Box and the cumulated periodogram test of
+    CTSM-R (:func:`railtherm.diagnostics.residual_tests`) at level ``alpha``. A correct
+    stochastic model leaves white innovations."""
+    from railtherm import diagnostics
+
+    tests = {}
+    for state in outputs:
+        z = series[f"{state}_innovation"] / series[f"{state}_innovation_sd"]
+        tests[state] = diagnostics.residual_tests(z.to_numpy(float), alpha=alpha).to_dict()
+    return tests
+
+
+def innovation_reasons(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
+    """The verdict's reasons of a kalman fit: an output whose one-step innovations are not
+    white (:func:`innovation_tests`) - the stochastic model misses a dynamic or an input."""
+    reasons = []
+    for state, t in estimate.get("innovations", {}).items():
+        if not t["white"]:
+            reasons.append(
+                f"The one-step innovations of {state} are not white (Ljung-Box p = "
+                f"{t['ljung_box_p']:.3g}, cumulated periodogram p = {t['cpg_p']:.3g}, level "
+                f"{thresholds['whiteness_alpha']:g}): the stochastic model misses a dynamic "
+                "or an input."
+            )
+    return reasons
+
+
+def estimate_parameters(structure: models.Structure, exps: Sequence, options: Mapping[str, Any]):
+    """The fit of ``structure`` to ``exps`` by the estimator ``options["estimator"]``:
+    output_error (default; the paper's simulation-error PEM, eqs. 17-18 with K = 0,
+    :func:`railtherm.pem.fit`) or kalman (the Kalman-filter PEM of the stochastic model,
+    eq. 16 with K from the filter, maximum likelihood, :func:`railtherm.kalman.fit`)."""
+    options = dict(options)
+    if options.pop("estimator", "output_error") == "kalman":
+        from railtherm import kalman
+
+        options.pop("covariance", None)  # the observed information gives the covariance
+        return kalman.fit(structure, exps, **options)
+    return pem.fit(structure, exps, **options)
 
 
 def derived_kA(fitted: Mapping[str, Any]) -> dict[str, Any]:
@@ -469,7 +564,7 @@ def systematic_budget(structure, exps, options, result, vehicle_data, kvalue) ->
             if not all(math.isfinite(v) and v > 0 for v in fixed.values()):
                 raise ValueError("the k stage gives no kA under this error")
             perturbed = _perturbed(exps, source.column, source.u)
-            refit = pem.fit(structure, perturbed, **{**warm, "fixed": fixed})
+            refit = estimate_parameters(structure, perturbed, {**warm, "fixed": fixed})
             shifts = {p: float(np.log(refit.theta[p] / result.theta[p])) for p in result.free}
         except (np.linalg.LinAlgError, ValueError, FloatingPointError):
             shifts = {}
@@ -554,7 +649,7 @@ def _cross_validate(structure, exps, options) -> list[dict[str, Any]]:
     """Fit on each window alone; R^2 (eq. 21) of the simulated T on every other window."""
     rows = []
     for train in exps:
-        fitted = pem.fit(structure, [train], **options)
+        fitted = estimate_parameters(structure, [train], options)
         for test in exps:
             if test is train:
                 continue
@@ -562,6 +657,7 @@ def _cross_validate(structure, exps, options) -> list[dict[str, Any]]:
                 sim = models.simulate(structure, fitted.theta, test.u, test.dt, test.x0)
             else:  # an unmeasured initial state: estimate only it, theta held
                 held = {**options, "fixed": dict(fitted.theta), "initial": {}, "bounds": {}}
+                held.pop("estimator", None)  # the simulation of the same parameters
                 sim = pem.fit(structure, [test], **{**held, "x0": "estimated"}).simulated[0]
             rows.append(
                 {
@@ -700,6 +796,10 @@ def check(
     whiteness and AIC/BIC per compared output, overall and per window; cross-validation R^2;
     the identifiability flags.
 
+    A fit of the kalman estimator is judged by the whiteness of its one-step innovations
+    (:func:`innovation_reasons`) instead of the RMSE and residual-colour limits, which are
+    about simulation residuals; R^2, the flags and the plausibility apply to it as well.
+
     Verdict "assumptions in doubt" when: R^2 of T (or a cross-validation R^2) is below
     ``r2_min``; a simulated temperature misses its measurement by more than ``max_rmse_K``
     (then also when its residuals are strongly coloured, fewer than ``min_effective_samples``
@@ -715,7 +815,7 @@ def check(
     """
     thresholds = check_thresholds(thresholds)
     fit = estimate["fit"]
-    p = int(fit["n_unknowns"])
+    p = int(fit["n_params"] if "n_params" in fit else fit["n_unknowns"])
     measures: dict[str, Any] = {}
     for state in estimate["outputs"]:
         overall = metrics.summary(series[state], series[f"{state}_sim"], p)
@@ -727,8 +827,13 @@ def check(
     r2 = {"T": measures["T"]["overall"]["r2"]}
     r2 |= {f"{cv['train']} -> {cv['test']}": cv["r2_T"] for cv in estimate["cross_validation"]}
     severe = [f for f in fit["flags"] if f["code"] not in NOTE_ONLY_FLAGS]
+    # R^2 of the simulation of the fitted parameters (for a kalman fit: its simulation
+    # performance beside the one-step performance its innovations show)
     _, reasons = metrics.verdict(r2, severe, thresholds={"r2_min": thresholds["r2_min"]})
-    for state, m in measures.items():
+    kalman = estimate.get("estimator") == "kalman"
+    if kalman:  # judged by its one-step innovations, not by a wind tunnel's RMSE limit
+        reasons += innovation_reasons(estimate, thresholds)
+    for state, m in () if kalman else measures.items():
         rmse = m["overall"]["rmse"]
         if rmse > thresholds["max_rmse_K"]:
             limit = thresholds["max_rmse_K"]
@@ -743,7 +848,7 @@ def check(
                 thresholds={"min_effective_samples": thresholds["min_effective_samples"]},
             )
             reasons += coloured
-    if thresholds["require_white"]:  # the colour alone, not the effective samples
+    if thresholds["require_white"] and not kalman:  # the colour alone, not the effective samples
         _, not_white = metrics.verdict(
             1.0,
             whiteness={state: m["overall"] for state, m in measures.items()},
@@ -763,6 +868,7 @@ def check(
         "synthetic": estimate["synthetic"],
         "order": estimate["order"],
         "model": estimate["model"],
+        "estimator": estimate.get("estimator", "output_error"),
         "structure": estimate["structure"],
         "k_source": estimate["k_source"],
         "verdict": metrics.IN_DOUBT if reasons else metrics.ACCEPTABLE,
@@ -782,4 +888,6 @@ def check(
         "windows": estimate["windows"],
         "rows": estimate["rows"],
         "outputs": estimate["outputs"],
+        **({key: fit[key] for key in ("loglik", "n_params", "n_obs")} if kalman else {}),
+        **({"innovations": estimate["innovations"]} if kalman else {}),
     }

@@ -58,9 +58,12 @@ def fit_vehicle(
     files into (``vehicles/<id>/clean/<window>.csv``, ``kvalue.yaml``,
     ``identify/<model>.yaml`` and ``_series.csv``, ``fit_<model>.yaml``)."""
     keys = list(models) if models else identify.model_keys(vehicle.data)
-    unknown = [k for k in keys if identify.model_key(k) not in identify.MODEL_STRUCTURE]
+    unknown = [k for k in keys if identify.split_key(k)[0] not in identify.MODEL_STRUCTURE]
     if unknown:
-        raise ValueError(f"unknown model {unknown[0]!r}; known: {sorted(identify.MODEL_STRUCTURE)}")
+        raise ValueError(
+            f"unknown model {unknown[0]!r}; known: {sorted(identify.MODEL_STRUCTURE)}, each "
+            f"also with the suffix {identify.KALMAN_SUFFIX} (the Kalman-filter estimator)"
+        )
     tables = tidy_tables(vehicle, workdir)
     base = None if out is None else os.path.join(str(out), "vehicles", vehicle.id)
     if base is not None:

@@ -10,7 +10,8 @@ captions and notes, and the files (CSV at a stated precision through
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import pandas as pd
 
@@ -18,9 +19,43 @@ from railtherm import pem
 from railtherm.aggregate import ESTIMATED, NOT_GIVEN, is_not_given
 from railtherm.tables import round_significant, write_csv
 
+ESTIMATOR_LABEL = {"output_error": "output error", "kalman": "Kalman ML"}
+# the nested structures a forward selection tests: the first-order model is the limit of the
+# second-order model as K_veh -> 0 (the body decouples) and of the interior-envelope model as
+# K_i -> infinity (air and envelope one node); one parameter of each on its boundary
+NESTING = (("order1", "order2", 1), ("order1", "interior_envelope", 1))
 
-def model_markdown(df: pd.DataFrame, source: str) -> str:
-    """The model comparison for readers."""
+
+def model_selection_markdown(fits: Sequence[Mapping[str, Any]], alpha: float = 0.05) -> str:
+    """Per vehicle with two or more kalman fits: the forward selection of its nested
+    structures by likelihood-ratio tests (:func:`railtherm.diagnostics.forward_selection`,
+    :data:`NESTING`); empty when no vehicle has them."""
+    from railtherm import diagnostics
+    from railtherm.identify import split_key
+
+    by_vehicle: dict[str, list] = {}
+    for fit in fits:
+        if fit.get("estimator") == "kalman":
+            by_vehicle.setdefault(fit["vehicle"], []).append(fit)
+    parts = []
+    for vehicle, kfits in by_vehicle.items():
+        keys = {split_key(f["model"])[0]: f for f in kfits}
+        if len(keys) < 2:
+            continue
+        candidates = [(k, f["loglik"], f["n_params"]) for k, f in keys.items()]
+        nesting = [
+            (small, large, boundary)
+            for small, large, boundary in NESTING
+            if small in keys and large in keys and keys[large]["n_params"] > keys[small]["n_params"]
+        ]
+        selection = diagnostics.forward_selection(candidates, nesting, alpha)
+        parts.append(diagnostics.selection_markdown(vehicle, selection))
+    return "\n".join(parts)
+
+
+def model_markdown(df: pd.DataFrame, source: str, selection: str = "") -> str:
+    """The model comparison for readers; ``selection``: the forward selections of the kalman
+    fits (:func:`model_selection_markdown`), appended."""
 
     def ka(r) -> str:
         if str(r.kA_status).startswith("not identified"):
@@ -35,6 +70,7 @@ def model_markdown(df: pd.DataFrame, source: str) -> str:
         {
             "vehicle": df["vehicle"],
             "model": df["structure"],
+            "estimator": df["estimator"].map(ESTIMATOR_LABEL),
             "kA (W/K)": [ka(r) for r in df.itertuples()],
             "k from": df["k_source"],
             "R² (1)": [f"{x:.3f}" for x in df["R2"]],
@@ -58,10 +94,20 @@ def model_markdown(df: pd.DataFrame, source: str) -> str:
             "",
             view.to_markdown(index=False, disable_numparse=True),
             "",
-            "- ◀: the vehicle's lowest AIC / BIC. NRMSE fit = 1 - ||y - ŷ|| / ||y - mean(y)|| "
-            "(MATLAB's compare, pySIP), not R^2 (eq. 21). kA of the interior-envelope model is "
-            "K_i K_o / (K_i + K_o), its interval by the delta method.",
+            "- ◀: the vehicle's lowest AIC / BIC (per estimator). NRMSE fit = 1 - ||y - ŷ|| / "
+            "||y - mean(y)|| (MATLAB's compare, pySIP), not R^2 (eq. 21). kA of the "
+            "interior-envelope model is K_i K_o / (K_i + K_o), its interval by the delta method.",
+            *(
+                [
+                    "- Kalman ML rows: R², NRMSE fit and RMSE are those of the simulation of the "
+                    "same parameters; AIC and BIC are from the likelihood of the one-step "
+                    "innovations, Ljung-Box p from the standardised innovations.",
+                ]
+                if (df["estimator"] == "kalman").any()
+                else []
+            ),
             "",
+            *([selection] if selection else []),
         ]
     )
 

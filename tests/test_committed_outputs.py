@@ -89,18 +89,19 @@ def test_adding_a_vehicle_doc_quotes_the_committed_reference_table():
     # the model comparison is quoted with fewer columns: every quoted cell as committed
     committed = _markdown_rows((VALIDATION / "tables" / "models.md").read_text(encoding="utf-8"))
     quoted = _markdown_rows(doc.split("### Which model?", 1)[1].split("###", 1)[0])
-    assert len(quoted) == len(committed) == 6
+    assert len(quoted) == len(committed) == 9
     for key, cells in quoted.items():
         for header, cell in cells.items():
             assert committed[key][header] == cell, (key, header)
 
 
-def _markdown_rows(text: str) -> dict[tuple[str, str], dict[str, str]]:
-    """{(vehicle, model): {header: cell}} of the first Markdown table in ``text``."""
-    lines = [line for line in text.splitlines() if line.startswith("|")]
+def _markdown_rows(text: str) -> dict[tuple[str, str, str], dict[str, str]]:
+    """{(vehicle, model, estimator): {header: cell}} of the first Markdown table in ``text``."""
+    first = text[text.index("\n|") + 1 :].split("\n\n", 1)[0]
+    lines = [line for line in first.splitlines() if line.startswith("|")]
     split = [[c.strip() for c in line.strip("|").split("|")] for line in lines]
     header, rows = split[0], split[2:]
-    return {(r[0], r[1]): dict(zip(header, r, strict=True)) for r in rows}
+    return {(r[0], r[1], r[2]): dict(zip(header, r, strict=True)) for r in rows}
 
 
 def test_committed_table3_follows_from_table2_and_the_masses():

@@ -127,6 +127,7 @@ def test_irradiance_and_known_heat_flows_are_declared_channels(tmp_path):
     data = yaml.safe_load(renamed_vehicle(tmp_path).read_text())
     data["channels"]["heat_flows"] = [{"column": "Personen_kW", "unit": "kW"}]
     data["channels"]["irradiance"] = [{"column": "Strahlung", "unit": "W/m2", "name": "south"}]
+    data["format"]["power_timing"] = "mean_following"  # each sample the step's mean
     path = tmp_path / "Renamed.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     vehicle = config.load_vehicle(path)
@@ -323,7 +324,7 @@ def test_validate_checks_the_reference_files_as_the_run_would(tmp_path, capsys):
 
     study = validation_copy(tmp_path)
     assert main(["validate", "-d", str(study)]) == 0
-    assert "1 reference file" in capsys.readouterr().out
+    assert "2 reference files" in capsys.readouterr().out
     vehicle = study / "config" / "vehicles" / "Armadillo.yaml"
     data = yaml.safe_load(vehicle.read_text())
     del data["model"]["structures"]

@@ -157,6 +157,13 @@ def kvalue_input(vehicle):
     return []
 
 
+# the fits of the study's tables: fit_order<n>.yaml, or fit_order<n>_kalman.yaml when the study
+# chooses the Kalman-filter estimator (study.estimator)
+TABLE_KEY_SUFFIX = (
+    rt_identify.KALMAN_SUFFIX if config["study"].get("estimator") == "kalman" else ""
+)
+
+
 def fit_targets():
     """(vehicle, order) of every configured fit, in config order."""
     return [(vid, n) for vid in VEHICLES for n in STUDY.vehicles[vid].model["orders"]]
@@ -241,6 +248,11 @@ def all_outputs():
         f"results/vehicles/{vid}/fit_{key}.{ext}"
         for vid, key in model_targets()
         for ext in ("png", "svg")
+    ]
+    targets += [
+        f"results/vehicles/{vid}/innovations_{key}.png"
+        for vid, key in model_targets()
+        if key.endswith(rt_identify.KALMAN_SUFFIX)
     ]
     if config["study"]["models_table"]:
         targets += [f"results/tables/models.{ext}" for ext in ("csv", "md")]

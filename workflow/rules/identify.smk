@@ -12,7 +12,7 @@ rule identify:
         estimate="results/vehicles/{vehicle}/identify/{model}.yaml",
         series="results/vehicles/{vehicle}/identify/{model}_series.csv",
     wildcard_constraints:
-        model="order[12]|interior_envelope",
+        model="(order[12]|interior_envelope)(_kalman)?",
     params:
         vehicle=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data,
         windows=lambda wildcards: identification_windows(wildcards.vehicle),
@@ -36,7 +36,7 @@ rule check:
     output:
         "results/vehicles/{vehicle}/fit_{model}.yaml",
     wildcard_constraints:
-        model="order[12]|interior_envelope",
+        model="(order[12]|interior_envelope)(_kalman)?",
     params:
         check=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data["check"],
         code=code_digest("identify.py", "metrics.py", "fit.py"),
@@ -54,7 +54,10 @@ rule check:
 
 rule fit_table:
     input:
-        fits=[f"results/vehicles/{vid}/fit_order{n}.yaml" for vid, n in fit_targets()],
+        fits=[
+            f"results/vehicles/{vid}/fit_order{n}{TABLE_KEY_SUFFIX}.yaml"
+            for vid, n in fit_targets()
+        ],
         truth="results/campaign/ground_truth.csv" if CAMPAIGN else [],
     output:
         "results/tables/identification.csv",

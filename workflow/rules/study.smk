@@ -16,7 +16,7 @@ rule fit_figure:
         ),
         svg="results/vehicles/{vehicle}/fit_{model}.svg",
     wildcard_constraints:
-        model="order[12]|interior_envelope",
+        model="(order[12]|interior_envelope)(_kalman)?",
     params:
         code=code_digest("plots.py"),
     log:
@@ -31,9 +31,41 @@ rule fit_figure:
         "../scripts/fit_figure.py"
 
 
+rule innovation_figure:
+    input:
+        series="results/vehicles/{vehicle}/identify/{model}_series.csv",
+        fit="results/vehicles/{vehicle}/fit_{model}.yaml",
+    output:
+        png=report(
+            "results/vehicles/{vehicle}/innovations_{model}.png",
+            caption="../report/innovation_figure.rst",
+            category="Fits per vehicle",
+            subcategory="{vehicle}",
+            labels={"vehicle": "{vehicle}", "model": "{model}", "figure": "innovations"},
+        ),
+        svg="results/vehicles/{vehicle}/innovations_{model}.svg",
+    wildcard_constraints:
+        model="(order[12]|interior_envelope)_kalman",
+    params:
+        code=code_digest("plots.py", "diagnostics.py"),
+    log:
+        "logs/innovation_figure/{vehicle}/{model}.log",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/innovation_figure.py"
+
+
 rule aggregate:
     input:
-        fits=[f"results/vehicles/{vid}/fit_order2.yaml" for vid in second_order_vehicles()],
+        fits=[
+            f"results/vehicles/{vid}/fit_order2{TABLE_KEY_SUFFIX}.yaml"
+            for vid in second_order_vehicles()
+        ],
         kvalues=[
             f"results/vehicles/{vid}/kvalue.yaml"
             for vid in second_order_vehicles()

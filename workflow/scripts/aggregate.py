@@ -17,5 +17,8 @@ kvalues = {vid: None for vid in vehicles} | {
     for vid, path in zip(snakemake.params.with_kvalue, snakemake.input.kvalues, strict=True)
 }
 tables = aggregate.study_tables(fits, kvalues, vehicles, snakemake.params.class_test)
-tableformat.write_study_tables(tables, aggregate.data_source(vehicles), dict(snakemake.output))
+source = aggregate.data_source(vehicles)
+if any(fit.get("estimator") == "kalman" for fit in fits.values()):
+    source += "; heat capacities by the Kalman-filter estimator (study.estimator: kalman)"
+tableformat.write_study_tables(tables, source, dict(snakemake.output))
 log.info("tables of %d vehicles", len(vehicles))

@@ -11,5 +11,8 @@ fits = [yaml.safe_load(Path(p).read_text(encoding="utf-8")) for p in snakemake.i
 source = aggregate.data_source(snakemake.params.data)
 table = aggregate.model_table(fits, source)
 tables.write_csv(table, snakemake.output.csv)
-Path(snakemake.output.md).write_text(tableformat.model_markdown(table, source), encoding="utf-8")
+selection = tableformat.model_selection_markdown(fits)
+Path(snakemake.output.md).write_text(
+    tableformat.model_markdown(table, source, selection), encoding="utf-8"
+)
 log.info("%d fits", len(fits))

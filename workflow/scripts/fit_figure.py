@@ -15,6 +15,8 @@ model = {
     "second_order": "second-order model (eqs. 7-8)",
     "interior_envelope": "interior-envelope model",
 }[fit["structure"].split("+")[0]]
+if fit.get("estimator") == "kalman":
+    model += ", Kalman-filter estimator"
 figure = plots.fit_figure(
     series, fit, f"{fit['vehicle']}: {model}", synthetic=bool(fit.get("synthetic", False))
 )

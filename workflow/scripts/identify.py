@@ -19,9 +19,6 @@ estimate, series = identify.identify(
 )
 write_yaml(estimate, snakemake.output.estimate)
 ingest.write_tidy(series, snakemake.output.series)
-log.info(
-    "%s: %s, cost %.6g",
-    snakemake.wildcards.model,
-    estimate["k_source"],
-    estimate["fit"]["cost"],
-)
+fit = estimate["fit"]
+criterion = f"log-likelihood {fit['loglik']:.6g}" if "loglik" in fit else f"cost {fit['cost']:.6g}"
+log.info("%s: %s, %s", snakemake.wildcards.model, estimate["k_source"], criterion)
