@@ -144,7 +144,11 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
                     f"{p}_recovered": bool(abs(error) <= tol or inside),
                 }
         rows.append(row)
-    return pd.DataFrame(rows)
+    table = pd.DataFrame(rows)
+    estimators = [fit.get("estimator", "output_error") for fit in fits]
+    if any(e != "output_error" for e in estimators):  # said where it is not the paper's
+        table.insert(table.columns.get_loc("order") + 1, "estimator", estimators)
+    return table
 
 
 def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:

@@ -101,3 +101,13 @@ def test_models_table_names_the_estimator_and_selects_by_likelihood_ratio(both):
     assert re.search(r"\|\s*order1\s*\|\s*interior_envelope\s*\|", selection), selection
     text = tableformat.model_markdown(table, "measured", selection)
     assert "Kalman ML" in text and "output error" in text
+
+
+def test_the_fit_table_names_the_estimator_only_where_a_fit_is_not_the_papers(both):
+    result, _ = both
+    oe = [result.fits[k].data for k in ("order1", "interior_envelope")]
+    kf = [result.fits[k].data for k in ("order1_kalman", "interior_envelope_kalman")]
+    assert "estimator" not in aggregate.fit_table(oe).columns
+    table = aggregate.fit_table(oe + kf)
+    assert list(table.columns[:3]) == ["vehicle", "order", "estimator"]
+    assert table["estimator"].tolist() == ["output_error"] * 2 + ["kalman"] * 2
