@@ -29,14 +29,11 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import platform
 import sys
 import time
 
 import numpy as np
-import scipy
-from bench_pem import best_of  # the same timing as the output-error benchmark
+from bench_pem import best_of, machine  # the timing and machine line of bench_pem
 
 from railtherm import kalman, models, pem
 
@@ -73,13 +70,6 @@ def _fmt(s: float) -> str:
 
 def max_error(res) -> float:
     return max(abs(res.theta[p] / TRUTH[p] - 1.0) for p in ("C", "K_veh", "C_veh"))
-
-
-def machine() -> str:
-    return (
-        f"nproc {os.cpu_count()}, {platform.processor() or platform.machine()}, "
-        f"Python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}"
-    )
 
 
 def main(argv: list[str] | None = None) -> int:
