@@ -553,6 +553,9 @@ def systematic_budget(structure, exps, options, result, vehicle_data, kvalue) ->
     warm = {**options, "initial": {p: result.theta[p] for p in result.free}, "start": "initial"}
     warm["covariance"] = "iid"
     effects: dict[str, dict[str, float]] = {p: {} for p in result.free}
+    # the same sources' effect on kA where the static test fixes it (eq. 10): with the free
+    # parameters' effects, the joint distribution a prediction samples (railtherm.simulate)
+    fixed_effects: dict[str, dict[str, float]] = {}
     sources = error_sources(structure, options, vehicle_data, kvalue)
     for source in sources:
         if not source.u > 0:
@@ -560,6 +563,9 @@ def systematic_budget(structure, exps, options, result, vehicle_data, kvalue) ->
         fixed = dict(options["fixed"])
         if source.kA is not None:
             fixed["kA"] = source.kA
+            kA = float(options["fixed"]["kA"])
+            shift = math.log(source.kA / kA) if source.kA > 0 and kA > 0 else math.inf
+            fixed_effects.setdefault("kA", {})[source.name] = shift
         try:
             if not all(math.isfinite(v) and v > 0 for v in fixed.values()):
                 raise ValueError("the k stage gives no kA under this error")
@@ -581,6 +587,7 @@ def systematic_budget(structure, exps, options, result, vehicle_data, kvalue) ->
         "sources": {s.name: float(s.u) for s in sources},
         "meaning": {s.name: s.meaning for s in sources},
         "effects_log": effects,
+        "effects_log_fixed": fixed_effects,
     }
 
 
@@ -890,4 +897,5 @@ def check(
         "outputs": estimate["outputs"],
         **({key: fit[key] for key in ("loglik", "n_params", "n_obs")} if kalman else {}),
         **({"innovations": estimate["innovations"]} if kalman else {}),
+        **({"noise": fit["noise"]} if kalman and "noise" in fit else {}),
     }
