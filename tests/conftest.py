@@ -25,3 +25,37 @@ def campaign_study(tmp_path_factory):
     config = {"campaign": "config/campaign/virtual_cwt.yaml"}
     config["vehicles"] = [f"config/vehicles/{vid}.yaml" for vid in campaign["vehicles"]]
     return root, campaign, load_study(config, workdir=root)
+
+
+@pytest.fixture(scope="session")
+def fitted(campaign_study, tmp_path_factory):
+    """``fitted(vehicle, model) -> (fit yaml path, series csv path)``: a vehicle of the virtual
+    campaign, or the Armadillo test cell of the validation study, fitted once per session by
+    :func:`railtherm.run.fit_vehicle` into a temporary results directory (as the rules
+    write it)."""
+    from railtherm import run
+    from railtherm.config import add_vehicle, read_yaml, study_context
+
+    root, _, study = campaign_study
+    out = tmp_path_factory.mktemp("fits")
+    cache: dict[tuple[str, str], tuple[Path, Path]] = {}
+
+    def fit(vehicle: str, model: str) -> tuple[Path, Path]:
+        if (vehicle, model) not in cache:
+            if vehicle in study.vehicles:
+                v, workdir = study.vehicles[vehicle], root
+            else:
+                workdir = REPO / "validation"
+                config = read_yaml(workdir / "config" / "config.yaml")
+                context = study_context(config, workdir=workdir, config_file="config/config.yaml")
+                add_vehicle(context, workdir / "config" / "vehicles" / f"{vehicle}.yaml", workdir)
+                v = context.vehicles[vehicle]
+            run.fit_vehicle(v, [model], out=out, workdir=workdir)
+            base = out / "vehicles" / vehicle
+            cache[vehicle, model] = (
+                base / f"fit_{model}.yaml",
+                base / "identify" / f"{model}_series.csv",
+            )
+        return cache[vehicle, model]
+
+    return fit

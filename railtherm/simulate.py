@@ -1,0 +1,741 @@
+"""Predictions from an identified model: a scenario run through eqs. 7-8 (or 9, or any further
+structure), with 95 % bands.
+
+A scenario (:mod:`railtherm.scenario`) gives the outdoor temperature T_o, the heating (a fixed
+power series, or a thermostat or PI controller to a set point with a power limit), the further
+heat flows of eq. 1 (passengers, auxiliaries, door openings as heat or as air exchange),
+irradiance, the initial state and the duration. :func:`simulate` runs it through a parameter
+set - a checked fit (:class:`railtherm.fit.Fit`) or a class reference model
+(:class:`railtherm.classmodel.ReferenceModel`) - and reports T(t), every further state
+(T_veh), the heating power, its energy (kWh) and peak, and the heat-up and cool-down times to
+the scenario's thresholds.
+
+**Time.** Every input is held over a step (zero-order hold, as in eq. 15); the step's exact
+discretisation is used, so the result does not depend on the step except through the inputs
+and the controller, which samples T at the start of each step and holds its power over it.
+Energy is the sum of the held powers times the step (the exact integral of the power). A
+threshold time is the exact instant within the step at which the continuous solution crosses
+the threshold (the state within a step is x(s) = x* + V exp(Lambda s) V^-1 (x_n - x*), x* the
+step's equilibrium), not an interpolation.
+
+**Air exchange.** Air exchanged with the outside (an open door, ventilation) at a volume flow
+V' adds the conductance G = rho c_p V' between T and T_o to the air node (eq. 1's E_sup -
+E_exh): dT/dt gains -G (T - T_o) / C. The model stays linear in the state; its matrices change
+with G, so each distinct G has its own discretisation.
+
+**Bands.** The 95 % bands are the 2.5 and 97.5 % quantiles of the same scenario run with
+parameter sets drawn from what the identification says about them: for a fit, the log
+parameters are drawn jointly normal with the fit's statistical covariance (sd_log and
+correlation) plus each systematic error source of the type-B budget as one common normal shift
+of every parameter it moves (kA of the static test included); for the stochastic (kalman)
+estimator, each draw also carries the identified process noise (the diffusion Sigma of the
+state equation, discretised exactly). For a class reference model, the draws come from the
+spread of the class's vehicles (:meth:`railtherm.classmodel.ReferenceModel.draws`). A result
+some draws do not reach within the duration has an open upper band ("> duration").
+
+A fit with a parameter the data do not determine is not simulated (:class:`NotPredictable`):
+its prediction would rest on a value set by the search's bound.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from railtherm import models
+from railtherm.errors import ConfigError
+from railtherm.scenario import Scenario
+
+__all__ = [
+    "NotPredictable",
+    "Outcome",
+    "ParameterSet",
+    "SimulationResult",
+    "UnreachableSetpoint",
+    "load_parameters",
+    "parameter_set",
+    "simulate",
+]
+
+Z95 = 1.959963984540054
+DEFAULT_DRAWS = 200
+PI_KP_PER_W = 0.5  # default PI gain: full power at a 2 K error (kp = power_max / 2 K)
+PI_TI_S = 1800.0  # default PI integral time (s)
+BISECTION_STEPS = 60  # bisection of a threshold crossing within one step: dt / 2^60
+
+
+class UnreachableSetpoint(ConfigError):
+    """The controller's power limit is below the steady-state load of the vehicle: the set
+    point cannot be held (one line naming the scenario file, the key and the value)."""
+
+
+class NotPredictable(ConfigError):
+    """A parameter set that does not determine every parameter of its model."""
+
+
+@dataclass(frozen=True)
+class ParameterSet:
+    """What a prediction needs of an identified model: the structure, the point parameters
+    and a way to draw parameter sets (and, for the kalman estimator, the process noise).
+
+    ``draw(n, rng)`` returns {parameter: (n,) array}; ``sigma`` the diffusion of each state
+    (K/sqrt(s)) or None; ``band_sources`` says in words what the bands carry."""
+
+    label: str
+    source: str
+    structure: models.Structure
+    theta: Mapping[str, float]
+    draw: Callable[[int, np.random.Generator], dict[str, np.ndarray]] | None = None
+    sigma: np.ndarray | None = None
+    band_sources: tuple[str, ...] = ()
+    not_identified: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One reported result with its 95 % band. ``status``: "ok", "not reached" (within the
+    duration), "unreachable" (the set point exceeds what the power limit can hold) or
+    "not requested" (the scenario names no such threshold). ``lo``/``hi`` are None without
+    a band; ``hi`` is inf where some draws do not reach the threshold within the duration."""
+
+    name: str
+    unit: str
+    value: float | None
+    lo: float | None = None
+    hi: float | None = None
+    status: str = "ok"
+    note: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        def plain(v: float | None) -> float | str | None:
+            if v is None:
+                return None
+            return float(v) if math.isfinite(v) else ("inf" if v > 0 else "-inf")
+
+        out: dict[str, Any] = {"value": plain(self.value), "unit": self.unit}
+        if self.lo is not None or self.hi is not None:
+            out["ci95"] = [plain(self.lo), plain(self.hi)]
+        out["status"] = self.status
+        if self.note:
+            out["note"] = self.note
+        return out
+
+    def text(self, scale: float = 1.0, unit: str | None = None, digits: int = 3) -> str:
+        """``value [lo, hi] unit`` for people (an open bound as "> duration")."""
+        unit = self.unit if unit is None else unit
+        if self.status in ("not requested",):
+            return self.status
+        if self.value is None or not math.isfinite(self.value):
+            return f"{self.status}" + (f" ({self.note})" if self.note else "")
+
+        def fmt(v: float | None) -> str:
+            if v is None:
+                return "?"
+            if not math.isfinite(v):
+                return "not reached"
+            return f"{v / scale:.{digits}g}"
+
+        band = "" if self.lo is None else f" [{fmt(self.lo)}, {fmt(self.hi)}]"
+        return f"{fmt(self.value)}{band} {unit}".rstrip()
+
+
+@dataclass
+class SimulationResult:
+    """A scenario's prediction: ``series`` (time_h, T_o, each state, heating_W, gains_W and
+    the 95 % bands <column>_lo/_hi) and the ``outcomes`` (heat_up_time_s, cool_down_time_s,
+    energy_kWh, peak_power_W, final_T_C)."""
+
+    scenario: Scenario
+    label: str
+    source: str
+    series: pd.DataFrame
+    outcomes: dict[str, Outcome]
+    draws: int
+    band_sources: tuple[str, ...] = ()
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "scenario": self.scenario.name,
+            "scenario_file": self.scenario.file,
+            "parameters": self.label,
+            "source": self.source,
+            "draws": self.draws,
+            "band": list(self.band_sources),
+            "outcomes": {k: o.to_dict() for k, o in self.outcomes.items()},
+            "notes": list(self.notes),
+        }
+
+    def summary(self) -> str:
+        o = self.outcomes
+        lines = [f"{self.label} - scenario {self.scenario.name} ({self.source})"]
+        lines.append(f"  heat-up time:   {o['heat_up_time_s'].text(3600.0, 'h')}")
+        lines.append(f"  cool-down time: {o['cool_down_time_s'].text(3600.0, 'h')}")
+        lines.append(f"  energy:         {o['energy_kWh'].text()}")
+        lines.append(f"  peak power:     {o['peak_power_W'].text(1000.0, 'kW')}")
+        lines.append(f"  final T:        {o['final_T_C'].text(digits=3)}")
+        if self.draws:
+            lines.append(f"  95 % bands from {self.draws} draws: {', '.join(self.band_sources)}")
+        lines += [f"  - {n}" for n in self.notes]
+        return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- parameter sets
+def _fit_draws(fit: Any) -> tuple[Callable | None, tuple[str, ...]]:
+    """Joint draws of a fit's parameters: log theta = log theta_hat + L z + E xi, with
+    L L^T the statistical covariance of the free log parameters (sd_log, correlation) and
+    E the signed effect of each type-B source on every parameter (xi ~ N(0, 1) per source)."""
+    data = fit.data
+    params = data["parameters"]
+    free = [p for p in data.get("free", []) if p in params]
+    if not free:
+        return None, ()
+    sd = np.array([float(params[p].get("sd_log", math.nan)) for p in free])
+    corr = np.asarray(data.get("correlation", np.eye(len(free))), dtype=float)
+    corr = np.where(np.isfinite(corr), corr, 0.0)
+    np.fill_diagonal(corr, 1.0)
+    if not np.all(np.isfinite(sd)):
+        return None, ()
+    cov = corr * np.outer(sd, sd)
+    w, V = np.linalg.eigh((cov + cov.T) / 2.0)
+    L = V * np.sqrt(np.clip(w, 0.0, None))  # PSD square root: L L^T = cov
+    systematic = data.get("systematic") or {}
+    effects = {
+        **(systematic.get("effects_log") or {}),
+        **(systematic.get("effects_log_fixed") or {}),
+    }
+    moved = sorted(p for p in effects if p in params)
+    sources = sorted({s for p in moved for s in effects[p]})
+    E = np.array([[float(effects[p].get(s, 0.0)) for s in sources] for p in moved])
+    if E.size and not np.all(np.isfinite(E)):
+        return None, ()
+    names = list(params)
+    log_hat = {p: math.log(float(params[p]["value"])) for p in names}
+
+    def draw(n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        z = rng.standard_normal((n, len(free))) @ L.T
+        xi = rng.standard_normal((n, len(sources))) if sources else np.zeros((n, 0))
+        out = {p: np.full(n, log_hat[p]) for p in names}
+        for j, p in enumerate(free):
+            out[p] = out[p] + z[:, j]
+        for i, p in enumerate(moved):
+            out[p] = out[p] + xi @ E[i]
+        return {p: np.exp(v) for p, v in out.items()}
+
+    what = ["parameter covariance (statistical)"]
+    if sources:
+        what.append("systematic error sources (type B)")
+    return draw, tuple(what)
+
+
+def parameter_set(params: Any) -> ParameterSet:
+    """The :class:`ParameterSet` of a :class:`railtherm.fit.Fit` or a class reference model
+    (:class:`railtherm.classmodel.ReferenceModel`)."""
+    from railtherm.fit import Fit
+
+    if isinstance(params, Fit):
+        not_identified = tuple(p for p, q in params.parameters.items() if not q.identified)
+        draw, what = _fit_draws(params)
+        sigma = None
+        noise = params.data.get("noise") or {}
+        s = params.structure
+        if noise:
+            sigma = np.array(
+                [float(noise.get(f"sigma_{state}", {}).get("value", 0.0)) for state in s.states]
+            )
+            what = (*what, "process noise (kalman estimator)")
+        return ParameterSet(
+            label=f"{params.vehicle} {params.model}",
+            source=f"identified ({params.data.get('estimator', 'output_error')}; {params.verdict})",
+            structure=s,
+            theta=params.theta,
+            draw=draw,
+            sigma=sigma,
+            band_sources=what,
+            not_identified=not_identified,
+        )
+    from railtherm import classmodel
+
+    if isinstance(params, classmodel.ReferenceModel):
+        structure = models.structure_for(params.structure)
+        return ParameterSet(
+            label=(
+                f"{params.vehicle_class} reference model "
+                f"({params.mass_kg / 1000:.3g} t, {params.surface_m2:.4g} m²)"
+            ),
+            source=f"class reference model from {len(params.basis)} vehicles",
+            structure=structure,
+            theta=params.theta,
+            draw=lambda n, rng: params.draws(n, seed=int(rng.integers(2**31))),
+            band_sources=("spread of the class's vehicles (95 % prediction)",),
+        )
+    raise TypeError(f"cannot simulate a {type(params).__name__}: give a Fit or a ReferenceModel")
+
+
+def load_parameters(path: str | os.PathLike[str]) -> ParameterSet:
+    """A parameter file: ``fit_<model>.yaml`` (rule check, ``railtherm fit --out``) or a class
+    reference model (``railtherm reference``)."""
+    from railtherm.yamlio import read_yaml
+
+    name = str(path)
+    data = read_yaml(path)
+    if isinstance(data, dict) and data.get("kind") == "class_reference_model":
+        from railtherm import classmodel
+
+        return parameter_set(classmodel.read_reference_model(path))
+    if isinstance(data, dict) and {"vehicle", "parameters", "structure"} <= set(data):
+        from railtherm.fit import Fit
+
+        return parameter_set(Fit(data))
+    keys = sorted(data) if isinstance(data, dict) else type(data).__name__
+    raise ConfigError(
+        name,
+        "(file)",
+        keys,
+        "not a parameter file: expected a fit_<model>.yaml (vehicle, structure, parameters) "
+        "or a class reference model (kind: class_reference_model)",
+    )
+
+
+# --------------------------------------------------------------------------- the engine
+@dataclass
+class _Steps:
+    """Per draw (S) and per distinct air-exchange conductance: the continuous matrices of
+    the air-exchange-augmented model, their ZOH discretisation and eigen-decomposition."""
+
+    A: np.ndarray  # (G, S, n, n)
+    B: np.ndarray  # (G, S, n, m)
+    Ad: np.ndarray
+    Bd: np.ndarray
+    lam: np.ndarray  # (G, S, n) eigenvalues (complex)
+    V: np.ndarray  # (G, S, n, n)
+    Vinv: np.ndarray
+    Qchol: np.ndarray | None  # (G, S, n, n) Cholesky of the step's noise covariance
+
+
+def _matrices(structure: models.Structure, thetas: Sequence[Mapping[str, float]]):
+    AB = [structure.matrices(t) for t in thetas]
+    return np.array([a for a, _ in AB]), np.array([b for _, b in AB])
+
+
+def _with_exchange(
+    structure: models.Structure, A: np.ndarray, B: np.ndarray, C_air: np.ndarray, G: float
+):
+    """A, B with the conductance G (W/K) between the air node (state 0) and T_o (input 0)."""
+    A = A.copy()
+    B = B.copy()
+    A[:, 0, 0] -= G / C_air
+    B[:, 0, 0] += G / C_air
+    return A, B
+
+
+def _prepare(
+    structure: models.Structure,
+    thetas: list[dict[str, float]],
+    G_values: np.ndarray,
+    dt: float,
+    sigma: np.ndarray | None,
+) -> _Steps:
+    A0, B0 = _matrices(structure, thetas)
+    C_air = np.array([t[structure.air] for t in thetas])
+    As, Bs, Ads, Bds, lams, Vs, Vinvs, Qs = [], [], [], [], [], [], [], []
+    for G in G_values:
+        A, B = _with_exchange(structure, A0, B0, C_air, float(G))
+        Ad = np.empty_like(A)
+        Bd = np.empty_like(B)
+        Q = np.empty_like(A) if sigma is not None else None
+        for s in range(len(thetas)):
+            Ad[s], Bd[s] = models.discretize_zoh(A[s], B[s], dt)
+            if Q is not None:
+                Qd, _ = models.discretize_noise(A[s], np.diag(sigma**2), dt)
+                w, v = np.linalg.eigh(Qd)
+                Q[s] = v * np.sqrt(np.clip(w, 0.0, None))
+        lam, V = np.linalg.eig(A)
+        As.append(A)
+        Bs.append(B)
+        Ads.append(Ad)
+        Bds.append(Bd)
+        lams.append(lam)
+        Vs.append(V)
+        Vinvs.append(np.linalg.inv(V))
+        Qs.append(Q)
+    return _Steps(
+        A=np.array(As),
+        B=np.array(Bs),
+        Ad=np.array(Ads),
+        Bd=np.array(Bds),
+        lam=np.array(lams),
+        V=np.array(Vs),
+        Vinv=np.array(Vinvs),
+        Qchol=None if sigma is None else np.array(Qs),
+    )
+
+
+def _inputs(structure: models.Structure, scenario: Scenario) -> tuple[np.ndarray, list[str]]:
+    """The scenario's exogenous inputs (N+1, m) in the structure's order with Q_H = gains only
+    (the heating is added per step); the names of irradiance inputs the scenario leaves at 0."""
+    N1 = len(scenario.t_s)
+    u = np.zeros((N1, len(structure.inputs)))
+    u[:, 0] = scenario.T_o
+    u[:, 1] = scenario.gains_W
+    unused = sorted(set(scenario.irradiance) - set(structure.inputs[2:]))
+    if unused:
+        raise ConfigError(
+            scenario.file,
+            f"irradiance.{unused[0]}",
+            unused[0],
+            f"the model has no such irradiance input; its irradiance inputs are "
+            f"{list(structure.inputs[2:]) or 'none'}",
+        )
+    zero = []
+    for j, name in enumerate(structure.inputs[2:], start=2):
+        if name in scenario.irradiance:
+            u[:, j] = scenario.irradiance[name]
+        else:
+            zero.append(name)
+    return u, zero
+
+
+def _steady_T(A: np.ndarray, B: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Air temperature at equilibrium for each draw (A: (S, n, n), B: (S, n, m), u: (m,))."""
+    x = -np.linalg.solve(A, (B @ u)[..., None])[..., 0]
+    return x[:, 0]
+
+
+def _loads(
+    steps: _Steps, g_index: np.ndarray, u: np.ndarray, setpoint: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The steady heating power (W) that holds T at the set point for every input row and
+    draw, (S, N+1), and each draw's most demanding row (S,). The equilibrium air temperature
+    is linear in the inputs, T* = h u with h the first row of -A^-1 B."""
+    S = steps.A.shape[1]
+    out = np.empty((S, len(u)))
+    for g in np.unique(g_index):
+        rows = np.flatnonzero(g_index == g)
+        h = -np.linalg.solve(steps.A[g], steps.B[g])[:, 0, :]  # (S, m)
+        T0 = h @ u[rows].T  # (S, rows)
+        out[:, rows] = (setpoint - T0) / h[:, 1:2]
+    return out, np.argmax(out, axis=1)
+
+
+def _step_state(steps: _Steps, g: int, x: np.ndarray, u: np.ndarray, s: np.ndarray):
+    """x(s) within a step from x (S, n) under the constant input u (S, m), s (S,) seconds:
+    x* + V exp(Lambda s) V^-1 (x - x*) with x* the step's equilibrium."""
+    A, B = steps.A[g], steps.B[g]
+    xs = -np.linalg.solve(A, np.einsum("sij,sj->si", B, u)[..., None])[..., 0]
+    z = np.einsum("sij,sj->si", steps.Vinv[g], (x - xs).astype(complex))
+    z = z * np.exp(steps.lam[g] * s[:, None])
+    return (xs + np.einsum("sij,sj->si", steps.V[g], z).real)[:, 0]
+
+
+def _crossing(
+    T: np.ndarray,
+    X: np.ndarray,
+    U: np.ndarray,
+    g_index: np.ndarray,
+    steps: _Steps,
+    t: np.ndarray,
+    threshold: float,
+    rising: bool,
+) -> np.ndarray:
+    """The first time (s) T crosses ``threshold`` (rising or falling) for each draw; 0 if it
+    starts beyond it, inf if it never crosses. Exact within the step (bisection on x(s))."""
+    S, N1 = T.shape
+    beyond = T >= threshold if rising else T <= threshold
+    first = np.where(beyond.any(axis=1), beyond.argmax(axis=1), -1)
+    out = np.full(S, math.inf)
+    out[first == 0] = 0.0
+    todo = np.flatnonzero(first > 0)
+    dt = t[1] - t[0]
+    for n in np.unique(first[todo]):
+        rows = todo[first[todo] == n]
+        k = n - 1  # the step [t_k, t_k+1) in which it crosses
+        g = int(g_index[k])
+        lo = np.zeros(len(rows))
+        hi = np.full(len(rows), dt)
+        sub = _Steps(
+            A=steps.A[:, rows],
+            B=steps.B[:, rows],
+            Ad=steps.Ad[:, rows],
+            Bd=steps.Bd[:, rows],
+            lam=steps.lam[:, rows],
+            V=steps.V[:, rows],
+            Vinv=steps.Vinv[:, rows],
+            Qchol=None,
+        )
+        for _ in range(BISECTION_STEPS):
+            mid = (lo + hi) / 2.0
+            Tm = _step_state(sub, g, X[rows, k], U[rows, k], mid)
+            past = Tm >= threshold if rising else Tm <= threshold
+            hi = np.where(past, mid, hi)
+            lo = np.where(past, lo, mid)
+            if np.all(hi - lo <= 1e-9 * dt):
+                break
+        out[rows] = t[k] + (lo + hi) / 2.0
+    return out
+
+
+def _run(
+    steps: _Steps,
+    scenario: Scenario,
+    u: np.ndarray,
+    g_index: np.ndarray,
+    x0: np.ndarray,
+    noise: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """States X (S, N+1, n), heating P (S, N+1) and inputs U (S, N+1, m) of S parameter sets
+    through the scenario (the controller closing the loop step by step)."""
+    S, n = x0.shape
+    N1 = len(scenario.t_s)
+    X = np.empty((S, N1, n))
+    P = np.empty((S, N1))
+    U = np.broadcast_to(u, (S, *u.shape)).copy()
+    X[:, 0] = x0
+    ctl = scenario.controller
+    dt = scenario.dt_s
+    if ctl is not None:
+        on = X[:, 0, 0] < ctl.setpoint_C
+        integral = np.zeros(S)
+        kp = ctl.kp_W_K if ctl.kp_W_K is not None else PI_KP_PER_W * ctl.power_max_W
+        ti = ctl.ti_s if ctl.ti_s is not None else PI_TI_S
+    for k in range(N1):
+        T = X[:, k, 0]
+        if ctl is None:
+            p = np.full(S, scenario.heating_W[k])
+        elif ctl.kind == "thermostat":
+            half = ctl.hysteresis_K / 2.0
+            on = np.where(
+                T < ctl.setpoint_C - half, True, np.where(T > ctl.setpoint_C + half, False, on)
+            )
+            p = np.where(on, ctl.power_max_W, ctl.power_min_W)
+        else:  # PI with conditional integration (no wind-up at the limits)
+            e = ctl.setpoint_C - T
+            raw = kp * e + integral
+            p = np.clip(raw, ctl.power_min_W, ctl.power_max_W)
+            saturated = ((raw >= ctl.power_max_W) & (e > 0)) | ((raw <= ctl.power_min_W) & (e < 0))
+            integral = integral + np.where(saturated, 0.0, kp * e * dt / ti)
+        P[:, k] = p
+        U[:, k, 1] += p
+        if k == N1 - 1:
+            break
+        g = int(g_index[k])
+        x = np.einsum("sij,sj->si", steps.Ad[g], X[:, k]) + np.einsum(
+            "sij,sj->si", steps.Bd[g], U[:, k]
+        )
+        if noise is not None:
+            x = x + np.einsum("sij,sj->si", steps.Qchol[g], noise[:, k])
+        X[:, k + 1] = x
+    return X, P, U
+
+
+def _initial(
+    structure: models.Structure, scenario: Scenario, steps: _Steps, u: np.ndarray, g0: int
+) -> np.ndarray:
+    """x0 of every draw (S, n) from the scenario's ``initial``."""
+    S = steps.A.shape[1]
+    n = len(structure.states)
+    init = scenario.initial
+    if init.kind == "soaked":
+        return np.full((S, n), float(scenario.T_o[0]))
+    if init.kind == "given":
+        values = dict(init.states_C)
+        unknown = sorted(set(values) - set(structure.states))
+        if unknown:
+            raise ConfigError(
+                scenario.file,
+                "initial",
+                unknown[0],
+                f"the model's states are {list(structure.states)}",
+            )
+        T = float(values.get("T", scenario.T_o[0]))
+        return np.tile([float(values.get(s, T)) for s in structure.states], (S, 1))
+    # steady: the equilibrium of the first input row, at the set point under a controller
+    u0 = u[0].copy()
+    A, B = steps.A[g0], steps.B[g0]
+    if scenario.controller is None:
+        u0[1] += scenario.heating_W[0]
+        return -np.linalg.solve(A, (B @ u0)[..., None])[..., 0]
+    T0 = _steady_T(A, B, u0)
+    e = np.zeros_like(u0)
+    e[1] = 1.0
+    dT_dP = _steady_T(A, B, e)
+    power = np.clip(
+        (scenario.controller.setpoint_C - T0) / dT_dP,
+        scenario.controller.power_min_W,
+        scenario.controller.power_max_W,
+    )
+    U0 = np.tile(u0, (S, 1))
+    U0[:, 1] += power
+    return -np.linalg.solve(A, np.einsum("sij,sj->si", B, U0)[..., None])[..., 0]
+
+
+def _quantiles(v: np.ndarray) -> tuple[float, float]:
+    lo, hi = np.quantile(v, [0.025, 0.975], method="linear")
+    return float(lo), float(hi)
+
+
+def _time_outcome(
+    name: str, central: float, draws: np.ndarray | None, threshold: float | None, what: str
+) -> Outcome:
+    if threshold is None:
+        return Outcome(name, "s", None, status="not requested")
+    lo = hi = None
+    note = ""
+    if draws is not None and len(draws):
+        finite = np.isfinite(draws)
+        if finite.all():
+            lo, hi = _quantiles(draws)
+        else:
+            share = 1.0 - finite.mean()
+            # quantiles of a sample with some times at +inf (not reached within the duration):
+            # a large stand-in keeps the interpolation finite; a quantile beyond every reached
+            # time is an open bound
+            reached = draws[finite]
+            top = float(reached.max()) if len(reached) else -math.inf
+            stand_in = 2.0 * max(top, 1.0) + 1.0
+            q = np.quantile(np.where(finite, draws, stand_in), [0.025, 0.975])
+            lo, hi = (float(v) if v <= top else math.inf for v in q)
+            note = f"{100 * share:.0f} % of the draws do not {what} within the duration"
+    if not math.isfinite(central):
+        return Outcome(name, "s", math.inf, lo, hi, "not reached", note or f"T does not {what}")
+    return Outcome(name, "s", central, lo, hi, "ok", note)
+
+
+def simulate(
+    params: Any,
+    scenario: Scenario,
+    draws: int = DEFAULT_DRAWS,
+    seed: int = 0,
+    allow_unreachable: bool = False,
+) -> SimulationResult:
+    """Run ``scenario`` through ``params`` (a :class:`ParameterSet`, a Fit or a class
+    reference model) and its ``draws`` parameter sets for the 95 % bands (0: no bands).
+
+    Raises :class:`UnreachableSetpoint` when the controller's power limit is below the
+    steady-state load under the scenario's most demanding input row (unless
+    ``allow_unreachable``: then the heat-up time's status is "unreachable") and
+    :class:`NotPredictable` for a fit with a parameter that is not identified."""
+    ps = params if isinstance(params, ParameterSet) else parameter_set(params)
+    if ps.not_identified:
+        raise NotPredictable(
+            ps.label,
+            "parameters",
+            list(ps.not_identified),
+            "not identified by the data (an estimate at a bound of the search or with an "
+            "unbounded interval): no prediction rests on it",
+        )
+    structure = ps.structure
+    u, zero_irradiance = _inputs(structure, scenario)
+    G_values, g_index = np.unique(scenario.air_exchange_W_K, return_inverse=True)
+    thetas = [dict(ps.theta)]
+    noise_on = ps.sigma is not None and draws > 0 and np.any(ps.sigma > 0)
+    rng = np.random.default_rng(seed)
+    if draws > 0 and ps.draw is not None:
+        d = ps.draw(draws, rng)
+        thetas += [
+            {p: float(d[p][i]) if p in d else ps.theta[p] for p in ps.theta} for i in range(draws)
+        ]
+    sigma = ps.sigma if noise_on else None
+    steps = _prepare(structure, thetas, G_values, scenario.dt_s, sigma)
+    notes: list[str] = []
+    if zero_irradiance:
+        notes.append(f"irradiance {zero_irradiance} not in the scenario: taken as 0 W/m²")
+
+    # the controller: is the set point within the power limit?
+    status_heat = "ok"
+    ctl = scenario.controller
+    if ctl is not None:
+        load, worst = _loads(steps, g_index, u, ctl.setpoint_C)
+        r = int(worst[0])
+        if load[0, r] > ctl.power_max_W:
+            message = (
+                f"below the steady-state load of {ps.label}: {load[0, r]:,.0f} W hold "
+                f"{ctl.setpoint_C:g} °C at T_o = {u[r, 0]:g} °C (t = {scenario.t_s[r] / 3600:g} h; "
+                f"kA = {models.steady_state_kA(structure, ps.theta):,.0f} W/K): the set point is "
+                "unreachable"
+            )
+            if not allow_unreachable:
+                raise UnreachableSetpoint(
+                    scenario.file, "heating.controller.power_max_W", ctl.power_max_W, message
+                )
+            status_heat = "unreachable"
+            notes.append(f"heating.controller.power_max_W = {ctl.power_max_W:g} W is {message}")
+
+    x0 = _initial(structure, scenario, steps, u, int(g_index[0]))
+    noise = None
+    if sigma is not None:
+        noise = rng.standard_normal((len(thetas), len(scenario.t_s), len(structure.states)))
+        noise[0] = 0.0  # the central run is the model's own prediction, without noise
+    X, P, U = _run(steps, scenario, u, g_index, x0, noise)
+    T = X[:, :, 0]
+    t = scenario.t_s
+    N = len(t) - 1
+
+    def times(threshold: float | None, rising: bool) -> np.ndarray | None:
+        if threshold is None:
+            return None
+        return _crossing(T, X, U, g_index, steps, t, threshold, rising)
+
+    up = times(scenario.heat_up_to_C, True)
+    down = times(scenario.cool_down_to_C, False)
+    has_band = len(thetas) > 1
+    heat = _time_outcome(
+        "heat_up_time_s",
+        up[0] if up is not None else math.nan,
+        up[1:] if up is not None and has_band else None,
+        scenario.heat_up_to_C,
+        f"reach {scenario.heat_up_to_C} °C",
+    )
+    if status_heat == "unreachable" and scenario.heat_up_to_C is not None:
+        if not math.isfinite(heat.value or math.inf):
+            heat = Outcome(heat.name, "s", math.inf, heat.lo, heat.hi, "unreachable", heat.note)
+    cool = _time_outcome(
+        "cool_down_time_s",
+        down[0] if down is not None else math.nan,
+        down[1:] if down is not None and has_band else None,
+        scenario.cool_down_to_C,
+        f"fall to {scenario.cool_down_to_C} °C",
+    )
+    energy = P[:, :N].sum(axis=1) * scenario.dt_s / 3.6e6
+    peak = P[:, :N].max(axis=1)
+    final = T[:, -1]
+
+    def scalar(name: str, unit: str, v: np.ndarray) -> Outcome:
+        lo, hi = _quantiles(v[1:]) if has_band else (None, None)
+        return Outcome(name, unit, float(v[0]), lo, hi)
+
+    outcomes = {
+        "heat_up_time_s": heat,
+        "cool_down_time_s": cool,
+        "energy_kWh": scalar("energy_kWh", "kWh", energy),
+        "peak_power_W": scalar("peak_power_W", "W", peak),
+        "final_T_C": scalar("final_T_C", "°C", final),
+    }
+    series = pd.DataFrame({"time_h": t / 3600.0, "T_o": scenario.T_o})
+    for i, state in enumerate(structure.states):
+        series[state] = X[0, :, i]
+    series["heating_W"] = P[0]
+    series["gains_W"] = scenario.gains_W
+    series["air_exchange_W_K"] = scenario.air_exchange_W_K
+    if has_band:
+        for i, state in enumerate(structure.states):
+            lo, hi = np.quantile(X[1:, :, i], [0.025, 0.975], axis=0)
+            series[f"{state}_lo"], series[f"{state}_hi"] = lo, hi
+        lo, hi = np.quantile(P[1:], [0.025, 0.975], axis=0)
+        series["heating_W_lo"], series["heating_W_hi"] = lo, hi
+    return SimulationResult(
+        scenario=scenario,
+        label=ps.label,
+        source=ps.source,
+        series=series,
+        outcomes=outcomes,
+        draws=len(thetas) - 1,
+        band_sources=ps.band_sources if has_band else (),
+        notes=notes,
+    )
