@@ -20,6 +20,25 @@ for a raw logger file (:mod:`railtherm.starter`): the detected separator, decima
 format, a guess of the channel map from the column names, one identification window over the
 whole file, and TODOs for what the file cannot tell, which ``railtherm validate`` refuses until
 they are filled. It never overwrites a file; without ``--out`` it prints the YAML.
+
+``railtherm reference --class CLASS --mass-kg M --surface-m2 A [--k K] [--min-vehicles 2]
+[--exclude ID ...] [--config config/config.yaml] [--results results] [--out FILE]`` builds the
+second-order model of an unmeasured vehicle from its class's generalised parameters
+(:mod:`railtherm.classmodel`: c_veh, delta, kappa_veh and k over the class's usable vehicles of
+the committed ``results/tables/table2.csv``), with 95 % prediction intervals; it prints a
+summary and writes the YAML to ``--out`` (without ``--out``, prints the YAML).
+
+``railtherm simulate PARAMS.yaml --scenario S.yaml [--scenario S2.yaml ...] [--draws 200]
+[--seed 0] [--out DIR] [--allow-unreachable]`` runs each scenario (:mod:`railtherm.scenario`)
+through a checked fit (``fit_<model>.yaml``) or a class reference model
+(:mod:`railtherm.simulate`) and prints its heat-up and cool-down times, energy, peak power and
+final temperature with 95 % bands from ``--draws`` parameter draws. With ``--out``, writes
+``DIR/<scenario name>.csv`` (the series) and ``DIR/<scenario name>.yaml`` (the outcomes), and
+nothing if any scenario fails. A set point the heating cannot hold is an error unless
+``--allow-unreachable``.
+
+Every subcommand's paths are relative to its ``-d`` working directory; a user mistake is one
+line on stderr and exit status 1.
 """
 
 from __future__ import annotations
@@ -157,6 +176,107 @@ def _fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def _reference_model(args: argparse.Namespace) -> int:
+    """``railtherm reference``: the class reference model of an unmeasured vehicle
+    (:mod:`railtherm.classmodel`) from the study's Table 2 (``<results>/tables/table2.csv``,
+    committed; the per-vehicle fit files need not exist). With ``--out``,
+    the summary on stdout and the YAML to the file; without, the YAML on stdout and the
+    summary on stderr (so that ``> FILE`` keeps only the YAML)."""
+    from railtherm import classmodel  # numpy and scipy only when building one
+
+    members = classmodel.members_from_study(args.config, args.results, workdir=args.directory)
+    model = classmodel.build(
+        members,
+        args.vehicle_class,
+        args.mass_kg,
+        args.surface_m2,
+        k=args.k,
+        min_vehicles=args.min_vehicles,
+        exclude=args.exclude or (),
+    )
+    if args.out is None:
+        sys.stdout.write(model.to_yaml())
+        print(model.summary(), file=sys.stderr)
+        return 0
+    model.write(os.path.join(args.directory, args.out))
+    print(model.summary())
+    print(f"written to {args.out}")
+    return 0
+
+
+def _relocated(exc: ConfigError, local: str, given: str) -> ConfigError:
+    """``exc`` naming the path ``given`` (as the user gave it) where it names ``local`` (the
+    path under the working directory), of the same class."""
+    file = given if exc.file == local else exc.file
+    value = given if exc.value == local else exc.value
+    return type(exc)(file, exc.key, value, exc.reason.replace(local, given))
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    """``railtherm simulate``: every scenario through one parameter set; the summaries on
+    stdout and, with ``--out``, each scenario's series (CSV) and outcomes (YAML). Every
+    scenario runs before anything is printed or written: a failing one leaves no output."""
+    from railtherm import simulate as sim  # numpy and pandas only when simulating
+    from railtherm.fit import write_yaml
+    from railtherm.scenario import load_scenario
+    from railtherm.tables import write_csv
+
+    for option, value in (("--draws", args.draws), ("--seed", args.seed)):
+        if value < 0:
+            raise ConfigError(option, option[2:], value, "expected 0 or more")
+    workdir = args.directory
+    local = os.path.join(workdir, args.params)
+    try:
+        params = sim.load_parameters(local)
+    except ConfigError as exc:
+        raise _relocated(exc, local, args.params) from None
+    scenarios = []
+    for path in args.scenario:
+        local = os.path.join(workdir, path)
+        try:
+            scenarios.append(load_scenario(local, display=path))
+        except ConfigError as exc:
+            raise _relocated(exc, local, path) from None
+    if args.out is not None:
+        names = [sc.name for sc in scenarios]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ConfigError(
+                "--scenario",
+                "name",
+                twice[0],
+                "given by two scenarios: their files in --out would overwrite each other",
+            )
+    results = []
+    for scenario in scenarios:
+        try:
+            result = sim.simulate(
+                params,
+                scenario,
+                draws=args.draws,
+                seed=args.seed,
+                allow_unreachable=args.allow_unreachable,
+            )
+        except sim.NotPredictable as exc:
+            raise type(exc)(f"{args.params} ({exc.file})", exc.key, exc.value, exc.reason) from None
+        results.append(result)
+    print("\n\n".join(result.summary() for result in results))
+    if args.out is None:
+        return 0
+    out = os.path.join(workdir, args.out)
+    try:
+        for result in results:
+            name = result.scenario.name
+            write_csv(result.series, os.path.join(out, f"{name}.csv"), digits=6)
+            write_yaml(result.to_dict(), os.path.join(out, f"{name}.yaml"))
+    except OSError as exc:
+        raise ConfigError("--out", "out", args.out, f"cannot write: {exc}") from None
+    for result in results:
+        base = os.path.join(args.out, result.scenario.name)
+        print(f"written to {base}.csv, {base}.yaml")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with one subparser per command."""
     parser = argparse.ArgumentParser(
@@ -265,6 +385,117 @@ def build_parser() -> argparse.ArgumentParser:
         help="working directory all paths are relative to (default: %(default)s)",
     )
     fit.set_defaults(run=_fit)
+
+    reference = commands.add_parser(
+        "reference",
+        help="class reference model of an unmeasured vehicle from the study's fits",
+        description=(
+            "Build the second-order model of a vehicle nobody measured from its class, mass "
+            "and outer surface: C_veh = c_veh m (eq. 24), C = C_veh / delta (eq. 25), "
+            "K_veh = kappa_veh A, kA = k A, each generalised parameter from the class's usable "
+            "second-order fits (acceptable, every parameter identified), with 95 %% "
+            "prediction intervals for one new vehicle of the class. Prints a summary and "
+            "writes the YAML to --out (without --out, prints the YAML)."
+        ),
+    )
+    reference.add_argument(
+        "--class",
+        dest="vehicle_class",
+        required=True,
+        metavar="CLASS",
+        help="tram, metro, regional, main-line, or all (every rail class pooled)",
+    )
+    reference.add_argument(
+        "--mass-kg", type=float, required=True, help="the vehicle's mass m_veh (kg)"
+    )
+    reference.add_argument(
+        "--surface-m2", type=float, required=True, help="its outer surface A (m2, eq. 5)"
+    )
+    reference.add_argument(
+        "--k", type=float, help="its k (W/(m2 K)), e.g. from a k-value test (default: the class's)"
+    )
+    reference.add_argument(
+        "--min-vehicles",
+        type=int,
+        default=2,
+        help="refuse a class with fewer usable vehicles (at least 2; default: %(default)s)",
+    )
+    reference.add_argument(
+        "--exclude",
+        action="append",
+        metavar="ID",
+        help="leave this vehicle out of the class (repeatable)",
+    )
+    reference.add_argument(
+        "--config",
+        default="config/config.yaml",
+        help="study config listing the vehicle files (default: %(default)s)",
+    )
+    reference.add_argument(
+        "--results",
+        default="results",
+        help="the study's results directory with tables/table2.csv (default: %(default)s)",
+    )
+    reference.add_argument(
+        "-d",
+        "--directory",
+        default=".",
+        help="working directory all paths are relative to (default: %(default)s)",
+    )
+    reference.add_argument(
+        "--out", metavar="FILE", help="YAML file to write (default: print the YAML)"
+    )
+    reference.set_defaults(run=_reference_model)
+
+    simulate = commands.add_parser(
+        "simulate",
+        help="scenarios through a fit or a class reference model, with 95 %% bands",
+        description=(
+            "Run each scenario (outdoor temperature, heating or its controller, gains, initial "
+            "state; config/scenarios/) through PARAMS: a checked fit (fit_<model>.yaml) or a "
+            "class reference model (railtherm reference). Prints the heat-up and cool-down "
+            "times, energy, peak power and final temperature with 95 %% bands from parameter "
+            "draws. With --out, writes DIR/<scenario name>.csv (the series) and "
+            "DIR/<scenario name>.yaml (the outcomes), nothing if any scenario fails."
+        ),
+    )
+    simulate.add_argument(
+        "params", metavar="PARAMS", help="fit_<model>.yaml or a class reference model (YAML)"
+    )
+    simulate.add_argument(
+        "--scenario",
+        action="append",
+        required=True,
+        metavar="S.yaml",
+        help="scenario file (repeatable)",
+    )
+    simulate.add_argument(
+        "--draws",
+        type=int,
+        default=200,
+        help="parameter draws behind the 95 %% bands (0: no bands; default: %(default)s)",
+    )
+    simulate.add_argument(
+        "--seed", type=int, default=0, help="seed of the draws (default: %(default)s)"
+    )
+    simulate.add_argument(
+        "--out", metavar="DIR", help="directory to write <scenario name>.csv and .yaml into"
+    )
+    simulate.add_argument(
+        "--allow-unreachable",
+        action="store_true",
+        help=(
+            "simulate a set point the heating cannot hold (the heat-up time is reported as "
+            "unreachable) instead of refusing it"
+        ),
+    )
+    simulate.add_argument(
+        "-d",
+        "--directory",
+        default=".",
+        help="working directory all paths are relative to (default: %(default)s)",
+    )
+    simulate.set_defaults(run=_simulate)
     return parser
 
 
