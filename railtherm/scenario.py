@@ -119,6 +119,7 @@ class Scenario:
     initial: Initial
     heat_up_to_C: float | None  # report: first time T reaches this (rising)
     cool_down_to_C: float | None  # report: first time T falls to this
+    files: tuple[str, ...] = ()  # the profile files read (paths as resolved from the scenario's)
 
     @property
     def gains_W(self) -> np.ndarray:
@@ -194,6 +195,7 @@ def load_scenario(path: str | os.PathLike[str], display: str | None = None) -> S
         initial=_initial(data["initial"]),
         heat_up_to_C=_float_or_none(report.get("heat_up_to_C")),
         cool_down_to_C=_float_or_none(report.get("cool_down_to_C")),
+        files=tuple(dict.fromkeys(ctx.files)),
     )
     for array in (t_s, T_o, heating_W, air_exchange, *gains.values(), *irradiance.values()):
         if array is not None:
@@ -210,6 +212,7 @@ class _Context:
     dt_s: float = 0.0
     duration_s: float = 0.0
     t_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    files: list[str] = field(default_factory=list)  # profile files read, in order
 
 
 def _float_or_none(value: Any) -> float | None:
@@ -339,6 +342,7 @@ def _file(ctx: _Context, key: str, spec: Mapping[str, Any], nonnegative: str) ->
     path = os.path.join(ctx.directory, given)
     if not os.path.isfile(path):
         raise ConfigError(ctx.file, f"{key}.path", given, f"file not found: {path}")
+    ctx.files.append(os.path.normpath(path))
     time = dict(spec["time"])
     fmt = {**spec.get("format", {}), "time": time}
     try:

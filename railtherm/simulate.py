@@ -67,6 +67,7 @@ Z95 = 1.959963984540054
 DEFAULT_DRAWS = 200
 PI_KP_PER_W = 0.5  # default PI gain: full power at a 2 K error (kp = power_max / 2 K)
 PI_TI_S = 1800.0  # default PI integral time (s)
+DRAW_FACTOR = 1e8  # a class model's draws are held within this factor of its centre
 BISECTION_STEPS = 60  # bisection of a threshold crossing within one step: dt / 2^60
 
 
@@ -234,6 +235,21 @@ def _fit_draws(fit: Any) -> tuple[Callable | None, tuple[str, ...]]:
     return draw, tuple(what)
 
 
+def _bounded(draws: Mapping[str, np.ndarray], centre: Mapping[str, float]) -> dict:
+    """Draws held within a factor :data:`DRAW_FACTOR` of the centre. A class resting on two
+    vehicles has a predictive t with one degree of freedom, whose draws reach any magnitude
+    (and overflow); every reported outcome saturates long before the factor (a heat-up time
+    at 0 or beyond the duration, the power at its limit), so the held draws give the same
+    outcomes and quantiles while the simulation stays finite."""
+    bound = math.log(DRAW_FACTOR)
+    out = {}
+    for p, v in draws.items():
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = np.log(np.asarray(v, dtype=float) / centre[p])
+        out[p] = centre[p] * np.exp(np.clip(np.nan_to_num(r, nan=0.0), -bound, bound))
+    return out
+
+
 def parameter_set(params: Any) -> ParameterSet:
     """The :class:`ParameterSet` of a :class:`railtherm.fit.Fit` or a class reference model
     (:class:`railtherm.classmodel.ReferenceModel`)."""
@@ -264,6 +280,7 @@ def parameter_set(params: Any) -> ParameterSet:
 
     if isinstance(params, classmodel.ReferenceModel):
         structure = models.structure_for(params.structure)
+        theta = params.theta
         return ParameterSet(
             label=(
                 f"{params.vehicle_class} reference model "
@@ -272,7 +289,7 @@ def parameter_set(params: Any) -> ParameterSet:
             source=f"class reference model from {len(params.basis)} vehicles",
             structure=structure,
             theta=params.theta,
-            draw=lambda n, rng: params.draws(n, seed=int(rng.integers(2**31))),
+            draw=lambda n, rng: _bounded(params.draws(n, seed=int(rng.integers(2**31))), theta),
             band_sources=("spread of the class's vehicles (95 % prediction)",),
         )
     raise TypeError(f"cannot simulate a {type(params).__name__}: give a Fit or a ReferenceModel")

@@ -5,6 +5,7 @@ unreachable set point and the bands."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -13,6 +14,8 @@ import pytest
 from railtherm import simulate as sim
 from railtherm.fit import Fit, read_fit
 from railtherm.scenario import Controller, Initial, Scenario
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def scenario(
@@ -272,3 +275,25 @@ def test_kalman_process_noise_widens_the_band(fitted):
     w = with_noise.series["T_hi"] - with_noise.series["T_lo"]
     wo = without.series["T_hi"] - without.series["T_lo"]
     assert (w.iloc[-10:] > wo.iloc[-10:]).all()
+
+
+@pytest.mark.parametrize("vehicle", ["Tram2", "Metro1"])
+def test_band_of_a_campaign_fit_holds_the_prediction_of_the_truth(fitted, vehicle):
+    """The virtual campaign's declared truth, run through the same pre-heating, lands inside
+    the band of the fit made from its synthetic data - and the band is narrow (a few per cent),
+    so it holds the truth by being right, not by being wide."""
+    from railtherm import synth
+
+    campaign = synth.load_campaign(ROOT / "config" / "campaign" / "virtual_cwt.yaml")
+    truth = synth.ground_truth_table(campaign).set_index("vehicle").loc[vehicle]
+    assert not truth["deviations"], "a vehicle without a declared deviation"
+    fit = read_fit(fitted(vehicle, "order2")[0])
+    true_data = {**fit.data, "parameters": {}}
+    true_data["parameters"] = {
+        p: {"value": float(truth[p]), "estimated": False} for p in ("kA", "C", "K_veh", "C_veh")
+    }
+    sc = scenario(24 * 3600.0, 60.0, -20.0, heating_W=50_000.0, heat_up_to_C=10.0)
+    band = sim.simulate(fit, sc, draws=300, seed=5).outcomes["heat_up_time_s"]
+    true = sim.simulate(Fit(true_data), sc, draws=0).outcomes["heat_up_time_s"].value
+    assert band.lo <= true <= band.hi
+    assert (band.hi - band.lo) / band.value < 0.25
