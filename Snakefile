@@ -22,6 +22,7 @@ include: "workflow/rules/identify.smk"
 include: "workflow/rules/study.smk"
 include: "workflow/rules/audit.smk"
 include: "workflow/rules/sindy.smk"
+include: "workflow/rules/predict.smk"
 
 
 rule all:

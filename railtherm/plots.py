@@ -1202,3 +1202,158 @@ def innovation_figure(
         stem = Path(path)
         save_figure(fig, stem.with_suffix("") if stem.suffix in (".png", ".svg") else stem)
     return fig
+
+
+# --- predictions: scenarios and the class reference model -----------------------------------
+
+
+def _vehicle_colors(names: Sequence[str]) -> dict[str, Any]:
+    cmap = matplotlib.colormaps["tab20"]
+    return {name: cmap(i % 20) for i, name in enumerate(names)}
+
+
+def scenario_figure(
+    runs: Mapping[str, Any],
+    *,
+    title: str,
+    threshold_C: float | None = None,
+    synthetic: bool = False,
+    note: str | None = None,
+) -> Figure:
+    """One scenario through every vehicle's identified model (``runs``: vehicle ->
+    :class:`railtherm.simulate.SimulationResult`): (a) the indoor air temperature T(t) with
+    its 95 % band, the heat-up threshold dashed; (b) the heating energy since the start (kWh,
+    the integral of the held power: readable where a thermostat switches every few steps)."""
+    if not runs:
+        raise ValueError("no simulated vehicle to draw")
+    colors = _vehicle_colors(list(runs))
+    with matplotlib.rc_context(_RC):
+        fig = Figure(figsize=(7.0, 5.6), dpi=DPI, layout="constrained")
+        FigureCanvasAgg(fig)
+        ax_t, ax_p = fig.subplots(2, 1, sharex=True, height_ratios=[1.4, 1.0])
+        for vid, run in runs.items():
+            s = run.series
+            c = colors[vid]
+            ax_t.plot(s["time_h"], s["T"], color=c, lw=1.1, label=vid)
+            if "T_lo" in s:
+                ax_t.fill_between(s["time_h"], s["T_lo"], s["T_hi"], color=c, alpha=0.15, lw=0)
+            dt_h = float(s["time_h"].iloc[1] - s["time_h"].iloc[0])
+            energy = np.r_[0.0, np.cumsum(s["heating_W"].to_numpy()[:-1]) * dt_h / 1000.0]
+            ax_p.plot(s["time_h"], energy, color=c, lw=1.1)
+        first = next(iter(runs.values())).series
+        ax_t.plot(first["time_h"], first["T_o"], color="0.4", lw=1.0, ls=":", label="T_o")
+        if threshold_C is not None:
+            ax_t.axhline(threshold_C, color="0.3", lw=0.8, ls="--")
+        ax_t.set_title(title, fontsize=9)
+        ax_t.set_ylabel("T (°C)")
+        ax_p.set_ylabel("heating energy (kWh)")
+        ax_p.set_xlabel("time (h)")
+        ax_t.legend(fontsize=6.5, ncols=4, loc="lower right", frameon=False)
+        for ax in (ax_t, ax_p):
+            ax.grid(True, lw=0.3, alpha=0.5)
+    return _finish(fig, synthetic, note)
+
+
+def reference_validation_figure(
+    table: pd.DataFrame, *, synthetic: bool = False, note: str | None = None
+) -> Figure:
+    """The leave-one-out validation of the class reference model (``table``: rows of
+    :func:`railtherm.classvalidation.leave_one_out`): (a) the heat-up time predicted from the
+    other vehicles (with its 95 % prediction band) against the vehicle's own identified
+    model's, the 1:1 line, a band open above drawn to the axis top with an arrow; (b) the
+    RMSE of T over the vehicle's identification windows: its own fit and the reference models
+    (class and pooled)."""
+    with matplotlib.rc_context(_RC):
+        fig = Figure(figsize=(7.0, 3.6), dpi=DPI, layout="constrained")
+        FigureCanvasAgg(fig)
+        ax_a, ax_b = fig.subplots(1, 2, width_ratios=[1.0, 1.3])
+        done = table[table["status"] == "predicted"]
+        styles = {
+            ("class", "class"): dict(marker="o", mfc=None, label="class, k from class"),
+            ("class", "measured"): dict(marker="s", mfc="white", label="class, k measured"),
+            ("pooled", "class"): dict(marker="^", mfc=None, label="pooled, k from class"),
+            ("pooled", "measured"): dict(marker="v", mfc="white", label="pooled, k measured"),
+        }
+        colors = _vehicle_colors(sorted(done["vehicle"].unique()))
+        finite = done[["heat_up_fit_h", "heat_up_ref_h", "heat_up_ref_h_lo"]].astype(float)
+        finite = finite.to_numpy()[np.isfinite(finite.to_numpy())]
+        top = 1.25 * float(finite.max()) if finite.size else 1.0
+        named: set[str] = set()
+        for (basis, k_from), style in styles.items():
+            part = done[(done["basis"] == basis) & (done["k_from"] == k_from)]
+            part = part[np.isfinite(part["heat_up_fit_h"].astype(float))]
+            for _, r in part.iterrows():
+                x = float(r["heat_up_fit_h"])
+                y, lo, hi = (
+                    float(r[c]) for c in ("heat_up_ref_h", "heat_up_ref_h_lo", "heat_up_ref_h_hi")
+                )
+                c = colors[r["vehicle"]]
+                # the band: to the axis top with an arrow where it is open above
+                ax_a.plot([x, x], [lo, min(hi, top)], color=c, lw=0.6, alpha=0.6)
+                if not math.isfinite(hi):
+                    ax_a.plot(x, top, marker="^", color=c, ms=3, alpha=0.6)
+                if math.isfinite(y):
+                    ax_a.plot(
+                        x,
+                        y,
+                        marker=style["marker"],
+                        ms=4.5,
+                        color=c,
+                        mfc=style["mfc"] or c,
+                        ls="none",
+                    )
+                if r["vehicle"] not in named:
+                    named.add(r["vehicle"])
+                    ax_a.annotate(
+                        r["vehicle"],
+                        (x, lo),
+                        xytext=(2, -8),
+                        textcoords="offset points",
+                        fontsize=5.5,
+                        color=c,
+                    )
+            ax_a.plot(
+                [],
+                [],
+                color="0.3",
+                marker=style["marker"],
+                ls="none",
+                mfc=style["mfc"] or "0.3",
+                label=style["label"],
+            )
+        ax_a.plot([0, top], [0, top], color="0.5", lw=0.8, ls="--")
+        ax_a.set_xlim(0, top)
+        ax_a.set_ylim(0, top * 1.03)
+        ax_a.set_xlabel("heat-up time, own fit (h)")
+        ax_a.set_ylabel("heat-up time, reference model (h)")
+        ax_a.set_title("(a) heat-up time, leave-one-out", fontsize=9)
+        ax_a.legend(fontsize=6, loc="upper left", frameon=False)
+        rmse = done[done["k_from"] == "class"]
+        vehicles = list(dict.fromkeys(rmse["vehicle"]))
+        x = np.arange(len(vehicles), dtype=float)
+        bars = [
+            ("fit", "rmse_fit_K", "0.35"),
+            ("class", "rmse_ref_K", "#2471a3"),
+            ("pooled", "rmse_ref_K", "#d68910"),
+        ]
+        width = 0.26
+        for i, (label, column, color) in enumerate(bars):
+            if label == "fit":
+                vals = [float(rmse[rmse["vehicle"] == v][column].iloc[0]) for v in vehicles]
+            else:
+                vals = [
+                    float(rmse[(rmse["vehicle"] == v) & (rmse["basis"] == label)][column].iloc[0])
+                    if ((rmse["vehicle"] == v) & (rmse["basis"] == label)).any()
+                    else math.nan
+                    for v in vehicles
+                ]
+            name = "own fit" if label == "fit" else f"reference ({label})"
+            ax_b.bar(x + (i - 1) * width, vals, width, color=color, label=name)
+        ax_b.set_xticks(x, vehicles, rotation=45, ha="right", fontsize=7)
+        ax_b.set_yscale("log")
+        ax_b.set_ylabel("RMSE of T over the windows (K), log scale")
+        ax_b.set_title("(b) prediction of the measured windows", fontsize=9)
+        ax_b.legend(fontsize=6, frameon=False)
+        for ax in (ax_a, ax_b):
+            ax.grid(True, lw=0.3, alpha=0.5)
+    return _finish(fig, synthetic, note)

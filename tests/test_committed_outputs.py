@@ -26,7 +26,18 @@ VALIDATION_FIGURES = [
 
 @pytest.mark.parametrize(
     "png",
-    [FIGURES / f"{stem}.png" for stem in ("figure3", "figure4", "figure5a", "figure5b", "sindy")]
+    [
+        FIGURES / f"{stem}.png"
+        for stem in (
+            "figure3",
+            "figure4",
+            "figure5a",
+            "figure5b",
+            "sindy",
+            "scenarios",
+            "reference_validation",
+        )
+    ]
     + VALIDATION_FIGURES,
     ids=lambda p: str(p.relative_to(REPO)),
 )

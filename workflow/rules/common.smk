@@ -15,6 +15,7 @@ from railtherm.config import load_study
 from railtherm.datacheck import check_study_values
 from railtherm.errors import RailthermError
 from railtherm.rawfile import DigestCache
+from railtherm.scenario import load_scenario
 
 RAILTHERM_DIR = Path(railtherm.__file__).parent
 # where a conda job's post-deploy script finds the repository to install railtherm from
@@ -227,6 +228,45 @@ def study_figures():
     return stems
 
 
+try:
+    SCENARIOS = [load_scenario(path) for path in config["scenarios"]["files"]]
+except RailthermError as err:
+    raise WorkflowError(f"invalid scenario: {err}") from None
+
+
+def scenario_files():
+    """Every scenario file and every profile file it reads (inputs of the prediction rules)."""
+    return list(dict.fromkeys(f for sc in SCENARIOS for f in (sc.file, *sc.files)))
+
+
+def figure_scenario():
+    """The scenario of the scenario figure and of the leave-one-out heat-up comparison:
+    scenarios.figure, else the first scenario with a heat-up threshold (None: none)."""
+    name = config["scenarios"]["figure"]
+    if name is not None:
+        chosen = [sc for sc in SCENARIOS if sc.name == name]
+        if not chosen:
+            raise WorkflowError(
+                f"config/config.yaml: key 'scenarios.figure' = {name!r}: no such scenario; "
+                f"the scenarios are {[sc.name for sc in SCENARIOS]}"
+            )
+        return chosen[0]
+    return next((sc for sc in SCENARIOS if sc.heat_up_to_C is not None), None)
+
+
+def prediction_outputs():
+    """Targets of the rules simulate and reference_validation."""
+    if not SCENARIOS or not second_order_vehicles():
+        return []
+    targets = [f"results/tables/scenarios.{ext}" for ext in ("csv", "md")]
+    if figure_scenario() is not None:
+        targets += [f"results/figures/scenarios.{ext}" for ext in ("png", "svg")]
+        if config["reference_model"]["validation"] and config["study"]["paper_tables"]:
+            targets += [f"results/tables/reference_validation.{ext}" for ext in ("csv", "md")]
+            targets += [f"results/figures/reference_validation.{ext}" for ext in ("png", "svg")]
+    return targets
+
+
 def all_outputs():
     """The targets of `rule all`."""
     targets = [path for vid in VEHICLES for path in raw_files(vid)]
@@ -271,6 +311,7 @@ def all_outputs():
         targets += [f"results/figures/sindy.{ext}" for ext in ("png", "svg")]
     if config["audit"]["published"]:
         targets += ["results/audit/findings.csv", "results/audit/audit.md"]
+    targets += prediction_outputs()
     if CAMPAIGN:
         targets += [
             "results/campaign/ground_truth.csv",

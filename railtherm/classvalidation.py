@@ -1,0 +1,282 @@
+"""How good is the class generalisation? A leave-one-out validation of the class reference
+model (:mod:`railtherm.classmodel`; the paper's c_veh and delta, eqs. 24-25, section 6.3).
+
+For each vehicle with an acceptable fit, the reference model of its class is built without
+it (and, as a comparator, the model of every rail class pooled), from its mass and surface
+only - with k from the class, and with its own measured k (the static test, eq. 10, is often
+run where no heat-up test is). That model then
+
+- predicts the vehicle's identification windows (the measured T_o and Q_H, from the same
+  initial state as the vehicle's own fit): the RMSE of T against the measurement, beside
+  the RMSE of the vehicle's own fit (eq. 15, K = 0);
+- predicts a scenario (:mod:`railtherm.scenario`): the heat-up time and the energy with
+  their 95 % prediction bands, beside the same scenario through the vehicle's own
+  identified model.
+
+A class with too few vehicles left to build a model from is reported as such, with the
+minimum (``reference_model.min_vehicles``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from railtherm import classmodel, models
+from railtherm import simulate as sim
+from railtherm.errors import ConfigError
+from railtherm.fit import Fit
+from railtherm.scenario import Scenario
+
+__all__ = ["leave_one_out", "window_rmse", "summary_lines", "validation_markdown"]
+
+BASES = ("class", "pooled")
+COLUMNS = (
+    "vehicle",
+    "class",
+    "basis",
+    "k_from",
+    "n_basis",
+    "basis_vehicles",
+    "status",
+    "rmse_ref_K",
+    "rmse_fit_K",
+    "heat_up_ref_h",
+    "heat_up_ref_h_lo",
+    "heat_up_ref_h_hi",
+    "heat_up_fit_h",
+    "heat_up_fit_h_lo",
+    "heat_up_fit_h_hi",
+    "heat_up_ratio",
+    "heat_up_inside",
+    "energy_ref_kWh",
+    "energy_ref_kWh_lo",
+    "energy_ref_kWh_hi",
+    "energy_fit_kWh",
+    "energy_ratio",
+    "energy_inside",
+)
+K_FROM = ("class", "measured")
+
+
+def window_rmse(theta: Mapping[str, float], structure: models.Structure, series: pd.DataFrame):
+    """RMSE of T (K) of the model ``theta`` over every identification window of ``series``
+    (the fit's series: measured inputs, measured T, the fit's simulated states), from the
+    fit's own initial states; and the same for the fit's simulated T."""
+    errors, fit_errors = [], []
+    for _, w in series.groupby("window", sort=False):
+        t = w["time"].to_numpy(float)
+        dt = float(np.median(np.diff(t)))
+        u = w[list(structure.inputs)].to_numpy(float)
+        x0 = [float(w[f"{s}_sim"].iloc[0]) for s in structure.states]
+        x = models.simulate(structure, theta, u, dt, x0)
+        measured = w["T"].to_numpy(float)
+        ok = np.isfinite(measured)
+        errors.append(x[ok, 0] - measured[ok])
+        fit_errors.append(w["T_sim"].to_numpy(float)[ok] - measured[ok])
+    e, f = np.concatenate(errors), np.concatenate(fit_errors)
+    return float(np.sqrt(np.mean(e**2))), float(np.sqrt(np.mean(f**2)))
+
+
+def _band(o: sim.Outcome, scale: float) -> tuple[float, float, float]:
+    def v(x: float | None) -> float:
+        return math.nan if x is None else x / scale
+
+    value = (
+        v(o.value) if o.status == "ok" else (math.inf if o.status != "not requested" else math.nan)
+    )
+    return value, v(o.lo), v(o.hi)
+
+
+def _inside(x: float, lo: float, hi: float) -> Any:
+    if any(math.isnan(v) for v in (x, lo, hi)):
+        return None
+    return bool(lo <= x <= hi)
+
+
+def leave_one_out(
+    members: Sequence[classmodel.ClassMember],
+    fits: Mapping[str, Fit],
+    series: Mapping[str, pd.DataFrame],
+    scenario: Scenario,
+    min_vehicles: int = 2,
+    draws: int = sim.DEFAULT_DRAWS,
+    seed: int = 0,
+) -> pd.DataFrame:
+    """One row per usable vehicle, basis (its class, every rail class pooled) and source of
+    k (the class's, its own measured one): the model from the other vehicles, its RMSE over
+    the vehicle's windows and its heat-up time and energy in ``scenario`` with 95 % bands,
+    beside the vehicle's own fit; or why no model could be built (status)."""
+    rows = []
+    usable = [m for m in members if m.usable and m.vehicle in fits]
+    for i, m in enumerate(usable):
+        fit = fits[m.vehicle]
+        own = sim.simulate(fit, scenario, draws=draws, seed=seed + 100 * i, allow_unreachable=True)
+        own_heat = _band(own.outcomes["heat_up_time_s"], 3600.0)
+        own_energy = _band(own.outcomes["energy_kWh"], 1.0)
+        for basis in BASES:
+            for k_from in K_FROM:
+                row: dict[str, Any] = {
+                    "vehicle": m.vehicle,
+                    "class": m.vehicle_class,
+                    "basis": basis,
+                    "k_from": k_from,
+                }
+                try:
+                    ref = classmodel.build(
+                        members,
+                        m.vehicle_class if basis == "class" else "all",
+                        m.mass_kg,
+                        m.surface_m2,
+                        k=m.k if k_from == "measured" else None,
+                        min_vehicles=min_vehicles,
+                        exclude=[m.vehicle],
+                    )
+                except ConfigError as err:
+                    n = sum(
+                        1
+                        for o in members
+                        if o.usable
+                        and o.vehicle != m.vehicle
+                        and (basis == "pooled" or o.vehicle_class == m.vehicle_class)
+                    )
+                    row["n_basis"] = n
+                    if n >= min_vehicles:  # refused for another reason: say it whole
+                        row["status"] = f"no model: {err.reason}"
+                    else:
+                        row["status"] = (
+                            f"too few vehicles: {n} other with an acceptable fit, "
+                            f"{min_vehicles} needed"
+                        )
+                    rows.append(row)
+                    continue
+                ps = sim.parameter_set(ref)
+                rmse_ref, rmse_fit = window_rmse(ps.theta, ps.structure, series[m.vehicle])
+                pred = sim.simulate(
+                    ps, scenario, draws=draws, seed=seed + 100 * i + 7, allow_unreachable=True
+                )
+                heat = _band(pred.outcomes["heat_up_time_s"], 3600.0)
+                energy = _band(pred.outcomes["energy_kWh"], 1.0)
+                row.update(
+                    {
+                        "n_basis": len(ref.basis),
+                        "basis_vehicles": " ".join(ref.basis),
+                        "status": "predicted",
+                        "rmse_ref_K": rmse_ref,
+                        "rmse_fit_K": rmse_fit,
+                        "heat_up_ref_h": heat[0],
+                        "heat_up_ref_h_lo": heat[1],
+                        "heat_up_ref_h_hi": heat[2],
+                        "heat_up_fit_h": own_heat[0],
+                        "heat_up_fit_h_lo": own_heat[1],
+                        "heat_up_fit_h_hi": own_heat[2],
+                        "heat_up_ratio": heat[0] / own_heat[0],
+                        "heat_up_inside": _inside(own_heat[0], heat[1], heat[2]),
+                        "energy_ref_kWh": energy[0],
+                        "energy_ref_kWh_lo": energy[1],
+                        "energy_ref_kWh_hi": energy[2],
+                        "energy_fit_kWh": own_energy[0],
+                        "energy_ratio": energy[0] / own_energy[0],
+                        "energy_inside": _inside(own_energy[0], energy[1], energy[2]),
+                    }
+                )
+                rows.append(row)
+    return pd.DataFrame(rows, columns=list(COLUMNS))
+
+
+def summary_lines(table: pd.DataFrame) -> list[str]:
+    """Per basis and source of k: how many vehicles were predicted, the median factor
+    between the predicted and the identified heat-up time (max(r, 1/r)), how many own
+    heat-up times lie inside the 95 % prediction band, and the median RMSE ratio."""
+    lines = []
+    done = table[table["status"] == "predicted"] if "status" in table else table.iloc[:0]
+    for basis in BASES:
+        for k_from in K_FROM:
+            part = done[(done["basis"] == basis) & (done["k_from"] == k_from)]
+            n_total = int(((table["basis"] == basis) & (table["k_from"] == k_from)).sum())
+            if part.empty:
+                lines.append(
+                    f"- {basis}, k from {k_from}: no vehicle could be predicted "
+                    f"({n_total} tried; too few vehicles left in the class)"
+                )
+                continue
+            r = part["heat_up_ratio"].astype(float).to_numpy()
+            r = r[~np.isnan(r) & (r > 0)]
+            with np.errstate(divide="ignore"):
+                factor = float(np.median(np.maximum(r, 1 / r))) if len(r) else math.nan
+            inside = part["heat_up_inside"].dropna()
+            lo = part["heat_up_ref_h_lo"].astype(float).to_numpy()
+            hi = part["heat_up_ref_h_hi"].astype(float).to_numpy()
+            open_above = int(np.isinf(hi).sum())
+            rmse_ratio = float(np.median(part["rmse_ref_K"] / part["rmse_fit_K"]))
+            rmse = part["rmse_ref_K"].astype(float)
+            lines.append(
+                f"- {basis}, k from {k_from}: {len(part)} of {n_total} vehicles predicted; "
+                f"heat-up time off by a median factor {factor:.2f}; the own heat-up time "
+                f"inside the 95 % band for {int(inside.sum())} of {len(inside)}, the band "
+                f"reaching from a median {np.median(lo):.2g} h to beyond the scenario's end "
+                f"for {open_above} of {len(part)}; RMSE of T over the measured windows "
+                f"{rmse.min():.2g} to {rmse.max():.2g} K, a median {rmse_ratio:.0f}× the "
+                "vehicle's own fit"
+            )
+    return lines
+
+
+def _cell(x: Any, digits: int = 3) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return ""
+    if isinstance(x, float) and math.isinf(x):
+        return "not reached"
+    return f"{x:.{digits}g}"
+
+
+def validation_markdown(table: pd.DataFrame, scenario: Scenario, source: str) -> str:
+    """The leave-one-out table for people, with its summary."""
+    lines = [
+        "**Leave-one-out validation of the class reference model (c_veh, δ of eqs. 24-25, "
+        "κ_veh = K_veh / A, k): each vehicle with an acceptable fit predicted from the other "
+        f"vehicles of its class, and of every class pooled.** Data: {source}.",
+        "",
+        f"Scenario: {scenario.name} (heat-up to {scenario.heat_up_to_C:g} °C). RMSE: T over "
+        "the vehicle's own identification windows, from its fit's initial state.",
+        "",
+        "| Name | class | basis | k from | n | RMSE ref (K) | RMSE fit (K) | heat-up ref (h) "
+        "| heat-up fit (h) | inside | energy ref (kWh) | energy fit (kWh) |",
+        "|:--|:--|:--|:--|--:|--:|--:|--:|--:|:--|--:|--:|",
+    ]
+    for _, r in table.iterrows():
+        if r["status"] != "predicted":
+            lines.append(
+                f"| {r['vehicle']} | {r['class']} | {r['basis']} | {r['k_from']} | "
+                f"{int(r['n_basis'])} | {r['status']} | | | | | | |"
+            )
+            continue
+
+        def band(stem: str, r: Any = r) -> str:
+            hi = r[stem + "_hi"]
+            return (
+                f"{_cell(r[stem])} [{_cell(r[stem + '_lo'])}, "
+                f"{_cell(hi) if math.isfinite(hi) else '> duration'}]"
+            )
+
+        inside = {True: "yes", False: "no"}.get(r["heat_up_inside"], "")
+        lines.append(
+            f"| {r['vehicle']} | {r['class']} | {r['basis']} | {r['k_from']} | "
+            f"{int(r['n_basis'])} | {_cell(r['rmse_ref_K'])} | {_cell(r['rmse_fit_K'])} | "
+            f"{band('heat_up_ref_h')} | {_cell(r['heat_up_fit_h'])} | {inside} | "
+            f"{band('energy_ref_kWh')} | {_cell(r['energy_fit_kWh'])} |"
+        )
+    lines += ["", "Summary:", "", *summary_lines(table), ""]
+    lines += [
+        "- Bands: 95 % prediction bands of a new vehicle of the class (the spread of the "
+        "other vehicles' generalised parameters, Student t), railtherm.classmodel.",
+        "- inside: the vehicle's own identified heat-up time lies within the reference "
+        "model's band.",
+        "- A class whose other vehicles number fewer than reference_model.min_vehicles has no "
+        "model; the pooled basis takes every rail class together.",
+    ]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,171 @@
+"""The study's predictions: every declared scenario run through every vehicle's identified
+second-order model (eqs. 7-8), tabulated with 95 % bands (rule ``simulate``).
+
+A fit whose parameters the data do not all determine is not simulated: its row says which
+parameter is not identified. A set point the heating cannot hold is reported as
+"unreachable", with the load it would need. Times are written in hours, energy in kWh and
+power in kW, at 4 significant digits in the CSV (:func:`railtherm.tables.write_csv`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import pandas as pd
+
+from railtherm import simulate as sim
+from railtherm.fit import Fit
+from railtherm.scenario import Scenario
+
+__all__ = ["OUTCOMES", "outcome_text", "scenario_markdown", "scenario_table"]
+
+# (outcome key, column stem, scale to the column's unit, unit)
+OUTCOMES = (
+    ("heat_up_time_s", "heat_up_h", 3600.0, "h"),
+    ("cool_down_time_s", "cool_down_h", 3600.0, "h"),
+    ("energy_kWh", "energy_kWh", 1.0, "kWh"),
+    ("peak_power_W", "peak_kW", 1000.0, "kW"),
+    ("final_T_C", "final_T_C", 1.0, "°C"),
+)
+DIGITS = 4  # significant digits of the CSV
+
+
+def _row_outcomes(result: sim.SimulationResult) -> dict[str, Any]:
+    row: dict[str, Any] = {}
+    for key, stem, scale, _ in OUTCOMES:
+        o = result.outcomes[key]
+
+        def scaled(v: float | None, scale: float = scale) -> float:
+            return math.nan if v is None else v / scale
+
+        row[stem] = scaled(o.value) if o.status == "ok" else math.nan
+        row[f"{stem}_lo"] = scaled(o.lo)
+        row[f"{stem}_hi"] = scaled(o.hi)
+        row[f"{stem}_status"] = o.status
+    return row
+
+
+def scenario_table(
+    fits: Mapping[str, Fit],
+    classes: Mapping[str, str],
+    scenarios: Sequence[Scenario],
+    draws: int = sim.DEFAULT_DRAWS,
+    seed: int = 0,
+) -> tuple[pd.DataFrame, dict[tuple[str, str], sim.SimulationResult]]:
+    """One row per scenario and vehicle (in the given orders): the outcomes with their 95 %
+    bands, or why the vehicle was not simulated; and the simulation results by (scenario,
+    vehicle). Each run draws from its own seed (``seed`` + its position), so a row does not
+    depend on which other vehicles the study holds."""
+    rows, results = [], {}
+    for i, sc in enumerate(scenarios):
+        for j, (vid, fit) in enumerate(fits.items()):
+            row: dict[str, Any] = {
+                "scenario": sc.name,
+                "vehicle": vid,
+                "class": classes.get(vid, ""),
+                "model": fit.model,
+                "verdict": fit.verdict,
+            }
+            try:
+                result = sim.simulate(
+                    fit, sc, draws=draws, seed=seed + 1000 * i + j, allow_unreachable=True
+                )
+            except sim.NotPredictable as err:
+                names = ", ".join(err.value)
+                row["status"] = f"not simulated: {names} not identified"
+                rows.append(row)
+                continue
+            results[sc.name, vid] = result
+            row["status"] = "; ".join(result.notes) if result.notes else "simulated"
+            row.update(_row_outcomes(result))
+            rows.append(row)
+    return pd.DataFrame(rows), results
+
+
+def outcome_text(row: Mapping[str, Any], stem: str, unit: str, duration_h: float) -> str:
+    """``value [lo, hi]`` at 3 significant digits; an open band as "> duration"; the status
+    where there is no value."""
+    status = row.get(f"{stem}_status")
+    if not isinstance(status, str):
+        return str(row.get("status", ""))
+    if status == "not requested":
+        return ""
+
+    def fmt(v: Any) -> str:
+        if v is None or (isinstance(v, float) and math.isnan(v)):
+            return "?"
+        if math.isinf(v):
+            return f"> {duration_h:g}" if unit == "h" else "∞"
+        return f"{v:,.3g}" if abs(v) < 1000 else f"{v:,.0f}"
+
+    band = ""
+    if not pd.isna(row.get(f"{stem}_lo")):
+        band = f" [{fmt(row[f'{stem}_lo'])}, {fmt(row[f'{stem}_hi'])}]"
+    if status == "ok":
+        return f"{fmt(row[stem])}{band}"
+    if status == "not reached":
+        return f"not reached (> {duration_h:g} h){band}"
+    return f"{status}{band}"
+
+
+def scenario_markdown(
+    table: pd.DataFrame, scenarios: Sequence[Scenario], source: str, draws: int
+) -> str:
+    """The scenario table for people: one section per scenario, only the outcomes it asks
+    for, with its description and source."""
+    parts = [
+        "**Predictions of the identified second-order models (eqs. 7-8) for the study's "
+        f"scenarios, with 95 % bands.** Data: {source}.",
+        "",
+    ]
+    for sc in scenarios:
+        part = table[table["scenario"] == sc.name]
+        no_heating = sc.controller is None and not (sc.heating_W > 0).any()
+        wanted = [
+            (stem, unit)
+            for _, stem, _, unit in OUTCOMES
+            if f"{stem}_status" in part
+            and part[f"{stem}_status"].dropna().ne("not requested").any()
+            and not (no_heating and stem in ("energy_kWh", "peak_kW"))
+        ]
+        labels = {
+            "heat_up_h": f"heat-up to {sc.heat_up_to_C or 0:g} °C (h)",
+            "cool_down_h": f"cool-down to {sc.cool_down_to_C or 0:g} °C (h)",
+            "energy_kWh": "energy (kWh)",
+            "peak_kW": "peak power (kW)",
+            "final_T_C": "T at the end (°C)",
+        }
+        lines = [
+            f"### {sc.name}",
+            "",
+            " ".join(sc.description.split()),
+            "",
+            "| Name | class | " + " | ".join(labels[s] for s, _ in wanted) + " | verdict |",
+            "|:--|:--|" + "--:|" * len(wanted) + ":--|",
+        ]
+        notes = []
+        for _, row in part.iterrows():
+            if str(row["status"]).startswith("not simulated"):
+                cells = [row["status"]] + [""] * (len(wanted) - 1)
+            else:
+                cells = [outcome_text(row, s, u, sc.duration_s / 3600.0) for s, u in wanted]
+                if row["status"] != "simulated":
+                    notes.append(f"- {row['vehicle']}: {row['status']}")
+            lines.append(
+                f"| {row['vehicle']} | {row['class']} | "
+                + " | ".join(cells)
+                + f" | {row['verdict']} |"
+            )
+        lines += ["", *notes, "", f"Source of the scenario: {' '.join(sc.source.split())}", ""]
+        parts += lines
+    parts += [
+        f"- Bands: 2.5 and 97.5 % quantiles of {draws} runs with parameter sets drawn from each "
+        "fit's statistical covariance and its systematic (type B) error sources, kA of the "
+        "static test included (railtherm.simulate).",
+        "- not simulated: a parameter the data do not determine would set the prediction "
+        "(results/vehicles/<id>/fit_order2.yaml).",
+        "- Scenario keys and the controller: docs/simulation.md.",
+    ]
+    return "\n".join(parts) + "\n"

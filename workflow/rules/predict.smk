@@ -1,0 +1,89 @@
+# Predictions from the identified models: the study's scenarios through every vehicle's
+# second-order model, and the leave-one-out validation of the class reference model.
+
+
+rule simulate:
+    input:
+        fits=[
+            f"results/vehicles/{vid}/fit_order2{TABLE_KEY_SUFFIX}.yaml"
+            for vid in second_order_vehicles()
+        ],
+        scenarios=scenario_files(),
+    output:
+        csv=report(
+            "results/tables/scenarios.csv",
+            caption="../report/scenarios.rst",
+            category="Tables",
+            labels={"table": "scenarios"},
+        ),
+        md="results/tables/scenarios.md",
+        png=report(
+            "results/figures/scenarios.png",
+            caption="../report/scenarios_figure.rst",
+            category="Figures",
+            labels={"figure": "scenarios"},
+        ),
+        svg="results/figures/scenarios.svg",
+    params:
+        vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
+        scenarios=config["scenarios"]["files"],
+        figure=getattr(figure_scenario(), "name", None),
+        draws=config["scenarios"]["draws"],
+        seed=config["scenarios"]["seed"],
+        code=code_digest("predictions.py", "plots.py"),
+    log:
+        "logs/simulate.log",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/simulate.py"
+
+
+rule reference_validation:
+    input:
+        table2="results/tables/table2.csv",
+        fits=[
+            f"results/vehicles/{vid}/fit_order2{TABLE_KEY_SUFFIX}.yaml"
+            for vid in second_order_vehicles()
+        ],
+        series=[
+            f"results/vehicles/{vid}/identify/order2{TABLE_KEY_SUFFIX}_series.csv"
+            for vid in second_order_vehicles()
+        ],
+        scenarios=scenario_files(),
+    output:
+        csv=report(
+            "results/tables/reference_validation.csv",
+            caption="../report/reference_validation.rst",
+            category="Tables",
+            labels={"table": "reference_validation"},
+        ),
+        md="results/tables/reference_validation.md",
+        png=report(
+            "results/figures/reference_validation.png",
+            caption="../report/reference_validation_figure.rst",
+            category="Figures",
+            labels={"figure": "reference_validation"},
+        ),
+        svg="results/figures/reference_validation.svg",
+    params:
+        vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
+        scenario=getattr(figure_scenario(), "file", None),
+        min_vehicles=config["reference_model"]["min_vehicles"],
+        draws=config["scenarios"]["draws"],
+        seed=config["scenarios"]["seed"],
+        code=code_digest("classvalidation.py", "plots.py"),
+    log:
+        "logs/reference_validation.log",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/reference_validation.py"

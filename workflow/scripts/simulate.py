@@ -1,0 +1,26 @@
+"""Adapter for rule simulate: the study's scenarios through every vehicle's identified model."""
+
+from railtherm import aggregate, logs, plots, predictions, tables
+from railtherm.fit import read_fit
+from railtherm.scenario import load_scenario
+
+log = logs.to_file(snakemake.log[0])
+vehicles = snakemake.params.vehicles
+fits = {vid: read_fit(path) for vid, path in zip(vehicles, snakemake.input.fits, strict=True)}
+classes = {vid: str(data["class"]) for vid, data in vehicles.items()}
+scenarios = [load_scenario(path) for path in snakemake.params.scenarios]
+draws, seed = snakemake.params.draws, snakemake.params.seed
+table, runs = predictions.scenario_table(fits, classes, scenarios, draws=draws, seed=seed)
+source = aggregate.data_source(vehicles)
+tables.write_csv(table, snakemake.output.csv, digits=predictions.DIGITS)
+with open(snakemake.output.md, "w", encoding="utf-8") as stream:
+    stream.write(predictions.scenario_markdown(table, scenarios, source, draws))
+chosen = next(sc for sc in scenarios if sc.name == snakemake.params.figure)
+fig = plots.scenario_figure(
+    {vid: run for (name, vid), run in runs.items() if name == chosen.name},
+    title=f"{chosen.name}: identified second-order models, 95 % bands",
+    threshold_C=chosen.heat_up_to_C,
+    note=plots.provenance_note(table.assign(source=source)),
+)
+plots.save_figure(fig, snakemake.output.png.removesuffix(".png"))
+log.info("%d scenarios x %d vehicles", len(scenarios), len(fits))
