@@ -54,7 +54,8 @@ rule reference_validation:
             f"results/vehicles/{vid}/identify/order2{TABLE_KEY_SUFFIX}_series.csv"
             for vid in second_order_vehicles()
         ],
-        scenarios=scenario_files(),
+        scenario=getattr(figure_scenario(), "file", []),
+        profiles=scenario_files(),
     output:
         csv=report(
             "results/tables/reference_validation.csv",
@@ -72,7 +73,6 @@ rule reference_validation:
         svg="results/figures/reference_validation.svg",
     params:
         vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
-        scenario=getattr(figure_scenario(), "file", None),
         min_vehicles=config["reference_model"]["min_vehicles"],
         draws=config["scenarios"]["draws"],
         seed=config["scenarios"]["seed"],

@@ -18,7 +18,7 @@ fits = {vid: read_fit(path) for vid, path in zip(vehicles, snakemake.input.fits,
 series = {
     vid: pd.read_csv(path) for vid, path in zip(vehicles, snakemake.input.series, strict=True)
 }
-scenario = load_scenario(snakemake.params.scenario)
+scenario = load_scenario(snakemake.input.scenario)
 table = classvalidation.leave_one_out(
     members,
     fits,
