@@ -36,3 +36,35 @@ def test_readme_quick_start_prints_what_the_readme_shows():
         assert NUMBER.sub("#", g) == NUMBER.sub("#", w), (g, w)
         for a, b in zip(NUMBER.findall(g), NUMBER.findall(w), strict=True):
             assert float(a) == pytest.approx(float(b), rel=2e-3, abs=0.051), (g, w)
+
+
+def test_readme_prediction_commands_print_what_the_readme_shows(tmp_path):
+    """The README's `railtherm reference` and `railtherm simulate` commands, run on the
+    committed configs and tables in a scratch directory, print its text block."""
+    import shutil
+
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Predictions", 1)[1].split("\n## ", 1)[0]
+    commands = re.search(r"```bash\n(.*?)```", section, re.S).group(1).splitlines()
+    shown = re.search(r"```text\n(.*?)```", section, re.S).group(1)
+    shutil.copytree(REPO / "config", tmp_path / "config")
+    shutil.copytree(REPO / "results" / "tables", tmp_path / "results" / "tables")
+    got = ""
+    for command in commands:
+        args = command.split()
+        assert args[0] == ".venv/bin/railtherm"
+        run = subprocess.run(
+            [sys.executable, "-m", "railtherm", *args[1:]],
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        assert run.returncode == 0, run.stderr
+        got += run.stdout
+    got_lines, want = got.splitlines(), shown.splitlines()
+    assert len(got_lines) == len(want), got
+    for g, w in zip(got_lines, want, strict=True):
+        assert NUMBER.sub("#", g) == NUMBER.sub("#", w), (g, w)
+        for a, b in zip(NUMBER.findall(g), NUMBER.findall(w), strict=True):
+            assert float(a) == pytest.approx(float(b), rel=2e-3, abs=0.051), (g, w)
