@@ -297,3 +297,33 @@ def test_band_of_a_campaign_fit_holds_the_prediction_of_the_truth(fitted, vehicl
     true = sim.simulate(Fit(true_data), sc, draws=0).outcomes["heat_up_time_s"].value
     assert band.lo <= true <= band.hi
     assert (band.hi - band.lo) / band.value < 0.25
+
+
+def test_irradiance_enters_through_the_fitted_aperture():
+    """A first-order model fitted with an irradiance input I_sol (aperture a_I_sol, m²):
+    the scenario's irradiance adds a_I_sol * I to the heat balance; one the model lacks is
+    refused, and one the scenario leaves out is said to be taken as 0."""
+    kA, a = 800.0, 3.0
+    fit = Fit(
+        {
+            "vehicle": "Box",
+            "model": "order1",
+            "structure": "first_order+I_sol",
+            "verdict": "fit acceptable",
+            "parameters": {
+                "kA": {"value": kA, "estimated": False},
+                "C_bar": {"value": 3.0e7, "estimated": False},
+                "a_I_sol": {"value": a, "estimated": False},
+            },
+            "free": [],
+        }
+    )
+    base = scenario(400 * 3600.0, 3600.0, -10.0, heating_W=20_000.0)
+    sunny = Scenario(**{**base.__dict__, "irradiance": {"I_sol": np.full(base.t_s.shape, 500.0)}})
+    out = sim.simulate(fit, sunny, draws=0)
+    assert out.series["T"].iloc[-1] == pytest.approx(-10.0 + (20_000.0 + a * 500.0) / kA, abs=1e-6)
+    dark = sim.simulate(fit, base, draws=0)
+    assert any("I_sol" in n and "taken as 0" in n for n in dark.notes)
+    wrong = Scenario(**{**base.__dict__, "irradiance": {"I_roof": base.T_o * 0}})
+    with pytest.raises(sim.ConfigError, match="irradiance.I_roof"):
+        sim.simulate(fit, wrong, draws=0)
