@@ -505,6 +505,7 @@ def _run(
     g_index: np.ndarray,
     x0: np.ndarray,
     noise: np.ndarray | None,
+    power0: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """States X (S, N+1, n), heating P (S, N+1) and inputs U (S, N+1, m) of S parameter sets
     through the scenario (the controller closing the loop step by step)."""
@@ -518,7 +519,9 @@ def _run(
     dt = scenario.dt_s
     if ctl is not None:
         on = X[:, 0, 0] < ctl.setpoint_C
-        integral = np.zeros(S)
+        # a PI controller taking over a steady state holds its power from the start (its
+        # integral at the steady power: a bumpless start); from any other start it is at 0
+        integral = np.zeros(S) if power0 is None else np.asarray(power0, dtype=float).copy()
         kp = ctl.kp_W_K if ctl.kp_W_K is not None else PI_KP_PER_W * ctl.power_max_W
         ti = ctl.ti_s if ctl.ti_s is not None else PI_TI_S
     for k in range(N1):
@@ -552,14 +555,19 @@ def _run(
 
 
 def _initial(
-    structure: models.Structure, scenario: Scenario, steps: _Steps, u: np.ndarray, g0: int
-) -> np.ndarray:
-    """x0 of every draw (S, n) from the scenario's ``initial``."""
+    structure: models.Structure,
+    scenario: Scenario,
+    steps: _Steps,
+    u: np.ndarray,
+    g_index: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """x0 of every draw (S, n) from the scenario's ``initial``, and under a controller from a
+    steady start the heating power (S,) that holds it (None otherwise)."""
     S = steps.A.shape[1]
     n = len(structure.states)
     init = scenario.initial
     if init.kind == "soaked":
-        return np.full((S, n), float(scenario.T_o[0]))
+        return np.full((S, n), float(scenario.T_o[0])), None
     if init.kind == "given":
         values = dict(init.states_C)
         unknown = sorted(set(values) - set(structure.states))
@@ -571,13 +579,18 @@ def _initial(
                 f"the model's states are {list(structure.states)}",
             )
         T = float(values.get("T", scenario.T_o[0]))
-        return np.tile([float(values.get(s, T)) for s in structure.states], (S, 1))
-    # steady: the equilibrium of the first input row, at the set point under a controller
+        return np.tile([float(values.get(s, T)) for s in structure.states], (S, 1)), None
+    # steady: the equilibrium of the first input row, at the set point under a controller,
+    # with the scenario's mean air exchange (door openings come and go within minutes: the
+    # vehicle in service is at the steady state of their mean, not of the first step's). A
+    # and B are affine in the exchange, so the row-weighted mean of the matrices is theirs.
     u0 = u[0].copy()
-    A, B = steps.A[g0], steps.B[g0]
+    weights = np.bincount(g_index, minlength=steps.A.shape[0]) / len(g_index)
+    A = np.einsum("g,gsij->sij", weights, steps.A)
+    B = np.einsum("g,gsij->sij", weights, steps.B)
     if scenario.controller is None:
         u0[1] += scenario.heating_W[0]
-        return -np.linalg.solve(A, (B @ u0)[..., None])[..., 0]
+        return -np.linalg.solve(A, (B @ u0)[..., None])[..., 0], None
     T0 = _steady_T(A, B, u0)
     e = np.zeros_like(u0)
     e[1] = 1.0
@@ -589,7 +602,7 @@ def _initial(
     )
     U0 = np.tile(u0, (S, 1))
     U0[:, 1] += power
-    return -np.linalg.solve(A, np.einsum("sij,sj->si", B, U0)[..., None])[..., 0]
+    return -np.linalg.solve(A, np.einsum("sij,sj->si", B, U0)[..., None])[..., 0], power
 
 
 def _quantiles(v: np.ndarray) -> tuple[float, float]:
@@ -684,12 +697,12 @@ def simulate(
             status_heat = "unreachable"
             notes.append(f"heating.controller.power_max_W = {ctl.power_max_W:g} W is {message}")
 
-    x0 = _initial(structure, scenario, steps, u, int(g_index[0]))
+    x0, power0 = _initial(structure, scenario, steps, u, g_index)
     noise = None
     if sigma is not None:
         noise = rng.standard_normal((len(thetas), len(scenario.t_s), len(structure.states)))
         noise[0] = 0.0  # the central run is the model's own prediction, without noise
-    X, P, U = _run(steps, scenario, u, g_index, x0, noise)
+    X, P, U = _run(steps, scenario, u, g_index, x0, noise, power0)
     T = X[:, :, 0]
     t = scenario.t_s
     N = len(t) - 1

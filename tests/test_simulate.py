@@ -327,3 +327,15 @@ def test_irradiance_enters_through_the_fitted_aperture():
     wrong = Scenario(**{**base.__dict__, "irradiance": {"I_roof": base.T_o * 0}})
     with pytest.raises(sim.ConfigError, match="irradiance.I_roof"):
         sim.simulate(fit, wrong, draws=0)
+
+
+def test_pi_controller_taking_over_a_steady_state_holds_it_without_a_dip():
+    """From `initial: steady` under constant conditions the PI controller starts at the
+    steady power (bumpless), so T stays at the set point and the power at kA (T - T_o)."""
+    ctl = Controller(kind="pi", setpoint_C=20.0, power_max_W=60_000.0)
+    sc = scenario(
+        6 * 3600.0, 60.0, -5.0, controller=ctl, initial=Initial("steady"), gains={"p": 3000.0}
+    )
+    out = sim.simulate(first_order_fit(), sc, draws=0)
+    np.testing.assert_allclose(out.series["T"], 20.0, atol=1e-9)
+    np.testing.assert_allclose(out.series["heating_W"], 800.0 * 25.0 - 3000.0, rtol=1e-9)

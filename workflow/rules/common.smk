@@ -70,7 +70,9 @@ def railtherm_modules(*modules):
             elif sub or plain:
                 todo += _source_files((sub or plain).lstrip("."))
             else:
-                todo += [f for n in names.split(",") for f in _source_files(n.strip())]
+                todo += [
+                    f for n in names.split(",") for f in _source_files(n.split(" as ")[0].strip())
+                ]
     return sorted(seen)
 
 
