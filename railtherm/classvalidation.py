@@ -98,6 +98,22 @@ def _inside(x: float, lo: float, hi: float) -> Any:
     return bool(lo <= x <= hi)
 
 
+def _compared(stem: str, unit: str, ref: tuple, own: tuple, own_band: bool) -> dict[str, Any]:
+    """The columns of one outcome: the reference model's value and band, the vehicle's own,
+    their ratio and whether the own value lies inside the reference band."""
+    out = {
+        f"{stem}_ref_{unit}": ref[0],
+        f"{stem}_ref_{unit}_lo": ref[1],
+        f"{stem}_ref_{unit}_hi": ref[2],
+        f"{stem}_fit_{unit}": own[0],
+    }
+    if own_band:
+        out[f"{stem}_fit_{unit}_lo"], out[f"{stem}_fit_{unit}_hi"] = own[1], own[2]
+    out[f"{stem}_ratio"] = ref[0] / own[0] if own[0] else math.nan
+    out[f"{stem}_inside"] = _inside(own[0], ref[1], ref[2])
+    return out
+
+
 def leave_one_out(
     members: Sequence[classmodel.ClassMember],
     fits: Mapping[str, Fit],
@@ -168,20 +184,8 @@ def leave_one_out(
                         "status": "predicted",
                         "rmse_ref_K": rmse_ref,
                         "rmse_fit_K": rmse_fit,
-                        "heat_up_ref_h": heat[0],
-                        "heat_up_ref_h_lo": heat[1],
-                        "heat_up_ref_h_hi": heat[2],
-                        "heat_up_fit_h": own_heat[0],
-                        "heat_up_fit_h_lo": own_heat[1],
-                        "heat_up_fit_h_hi": own_heat[2],
-                        "heat_up_ratio": heat[0] / own_heat[0],
-                        "heat_up_inside": _inside(own_heat[0], heat[1], heat[2]),
-                        "energy_ref_kWh": energy[0],
-                        "energy_ref_kWh_lo": energy[1],
-                        "energy_ref_kWh_hi": energy[2],
-                        "energy_fit_kWh": own_energy[0],
-                        "energy_ratio": energy[0] / own_energy[0],
-                        "energy_inside": _inside(own_energy[0], energy[1], energy[2]),
+                        **_compared("heat_up", "h", heat, own_heat, own_band=True),
+                        **_compared("energy", "kWh", energy, own_energy, own_band=False),
                     }
                 )
                 rows.append(row)

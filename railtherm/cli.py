@@ -277,6 +277,16 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _directory_option(parser: argparse.ArgumentParser) -> None:
+    """``-d/--directory``: the working directory every path of the command is relative to."""
+    parser.add_argument(
+        "-d",
+        "--directory",
+        default=".",
+        help="working directory all paths are relative to (default: %(default)s)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with one subparser per command."""
     parser = argparse.ArgumentParser(
@@ -378,12 +388,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="config/config.yaml",
         help="study config whose defaults apply, if it exists (default: %(default)s)",
     )
-    fit.add_argument(
-        "-d",
-        "--directory",
-        default=".",
-        help="working directory all paths are relative to (default: %(default)s)",
-    )
+    _directory_option(fit)
     fit.set_defaults(run=_fit)
 
     reference = commands.add_parser(
@@ -436,12 +441,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="results",
         help="the study's results directory with tables/table2.csv (default: %(default)s)",
     )
-    reference.add_argument(
-        "-d",
-        "--directory",
-        default=".",
-        help="working directory all paths are relative to (default: %(default)s)",
-    )
+    _directory_option(reference)
     reference.add_argument(
         "--out", metavar="FILE", help="YAML file to write (default: print the YAML)"
     )
@@ -489,12 +489,7 @@ def build_parser() -> argparse.ArgumentParser:
             "unreachable) instead of refusing it"
         ),
     )
-    simulate.add_argument(
-        "-d",
-        "--directory",
-        default=".",
-        help="working directory all paths are relative to (default: %(default)s)",
-    )
+    _directory_option(simulate)
     simulate.set_defaults(run=_simulate)
     return parser
 

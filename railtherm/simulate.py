@@ -712,26 +712,23 @@ def simulate(
             return None
         return _crossing(T, X, U, g_index, steps, t, threshold, rising)
 
-    up = times(scenario.heat_up_to_C, True)
-    down = times(scenario.cool_down_to_C, False)
     has_band = len(thetas) > 1
-    heat = _time_outcome(
-        "heat_up_time_s",
-        up[0] if up is not None else math.nan,
-        up[1:] if up is not None and has_band else None,
-        scenario.heat_up_to_C,
-        f"reach {scenario.heat_up_to_C} °C",
-    )
+
+    def threshold_time(name: str, threshold: float | None, rising: bool, what: str) -> Outcome:
+        crossed = times(threshold, rising)
+        return _time_outcome(
+            name,
+            crossed[0] if crossed is not None else math.nan,
+            crossed[1:] if crossed is not None and has_band else None,
+            threshold,
+            f"{what} {threshold} °C",
+        )
+
+    heat = threshold_time("heat_up_time_s", scenario.heat_up_to_C, True, "reach")
     if status_heat == "unreachable" and scenario.heat_up_to_C is not None:
         if not math.isfinite(heat.value or math.inf):
             heat = Outcome(heat.name, "s", math.inf, heat.lo, heat.hi, "unreachable", heat.note)
-    cool = _time_outcome(
-        "cool_down_time_s",
-        down[0] if down is not None else math.nan,
-        down[1:] if down is not None and has_band else None,
-        scenario.cool_down_to_C,
-        f"fall to {scenario.cool_down_to_C} °C",
-    )
+    cool = threshold_time("cool_down_time_s", scenario.cool_down_to_C, False, "fall to")
     energy = P[:, :N].sum(axis=1) * scenario.dt_s / 3.6e6
     peak = P[:, :N].max(axis=1)
     final = T[:, -1]
