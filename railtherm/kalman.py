@@ -47,7 +47,6 @@ from typing import Any
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_discrete_are, solve_discrete_lyapunov
 from scipy.optimize import minimize
-from scipy.signal import lfilter
 
 from railtherm import models, pem
 from railtherm.models import Structure
@@ -151,7 +150,7 @@ class _Modes:
                     f = np.empty((len(h), L), dtype=complex)
                     f.real = h.real @ Z
                     f.imag = h.imag @ Z
-                z[forced] = lfilter(
+                z[forced] = models.lfilter(
                     one.astype(dtype), [1.0, -lam], f, axis=-1, zi=z0[forced][:, None]
                 )[0]
             if not forced.all():

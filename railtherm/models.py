@@ -43,7 +43,6 @@ from typing import Any
 
 import numpy as np
 from scipy.linalg import expm, schur
-from scipy.signal import lfilter
 
 __all__ = [
     "STRUCTURES",
@@ -70,6 +69,15 @@ __all__ = [
 
 FREE_RESPONSE_CUT = 1e-30  # |lambda|^n below this (relative to 1) is taken as 0
 _MODAL_COND_MAX = 1e8  # cond(V) above this: use the Schur form instead of eigenvectors
+
+
+def lfilter(b, a, x, **kwargs):
+    """``scipy.signal.lfilter``, imported on first use: scipy.signal's import (which pulls in
+    scipy.stats) is the largest share of a job's start-up, and the jobs that only read results
+    (checks, tables) never simulate."""
+    from scipy.signal import lfilter as filter_
+
+    return filter_(b, a, x, **kwargs)
 
 
 def first_order(kA: float, C_bar: float) -> tuple[np.ndarray, np.ndarray]:

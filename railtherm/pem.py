@@ -43,7 +43,6 @@ from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 from threadpoolctl import ThreadpoolController
 
 from railtherm import models
@@ -743,6 +742,8 @@ def equation_error_start(
             w = None
     if w is None:
         try:
+            from scipy.optimize import least_squares  # on first use: a job's start-up
+
             sol = least_squares(fun, w0, jac=jac, bounds=(lo, hi), method="trf")
         except failures:
             return None
@@ -955,6 +956,8 @@ def fit(
     inside = np.all(sol.x > lo) and np.all(sol.x < hi)
     if not (sol.success and inside and np.all(np.isfinite(sol.fun))):
         first = sol
+        from scipy.optimize import least_squares  # on first use: a job's start-up
+
         sol = least_squares(
             prob.residuals,
             v0,

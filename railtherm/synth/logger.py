@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.signal import lfilter
 
 from railtherm.errors import ConfigError
+from railtherm.models import lfilter
 from railtherm.rawfile import RawLayout
 from railtherm.synth.campaign import _deviation, vehicle_spec
 from railtherm.synth.physics import _interval_mean, _rngs, _run_cached

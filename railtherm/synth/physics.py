@@ -20,9 +20,8 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.signal import lfilter
 
-from railtherm.models import discretize_zoh, second_order
+from railtherm.models import discretize_zoh, lfilter, second_order
 from railtherm.synth.campaign import _deviation
 
 
