@@ -93,7 +93,7 @@ def snakemake_overhead(rounds: int) -> tuple[float, float]:
             for kind, target in (("script", "a"), ("shell", "b")):
                 t0 = time.perf_counter()
                 subprocess.run(
-                    [sys.executable, "-m", "snakemake", "--cores", "1", "-F", "-q", target],
+                    [sys.executable, "-m", "snakemake", "--cores", "1", "-F", target],
                     cwd=root,
                     check=True,
                     capture_output=True,
