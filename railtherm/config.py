@@ -15,13 +15,24 @@ A vehicle YAML file is checked in two stages, and the first mistake found stops 
 Paths: relative ``raw_files`` paths are relative to the vehicle YAML's directory; the loaded
 :class:`Vehicle` holds them normalised relative to ``workdir`` (the workflow's working
 directory), the form in which the workflow and :func:`railtherm.synth.planned_layouts` name them.
+
+A study parsed again (every ``snakemake`` call parses it) need not validate again what has not
+changed: :func:`load_study` with a ``cache`` file (:class:`VehicleCache`) reuses each vehicle
+validated before while its file, the study's defaults, its raw files (size, mtime, ctime,
+inode) and the railtherm code are unchanged.
 """
 
 from __future__ import annotations
 
 import copy
 import difflib
+import functools
+import hashlib
+import importlib.metadata
+import json
 import os
+import pickle
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -52,6 +63,7 @@ from railtherm.yamlio import (
 __all__ = [
     "Study",
     "Vehicle",
+    "VehicleCache",
     "add_vehicle",
     "deep_merge",
     "load_study",
@@ -654,6 +666,7 @@ def load_study(
     config: Mapping[str, Any],
     workdir: str | os.PathLike[str] = ".",
     config_file: str = "config/config.yaml",
+    cache: str | os.PathLike[str] | None = None,
 ) -> Study:
     """Load every vehicle of the study config (paths relative to ``workdir``).
 
@@ -661,9 +674,14 @@ def load_study(
     virtual wind tunnel has not written yet. Checks that listed vehicle files exist, vehicle
     ids are unique and ``defaults.model`` is valid; messages name ``config_file`` for mistakes
     in the study config and the vehicle file for mistakes there.
+
+    ``cache`` is a file (e.g. ``.snakemake/railtherm/vehicles.pickle``) keeping the validated
+    vehicles for the next load (:class:`VehicleCache`): a vehicle whose file, raw files and
+    context are unchanged is taken from it, neither its YAML nor its raw files read again.
     """
     workdir = str(workdir)
     study = study_context(config, workdir, config_file)
+    vehicle_cache = VehicleCache(cache) if cache is not None else None
     vehicle_paths = config.get("vehicles")
     if not isinstance(vehicle_paths, list) or not vehicle_paths:
         raise ConfigError(
@@ -675,7 +693,9 @@ def load_study(
         local = os.path.normpath(os.path.join(workdir, vehicle_path))
         if not os.path.isfile(local):
             raise ConfigError(config_file, f"vehicles[{i}]", vehicle_path, "vehicle file not found")
-        add_vehicle(study, local, workdir)
+        add_vehicle(study, local, workdir, cache=vehicle_cache)
+    if vehicle_cache is not None:
+        vehicle_cache.save()
     return study
 
 
@@ -732,12 +752,24 @@ def study_context(
     )
 
 
-def add_vehicle(study: Study, path: str | os.PathLike[str], workdir: str = ".") -> Vehicle:
-    """Load one vehicle file under the study's defaults and layouts and add it to the study.
+def add_vehicle(
+    study: Study,
+    path: str | os.PathLike[str],
+    workdir: str = ".",
+    cache: VehicleCache | None = None,
+) -> Vehicle:
+    """Load one vehicle file under the study's defaults and layouts and add it to the study
+    (from ``cache`` when it holds the vehicle validated under the same conditions).
 
     :class:`ConfigError` naming the vehicle file when its id is already taken.
     """
-    vehicle = load_vehicle(path, defaults=study.defaults, layouts=study.layouts, workdir=workdir)
+    vehicle = cache.get(path, study, workdir) if cache is not None else None
+    if vehicle is None:
+        vehicle = load_vehicle(
+            path, defaults=study.defaults, layouts=study.layouts, workdir=workdir
+        )
+        if cache is not None:
+            cache.put(path, study, workdir, vehicle)
     if vehicle.id in study.vehicles:
         raise ConfigError(
             _display(str(path), workdir),
@@ -747,3 +779,127 @@ def add_vehicle(study: Study, path: str | os.PathLike[str], workdir: str = ".") 
         )
     study.vehicles[vehicle.id] = vehicle
     return vehicle
+
+
+# ---------------------------------------------------------------------------------------------
+# Parse cache
+
+
+@functools.cache
+def _code_version() -> str:
+    """Digest of the railtherm package (every module and schema: what validation runs and
+    reads) and of the libraries that parse files: any change invalidates the cache."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    h = hashlib.sha256(sys.version.encode())
+    for dist in ("pandas", "numpy", "PyYAML", "jsonschema"):
+        try:
+            h.update(f"{dist} {importlib.metadata.version(dist)}".encode())
+        except importlib.metadata.PackageNotFoundError:
+            h.update(f"{dist} ?".encode())
+    files = []
+    for root, dirs, names in os.walk(here):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        files += [os.path.join(root, n) for n in names if n.endswith((".py", ".yaml"))]
+    for file in sorted(files):
+        h.update(os.path.relpath(file, here).encode())
+        with open(file, "rb") as stream:
+            h.update(stream.read())
+    return h.hexdigest()
+
+
+def _stat_key(path: str) -> list[int] | None:
+    """What tells a file changed: size, mtime, ctime (which no user sets back) and inode; None
+    for a file that does not exist."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return [st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino]
+
+
+class VehicleCache:
+    """Vehicles validated by :func:`load_vehicle`, kept in a pickle file for the next load.
+
+    An entry is reused while everything its validation read is unchanged: the bytes of the
+    vehicle file, its path and the working directory, the study's ``defaults`` and planned
+    raw-file layouts (a campaign's), the size, mtime, ctime and inode of each raw file (or its
+    absence), and the railtherm code and parsing libraries (:func:`_code_version`). A vehicle
+    whose validation failed is not kept, so its error is raised again on every load. The file
+    holds the vehicles of the last load only; a missing, broken or other-version file is only
+    a cache (nothing is reused), and one that cannot be written costs time, not correctness.
+    ``hits`` and ``misses`` count the lookups of this load.
+    """
+
+    def __init__(self, path: str | os.PathLike[str] | None = None):
+        self.path = None if path is None else os.path.abspath(path)
+        self.entries: dict[str, tuple[str, list, Vehicle]] = {}
+        self.used: dict[str, tuple[str, list, Vehicle]] = {}
+        self.hits = self.misses = 0
+        self._dirty = False
+        self._context: tuple[int, str] | None = None
+        if self.path and os.path.isfile(self.path):
+            try:
+                with open(self.path, "rb") as stream:
+                    if pickle.load(stream) == _code_version():
+                        self.entries = pickle.load(stream)
+            except Exception:  # a broken or foreign cache is only a cache
+                self.entries = {}
+
+    def _study_digest(self, study: Study, workdir: str) -> str:
+        """Digest of what every vehicle of ``study`` is validated under (computed once)."""
+        if self._context is None or self._context[0] != id(study):
+            h = hashlib.sha256(os.path.abspath(workdir).encode())
+            h.update(json.dumps(study.defaults, sort_keys=True, default=repr).encode())
+            h.update(repr(sorted(study.layouts.items())).encode())
+            self._context = (id(study), h.hexdigest())
+        return self._context[1]
+
+    def _key(self, path: str | os.PathLike[str], study: Study, workdir: str) -> tuple[str, str]:
+        name = os.path.abspath(path)
+        h = hashlib.sha256(_code_version().encode())
+        h.update(self._study_digest(study, workdir).encode())
+        h.update(name.encode())
+        try:
+            with open(name, "rb") as stream:
+                h.update(stream.read())
+        except OSError:
+            h.update(b"(unreadable)")
+        return name, h.hexdigest()
+
+    def get(self, path: str | os.PathLike[str], study: Study, workdir: str) -> Vehicle | None:
+        """The vehicle of ``path`` as validated before under the same conditions, or None."""
+        name, key = self._key(path, study, workdir)
+        entry = self.entries.get(name)
+        if entry is not None and entry[0] == key:
+            if all(_stat_key(file) == stat for file, stat in entry[1]):
+                self.hits += 1
+                self.used[name] = entry
+                return entry[2]
+        self.misses += 1
+        return None
+
+    def put(self, path: str | os.PathLike[str], study: Study, workdir: str, vehicle: Vehicle):
+        """Keep ``vehicle``, just validated from ``path``, with the state of its raw files."""
+        name, key = self._key(path, study, workdir)
+        yaml_dir = os.path.dirname(name)
+        files = [
+            os.path.abspath(os.path.normpath(os.path.join(yaml_dir, raw)))
+            for raw in vehicle.data["raw_files"].values()
+        ]
+        self.used[name] = (key, [(f, _stat_key(f)) for f in files], vehicle)
+        self._dirty = True
+
+    def save(self) -> None:
+        """Write the vehicles of this load (when any was validated anew, or one left)."""
+        if not self.path or not (self._dirty or self.used.keys() != self.entries.keys()):
+            return
+        try:
+            os.makedirs(os.path.dirname(self.path), exist_ok=True)
+            tmp = f"{self.path}.{os.getpid()}.tmp"
+            with open(tmp, "wb") as stream:
+                pickle.dump(_code_version(), stream)
+                pickle.dump(self.used, stream, protocol=pickle.HIGHEST_PROTOCOL)
+            os.replace(tmp, self.path)
+        except OSError:
+            pass  # an unwritable cache costs time, not correctness
+        self.entries, self._dirty = dict(self.used), False

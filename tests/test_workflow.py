@@ -11,34 +11,12 @@ import pytest
 import yaml
 from compare_outputs import assert_outputs_agree
 from matplotlib.image import imread
-from snakemake_run import snakemake
+from snakemake_run import job_counts, make_study, snakemake
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = ["Tram2", "Metro3"]
 
 pytestmark = pytest.mark.workflow
-
-
-def make_study(tmp_path: Path, vehicles: list[str] | None = None) -> Path:
-    """A working directory holding a copy of config/, optionally restricted to some vehicles."""
-    study = tmp_path / "study"
-    shutil.copytree(REPO / "config", study / "config")
-    if vehicles is not None:
-        cfg_path = study / "config" / "config.yaml"
-        cfg = yaml.safe_load(cfg_path.read_text())
-        cfg["vehicles"] = [f"config/vehicles/{v}.yaml" for v in vehicles]
-        cfg_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
-    return study
-
-
-def job_counts(output: str) -> dict[str, int]:
-    """Rule -> job count from the 'Job stats' table Snakemake prints."""
-    table = output.split("Job stats:", 1)[1]
-    return {
-        m.group(1): int(m.group(2))
-        for m in re.finditer(r"^(\w+)\s+(\d+)\s*$", table, re.MULTILINE)
-        if m.group(1) != "total"
-    }
 
 
 def planned_outputs(output: str, rule: str) -> list[str]:

@@ -23,7 +23,7 @@ rule audit:
             category="Audit of published values",
         ),
     params:
-        code=code_digest("audit.py"),
+        code=script_code("audit.py"),
     log:
         "logs/audit.log",
     threads: 1

@@ -1,28 +1,35 @@
 # Shared set-up: load and validate every vehicle before any job starts, and helpers for rules.
 import functools
-import hashlib
+import inspect
 import os
 import re
 from pathlib import Path
 
 from snakemake.exceptions import WorkflowError
 
-import railtherm
+try:  # where Snakemake looks up an input or params function's parameters, job by job
+    from snakemake.common import overwrite_function_params
+except ImportError:  # another Snakemake: inspected at every job, as usual
+    overwrite_function_params = None
+
 from railtherm import identify as rt_identify
 from railtherm import reference as rt_reference
-from railtherm import ingest, synth
+from railtherm import codedigest, ingest, synth
 from railtherm.config import load_study
 from railtherm.datacheck import check_study_values
 from railtherm.errors import RailthermError
 from railtherm.rawfile import DigestCache
 from railtherm.scenario import load_scenario
 
-RAILTHERM_DIR = Path(railtherm.__file__).parent
 # where a conda job's post-deploy script finds the repository to install railtherm from
 os.environ.setdefault("RAILTHERM_REPO", str(Path(workflow.basedir).resolve()))
 
+# railtherm's parse caches: a study parsed again validates only what changed (railtherm.config
+# VehicleCache, railtherm.rawfile DigestCache, railtherm.datacheck check_study_values)
+CACHE_DIR = ".snakemake/railtherm"
+
 try:
-    STUDY = load_study(config, workdir=".")
+    STUDY = load_study(config, workdir=".", cache=f"{CACHE_DIR}/vehicles.pickle")
 except RailthermError as err:
     raise WorkflowError(f"invalid configuration: {err}") from None
 
@@ -32,57 +39,18 @@ CAMPAIGN_VEHICLES = list(CAMPAIGN["vehicles"]) if CAMPAIGN else []
 CAMPAIGN_ROOT = "resources/campaign"
 
 
+VEHICLE_ID = "[A-Za-z][A-Za-z0-9_-]*"
+
+
 wildcard_constraints:
-    vehicle="[A-Za-z][A-Za-z0-9_-]*",
+    vehicle=VEHICLE_ID,
 
 
-_IMPORT = re.compile(
-    r"^\s*(?:from railtherm((?:\.\w+)*) import ([\w, ]+)|import railtherm((?:\.\w+)+)"
-    r"|from (\.+\w*) import)",
-    re.M,
-)
-
-
-def _source_files(dotted):
-    """Source files (relative to the package) of a railtherm module or subpackage."""
-    path = RAILTHERM_DIR.joinpath(*dotted.split("."))
-    if path.with_suffix(".py").is_file():
-        return [path.with_suffix(".py").relative_to(RAILTHERM_DIR).as_posix()]
-    if path.is_dir():
-        return sorted(p.relative_to(RAILTHERM_DIR).as_posix() for p in path.rglob("*.py"))
-    return []
-
-
-@functools.cache
-def railtherm_modules(*modules):
-    """The railtherm source files ``modules`` (``ingest.py``; a subpackage ``synth.py`` stands
-    for every file of ``synth/``) and every railtherm module they import, in turn."""
-    seen, todo = [], [f for m in modules for f in _source_files(m.removesuffix(".py"))]
-    while todo:
-        name = todo.pop(0)
-        if name in seen:
-            continue
-        seen.append(name)
-        package = ".".join(Path(name).parent.parts)
-        for sub, names, plain, relative in _IMPORT.findall((RAILTHERM_DIR / name).read_text()):
-            if relative:  # from .x import ...: a sibling inside a subpackage, already included
-                todo += _source_files(package) if package else []
-            elif sub or plain:
-                todo += _source_files((sub or plain).lstrip("."))
-            else:
-                todo += [
-                    f for n in names.split(",") for f in _source_files(n.split(" as ")[0].strip())
-                ]
-    return sorted(seen)
-
-
-def code_digest(*modules):
-    """Digest of railtherm source files and of what they import from railtherm, passed as a
-    param so that code edits rerun the jobs that run that code."""
-    h = hashlib.sha256()
-    for name in railtherm_modules(*modules):
-        h.update(name.encode() + (RAILTHERM_DIR / name).read_bytes())
-    return h.hexdigest()[:16]
+def script_code(script):
+    """Digest of the railtherm code that ``workflow/scripts/<script>`` can run (its imports,
+    in turn: railtherm.codedigest), passed as a param so that an edit of that code reruns the
+    rule's jobs and no others."""
+    return codedigest.code_digest(Path(workflow.basedir) / "workflow" / "scripts" / script)
 
 
 def campaign_file_regex(field):
@@ -105,20 +73,69 @@ def raw_files(vehicle):
     return list(STUDY.vehicles[vehicle].raw_files.values())
 
 
+# The helpers below answer per vehicle and are memoised: input functions and params run once
+# per job, and a fleet has thousands of jobs.
+
+
+def per_job(func):
+    """Mark an input or params function: its signature is read once, not by Snakemake at each
+    of the thousands of jobs of a fleet (inspect.signature costs more than the function)."""
+    if overwrite_function_params is not None:
+        overwrite_function_params(func, inspect.signature(func).parameters)
+    return func
+
+
+@functools.cache
 def tidy_tables(vehicle):
     """Tidy tables of a vehicle: its windows, plus the whole record for the k-window figure."""
     names = ingest.window_names(STUDY.vehicles[vehicle].data)
-    return names + ["record"] if "kvalue" in names else names
+    return tuple(names + ["record"] if "kvalue" in names else names)
 
 
-def window_raw_file(wildcards):
-    """The raw file a tidy table is cut from (see railtherm.ingest.window_spec)."""
-    vehicle = STUDY.vehicles[wildcards.vehicle]
-    key, _, _ = ingest.window_spec(vehicle.data, wildcards.window)
-    return vehicle.raw_files[key]
+@functools.cache
+def table_sources(vehicle):
+    """{tidy table: the raw file it is cut from} of a vehicle (railtherm.ingest.window_spec)."""
+    v = STUDY.vehicles[vehicle]
+    return {w: v.raw_files[ingest.window_spec(v.data, w)[0]] for w in tidy_tables(vehicle)}
 
 
-RAW_DIGESTS = DigestCache(".snakemake/railtherm/raw-digests.json")
+@per_job
+def clean_input(wildcards):
+    """The raw files a vehicle's tidy tables are cut from (each once)."""
+    return list(dict.fromkeys(table_sources(wildcards.vehicle).values()))
+
+
+def rule_groups(name, signature):
+    """The study's vehicles grouped by ``signature(vehicle)``, which fixes the outputs of a
+    per-vehicle rule (Snakemake takes no output function), in order of first appearance, as
+    [(name of the group's rule, signature, wildcard constraint of its vehicles)]. The rule of
+    the first group is named ``name``, those of further groups ``name_2``, ``name_3`` and so
+    on; a fleet of alike vehicles has one."""
+    groups = {}
+    for vid in VEHICLES:
+        groups.setdefault(signature(vid), []).append(vid)
+    return [
+        (name if i == 0 else f"{name}_{i + 1}", sig, group_constraint(list(groups.values()), vids))
+        for i, (sig, vids) in enumerate(groups.items())
+    ]
+
+
+def group_constraint(groups, vehicles):
+    """The wildcard constraint matching ``vehicles``, one of ``groups`` (lists of vehicles):
+    any vehicle id when there is one group; else for the largest group any id but the others'
+    (each followed by no id character), for the others their own ids. A fleet's constraints
+    stay short: a regular expression of a thousand names takes long to compile."""
+    if len(groups) == 1:
+        return VEHICLE_ID
+    largest = max(groups, key=len)
+    if vehicles is largest:
+        others = [vid for group in groups if group is not largest for vid in group]
+        alternatives = "|".join(re.escape(vid) for vid in others)
+        return f"(?!(?:{alternatives})(?![A-Za-z0-9_-])){VEHICLE_ID}"
+    return "|".join(re.escape(vid) for vid in vehicles)
+
+
+RAW_DIGESTS = DigestCache(f"{CACHE_DIR}/raw-digests.json")
 
 # every value of the study's own raw files, read as the jobs clean and kvalue will, so that a
 # bad value stops the run before any job (cached by content: a parse again re-reads nothing)
@@ -126,38 +143,102 @@ try:
     check_study_values(
         STUDY,
         RAW_DIGESTS,
-        ".snakemake/railtherm/value-checks.json",
+        f"{CACHE_DIR}/value-checks.json",
         skip=lambda path: Path(path).is_relative_to(CAMPAIGN_ROOT),
     )
 except RailthermError as err:
     raise WorkflowError(f"invalid raw data: {err}") from None
 
 
-def raw_digest(wildcards):
-    """Content digest of a window's raw file, passed as a param so that new content reruns
+@functools.cache
+def _raw_digests(vehicle):
+    return {
+        path: (
+            "written by rule synthesize"
+            if Path(path).is_relative_to(CAMPAIGN_ROOT)
+            else RAW_DIGESTS.digest(path)
+        )
+        for path in dict.fromkeys(table_sources(vehicle).values())
+    }
+
+
+@per_job
+def raw_digests(wildcards):
+    """Content digests of a vehicle's raw files, passed as a param so that new content reruns
     its jobs whatever the file's mtime. Files the workflow writes itself (the virtual
     campaign's) follow their own rule and are not hashed."""
-    path = window_raw_file(wildcards)
-    if Path(path).is_relative_to(CAMPAIGN_ROOT):
-        return "written by rule synthesize"
-    return RAW_DIGESTS.digest(path)
+    return _raw_digests(wildcards.vehicle)
+
+
+@functools.cache
+def _kvalue_vehicles():
+    return tuple(vid for vid in VEHICLES if "kvalue" in STUDY.vehicles[vid].windows)
 
 
 def kvalue_vehicles():
     """Vehicles with a steady window for the standardized static k test."""
-    return [vid for vid in VEHICLES if "kvalue" in STUDY.vehicles[vid].windows]
+    return list(_kvalue_vehicles())
 
 
+@functools.cache
+def has_kvalue(vehicle):
+    return vehicle in set(_kvalue_vehicles())
+
+
+@functools.cache
 def identification_windows(vehicle):
     """Names of a vehicle's identification windows, in config order."""
-    return [w["name"] for w in STUDY.vehicles[vehicle].windows["identification"]]
+    return tuple(w["name"] for w in STUDY.vehicles[vehicle].windows["identification"])
 
 
-def kvalue_input(vehicle):
+@functools.cache
+def _identification_tables(vehicle):
+    windows = identification_windows(vehicle)
+    return tuple(f"results/vehicles/{vehicle}/clean/{w}.csv" for w in windows)
+
+
+@per_job
+def identification_tables(wildcards):
+    """The tidy tables of a vehicle's identification windows (input of identify, sindy)."""
+    return list(_identification_tables(wildcards.vehicle))
+
+
+@per_job
+def kvalue_input(wildcards):
     """The static k result a two-stage fit needs (none without a k window)."""
-    if vehicle in kvalue_vehicles():
-        return f"results/vehicles/{vehicle}/kvalue.yaml"
+    if has_kvalue(wildcards.vehicle):
+        return f"results/vehicles/{wildcards.vehicle}/kvalue.yaml"
     return []
+
+
+@per_job
+def vehicle_data(wildcards):
+    """A vehicle's validated config (params of its jobs)."""
+    return STUDY.vehicles[wildcards.vehicle].data
+
+
+@per_job
+def check_settings(wildcards):
+    """The thresholds of a vehicle's verdicts (config `check`)."""
+    return STUDY.vehicles[wildcards.vehicle].data["check"]
+
+
+@per_job
+def vehicle_synthetic(wildcards):
+    """Whether a vehicle's data are synthetic (the figures say so)."""
+    return STUDY.vehicles[wildcards.vehicle].data.get("synthetic", False)
+
+
+@per_job
+def clean_sources(wildcards):
+    """{tidy table: raw file} of a vehicle (params of its clean job)."""
+    return table_sources(wildcards.vehicle)
+
+
+@per_job
+def identification_names(wildcards):
+    """The names of a vehicle's identification windows (params of identify)."""
+    return list(identification_windows(wildcards.vehicle))
 
 
 # the fits of the study's tables: fit_order<n>.yaml, or fit_order<n>_kalman.yaml when the study
@@ -167,17 +248,39 @@ TABLE_KEY_SUFFIX = (
 )
 
 
+@functools.cache
+def _fit_targets():
+    return tuple((vid, n) for vid in VEHICLES for n in STUDY.vehicles[vid].model["orders"])
+
+
 def fit_targets():
     """(vehicle, order) of every configured fit, in config order."""
-    return [(vid, n) for vid in VEHICLES for n in STUDY.vehicles[vid].model["orders"]]
+    return list(_fit_targets())
+
+
+@functools.cache
+def has_fit(vehicle, order):
+    return (vehicle, order) in set(_fit_targets())
+
+
+@per_job
+def second_order_fit(wildcards):
+    """A vehicle's second-order fit, if it has one (input of sindy)."""
+    if has_fit(wildcards.vehicle, 2):
+        return f"results/vehicles/{wildcards.vehicle}/fit_order2.yaml"
+    return []
+
+
+@functools.cache
+def model_keys(vehicle):
+    """The model keys of a vehicle's fits: order1, order2, then further structures, each per
+    estimator (the key names the files: fit_<key>.yaml)."""
+    return tuple(rt_identify.model_keys(STUDY.vehicles[vehicle].data))
 
 
 def model_targets():
-    """(vehicle, model key) of every configured fit: order1, order2, then further structures
-    (the key names the files: fit_<key>.yaml)."""
-    return [
-        (vid, key) for vid in VEHICLES for key in rt_identify.model_keys(STUDY.vehicles[vid].data)
-    ]
+    """(vehicle, model key) of every configured fit, in config order."""
+    return [(vid, key) for vid in VEHICLES for key in model_keys(vid)]
 
 
 def load_references():
@@ -192,9 +295,14 @@ def load_references():
 REFERENCES = load_references()
 
 
+@functools.cache
+def _second_order_vehicles():
+    return tuple(vid for vid, n in _fit_targets() if n == 2)
+
+
 def second_order_vehicles():
     """Vehicles with a second-order fit: the rows of Tables 2 and 3."""
-    return [vid for vid, n in fit_targets() if n == 2]
+    return list(_second_order_vehicles())
 
 
 def figure3_vehicle():
@@ -208,11 +316,30 @@ def figure4_vehicles():
     return [vid for vid in config["study"]["figure4"] if vid in second_order_vehicles()]
 
 
+@functools.cache
+def _sindy_vehicles():
+    if not config["sindy"]["enabled"]:
+        return ()
+    return tuple(vid for vid in VEHICLES if STUDY.vehicles[vid].channels.get("surface"))
+
+
 def sindy_vehicles():
     """Vehicles the SINDy cross-check runs on: with it enabled, those with surface sensors."""
-    if not config["sindy"]["enabled"]:
-        return []
-    return [vid for vid in VEHICLES if STUDY.vehicles[vid].channels.get("surface")]
+    return list(_sindy_vehicles())
+
+
+def figure_signature(vehicle):
+    """What fixes the outputs of a vehicle's figure job: a k figure or not, its model keys."""
+    return (has_kvalue(vehicle), model_keys(vehicle))
+
+
+def vehicle_figure_files(vehicle):
+    """Every figure of ``vehicle`` that its vehicle_figures job draws (the k figure, a figure
+    per fit, the innovations of each Kalman-filter fit), as PNG and SVG."""
+    has_k, keys = figure_signature(vehicle)
+    stems = (["kvalue"] if has_k else []) + [f"fit_{key}" for key in keys]
+    stems += [f"innovations_{key}" for key in keys if key.endswith(rt_identify.KALMAN_SUFFIX)]
+    return [f"results/vehicles/{vehicle}/{stem}.{ext}" for stem in stems for ext in ("png", "svg")]
 
 
 STUDY_TABLES = ("table1", "table2", "table3", "class_summary", "class_test")
@@ -277,25 +404,13 @@ def all_outputs():
         for vid in VEHICLES
         for window in tidy_tables(vid)
     ]
-    targets += [
-        f"results/vehicles/{vid}/kvalue.{ext}"
-        for vid in kvalue_vehicles()
-        for ext in ("yaml", "png", "svg")
-    ]
+    targets += [f"results/vehicles/{vid}/kvalue.yaml" for vid in kvalue_vehicles()]
     if kvalue_vehicles():
         targets.append("results/tables/kvalue.csv")
     targets += [f"results/vehicles/{vid}/fit_{key}.yaml" for vid, key in model_targets()]
     targets.append("results/tables/identification.csv")
-    targets += [
-        f"results/vehicles/{vid}/fit_{key}.{ext}"
-        for vid, key in model_targets()
-        for ext in ("png", "svg")
-    ]
-    targets += [
-        f"results/vehicles/{vid}/innovations_{key}.png"
-        for vid, key in model_targets()
-        if key.endswith(rt_identify.KALMAN_SUFFIX)
-    ]
+    if config["study"]["figures"]:
+        targets += [path for vid in VEHICLES for path in vehicle_figure_files(vid)]
     if config["study"]["models_table"]:
         targets += [f"results/tables/models.{ext}" for ext in ("csv", "md")]
     if config["study"]["references"]:

@@ -3,20 +3,17 @@
 
 rule identify:
     input:
-        windows=lambda wildcards: expand(
-            "results/vehicles/{{vehicle}}/clean/{window}.csv",
-            window=identification_windows(wildcards.vehicle),
-        ),
-        kvalue=lambda wildcards: kvalue_input(wildcards.vehicle),
+        windows=identification_tables,
+        kvalue=kvalue_input,
     output:
         estimate="results/vehicles/{vehicle}/identify/{model}.yaml",
         series="results/vehicles/{vehicle}/identify/{model}_series.csv",
     wildcard_constraints:
         model="(order[12]|interior_envelope)(_kalman)?",
     params:
-        vehicle=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data,
-        windows=lambda wildcards: identification_windows(wildcards.vehicle),
-        code=code_digest("identify.py", "pem.py", "models.py", "fit.py"),
+        vehicle=vehicle_data,
+        windows=identification_names,
+        code=script_code("identify.py"),
     log:
         "logs/identify/{vehicle}/{model}.log",
     threads: 1
@@ -38,8 +35,8 @@ rule check:
     wildcard_constraints:
         model="(order[12]|interior_envelope)(_kalman)?",
     params:
-        check=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data["check"],
-        code=code_digest("identify.py", "metrics.py", "fit.py"),
+        check=check_settings,
+        code=script_code("check.py"),
     log:
         "logs/check/{vehicle}/{model}.log",
     threads: 1
@@ -63,7 +60,7 @@ rule fit_table:
         "results/tables/identification.csv",
     params:
         fits=fit_targets(),
-        code=code_digest("aggregate.py"),
+        code=script_code("fit_table.py"),
     log:
         "logs/fit_table.log",
     threads: 1
@@ -89,7 +86,7 @@ rule compare_models:
         md="results/tables/models.md",
     params:
         data={vid: STUDY.vehicles[vid].data for vid in VEHICLES},
-        code=code_digest("aggregate.py", "tableformat.py"),
+        code=script_code("compare_models.py"),
     log:
         "logs/compare_models.log",
     threads: 1

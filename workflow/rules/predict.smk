@@ -30,7 +30,7 @@ rule simulate:
         figure=getattr(figure_scenario(), "name", None),
         draws=config["scenarios"]["draws"],
         seed=config["scenarios"]["seed"],
-        code=code_digest("predictions.py", "plots.py"),
+        code=script_code("simulate.py"),
     log:
         "logs/simulate.log",
     threads: 1
@@ -76,7 +76,7 @@ rule reference_validation:
         min_vehicles=config["reference_model"]["min_vehicles"],
         draws=config["scenarios"]["draws"],
         seed=config["scenarios"]["seed"],
-        code=code_digest("classvalidation.py", "plots.py"),
+        code=script_code("reference_validation.py"),
     log:
         "logs/reference_validation.log",
     threads: 1

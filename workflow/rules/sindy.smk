@@ -3,21 +3,14 @@
 
 rule sindy:
     input:
-        windows=lambda wildcards: expand(
-            "results/vehicles/{{vehicle}}/clean/{window}.csv",
-            window=identification_windows(wildcards.vehicle),
-        ),
-        fit=lambda wildcards: (
-            f"results/vehicles/{wildcards.vehicle}/fit_order2.yaml"
-            if (wildcards.vehicle, 2) in fit_targets()
-            else []
-        ),
+        windows=identification_tables,
+        fit=second_order_fit,
     output:
         "results/vehicles/{vehicle}/sindy.yaml",
     params:
-        vehicle=lambda wildcards: STUDY.vehicles[wildcards.vehicle].data,
+        vehicle=vehicle_data,
         settings={k: v for k, v in config["sindy"].items() if k != "enabled"},
-        code=code_digest("sindy.py"),
+        code=script_code("sindy.py"),
     log:
         "logs/sindy/{vehicle}.log",
     threads: 1
@@ -49,7 +42,7 @@ rule sindy_summary:
     params:
         vehicles=sindy_vehicles(),
         data={vid: STUDY.vehicles[vid].data for vid in sindy_vehicles()},
-        code=code_digest("sindy.py", "plots.py", "aggregate.py"),
+        code=script_code("sindy_summary.py"),
     log:
         "logs/sindy/summary.log",
     threads: 1

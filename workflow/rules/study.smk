@@ -1,63 +1,89 @@
-# The study's outputs (paper section 6): Tables 1-3, the class statistics, Figures 3-5 and a
-# fit figure per vehicle and model order; captions for `snakemake --report` in workflow/report.
+# The study's outputs (paper section 6): Tables 1-3, the class statistics, Figures 3-5 and the
+# figures of each vehicle; captions for `snakemake --report` in workflow/report.
 
 
-rule fit_figure:
-    input:
-        series="results/vehicles/{vehicle}/identify/{model}_series.csv",
-        fit="results/vehicles/{vehicle}/fit_{model}.yaml",
-    output:
-        png=report(
-            "results/vehicles/{vehicle}/fit_{model}.png",
-            caption="../report/fit_figure.rst",
-            category="Fits per vehicle",
-            subcategory="{vehicle}",
-            labels={"vehicle": "{vehicle}", "model": "{model}"},
-        ),
-        svg="results/vehicles/{vehicle}/fit_{model}.svg",
-    wildcard_constraints:
-        model="(order[12]|interior_envelope)(_kalman)?",
-    params:
-        code=code_digest("plots.py"),
-    log:
-        "logs/fit_figure/{vehicle}/{model}.log",
-    threads: 1
-    resources:
-        mem_mb=1000,
-        runtime=5,
-    conda:
-        "../envs/railtherm.yaml"
-    script:
-        "../scripts/fit_figure.py"
+# Every figure of one vehicle in one job: the static k test (railtherm.plots.kvalue_figure), the
+# fit of each model (fit_figure) and the innovations of each Kalman-filter fit
+# (innovation_figure). The figures are their own job: editing the plotting code redraws them
+# without recomputing k or a fit. A rule's outputs are fixed, so vehicles with another set of
+# figures (no k window, other models) get a rule of their own: `vehicle_figures`,
+# `vehicle_figures_2`, ... (rule_groups in common.smk). study.figures: false plans none.
+for _rule, (_has_k, _keys), _constraint in rule_groups("vehicle_figures", figure_signature):
+    _kalman = [key for key in _keys if key.endswith(rt_identify.KALMAN_SUFFIX)]
 
-
-rule innovation_figure:
-    input:
-        series="results/vehicles/{vehicle}/identify/{model}_series.csv",
-        fit="results/vehicles/{vehicle}/fit_{model}.yaml",
-    output:
-        png=report(
-            "results/vehicles/{vehicle}/innovations_{model}.png",
-            caption="../report/innovation_figure.rst",
-            category="Fits per vehicle",
-            subcategory="{vehicle}",
-            labels={"vehicle": "{vehicle}", "model": "{model}", "figure": "innovations"},
-        ),
-        svg="results/vehicles/{vehicle}/innovations_{model}.svg",
-    wildcard_constraints:
-        model="(order[12]|interior_envelope)_kalman",
-    params:
-        code=code_digest("plots.py", "diagnostics.py"),
-    log:
-        "logs/innovation_figure/{vehicle}/{model}.log",
-    threads: 1
-    resources:
-        mem_mb=1000,
-        runtime=5,
-    conda:
-        "../envs/railtherm.yaml"
-    script:
-        "../scripts/innovation_figure.py"
+    rule:
+        name: _rule
+        input:
+            **(
+                {
+                    "kvalue_window": "results/vehicles/{vehicle}/clean/kvalue.csv",
+                    "kvalue_record": "results/vehicles/{vehicle}/clean/record.csv",
+                    "kvalue_result": "results/vehicles/{vehicle}/kvalue.yaml",
+                }
+                if _has_k
+                else {}
+            ),
+            **{
+                f"series_{key}": f"results/vehicles/{{vehicle}}/identify/{key}_series.csv"
+                for key in _keys
+            },
+            **{f"fit_{key}": f"results/vehicles/{{vehicle}}/fit_{key}.yaml" for key in _keys},
+        output:
+            **(
+                {
+                    "kvalue_png": report(
+                        "results/vehicles/{vehicle}/kvalue.png",
+                        caption="../report/kvalue_figure.rst",
+                        category="Static k per vehicle",
+                        labels={"vehicle": "{vehicle}"},
+                    ),
+                    "kvalue_svg": "results/vehicles/{vehicle}/kvalue.svg",
+                }
+                if _has_k
+                else {}
+            ),
+            **{
+                f"fit_{key}_png": report(
+                    f"results/vehicles/{{vehicle}}/fit_{key}.png",
+                    caption="../report/fit_figure.rst",
+                    category="Fits per vehicle",
+                    subcategory="{vehicle}",
+                    labels={"vehicle": "{vehicle}", "model": key},
+                )
+                for key in _keys
+            },
+            **{f"fit_{key}_svg": f"results/vehicles/{{vehicle}}/fit_{key}.svg" for key in _keys},
+            **{
+                f"innovations_{key}_png": report(
+                    f"results/vehicles/{{vehicle}}/innovations_{key}.png",
+                    caption="../report/innovation_figure.rst",
+                    category="Fits per vehicle",
+                    subcategory="{vehicle}",
+                    labels={"vehicle": "{vehicle}", "model": key, "figure": "innovations"},
+                )
+                for key in _kalman
+            },
+            **{
+                f"innovations_{key}_svg": f"results/vehicles/{{vehicle}}/innovations_{key}.svg"
+                for key in _kalman
+            },
+        wildcard_constraints:
+            vehicle=_constraint,
+        params:
+            kvalue=_has_k,
+            models=list(_keys),
+            synthetic=vehicle_synthetic,
+            code=script_code("vehicle_figures.py"),
+        log:
+            "logs/vehicle_figures/{vehicle}.log",
+        threads: 1
+        resources:
+            mem_mb=1000,
+            runtime=5,
+        conda:
+            "../envs/railtherm.yaml"
+        script:
+            "../scripts/vehicle_figures.py"
 
 
 rule aggregate:
@@ -90,7 +116,7 @@ rule aggregate:
         vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
         with_kvalue=[vid for vid in second_order_vehicles() if vid in kvalue_vehicles()],
         class_test=config["study"]["class_test"],
-        code=code_digest("aggregate.py", "tableformat.py"),
+        code=script_code("aggregate.py"),
     log:
         "logs/aggregate.log",
     threads: 1
@@ -119,7 +145,7 @@ rule figure3:
         vehicle=figure3_vehicle(),
         synthetic=bool(figure3_vehicle())
         and STUDY.vehicles[figure3_vehicle()].data.get("synthetic", False),
-        code=code_digest("plots.py"),
+        code=script_code("figure3.py"),
     log:
         "logs/figures/figure3.log",
     threads: 1
@@ -148,7 +174,7 @@ rule figure4:
         synthetic=any(
             STUDY.vehicles[vid].data.get("synthetic", False) for vid in figure4_vehicles()
         ),
-        code=code_digest("plots.py"),
+        code=script_code("figure4.py"),
     log:
         "logs/figures/figure4.log",
     threads: 1
@@ -180,7 +206,7 @@ rule figure5:
         ),
         b_svg="results/figures/figure5b.svg",
     params:
-        code=code_digest("plots.py"),
+        code=script_code("figure5.py"),
     log:
         "logs/figures/figure5.log",
     threads: 1
@@ -220,7 +246,7 @@ rule reference:
             }
             for _, ref in REFERENCES
         ],
-        code=code_digest("reference.py", "identify.py", "pem.py", "models.py", "metrics.py"),
+        code=script_code("reference.py"),
     log:
         "logs/reference.log",
     threads: 1

@@ -9,7 +9,7 @@ rule synthesize:
         filename=campaign_file_regex("filename"),
     params:
         spec=lambda wildcards: synth.vehicle_spec(CAMPAIGN, wildcards.vehicle),
-        code=code_digest("synth.py", "models.py"),
+        code=script_code("synthesize.py"),
     log:
         "logs/synthesize/{vehicle}/{filename}.log",
     threads: 1
@@ -29,7 +29,7 @@ rule ground_truth:
         truth="results/campaign/ground_truth.csv",
         sources="results/campaign/ground_truth_sources.csv",
     params:
-        code=code_digest("synth.py"),
+        code=script_code("ground_truth.py"),
     log:
         "logs/ground_truth.log",
     threads: 1
