@@ -36,12 +36,29 @@ def _module_files(dotted: str) -> list[Path]:
     return []
 
 
-def _imported(path: Path) -> set[str]:
+def _statements(body: list[ast.stmt]):
+    """Every statement of ``body`` and of the blocks nested in it (function and class bodies,
+    branches, loops, ``try`` and ``with`` blocks): where an import can stand. Expressions are
+    not visited."""
+    todo = list(body)
+    while todo:
+        node = todo.pop()
+        yield node
+        for name in ("body", "orelse", "finalbody", "handlers", "cases"):
+            block = getattr(node, name, None)
+            if isinstance(block, list):
+                todo += block
+
+
+@functools.cache
+def _imported(path: Path) -> frozenset[str]:
     """The railtherm modules (dotted names; also names that may be attributes) that a source
     file imports anywhere in it."""
-    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    source = path.read_text(encoding="utf-8")
+    if "railtherm" not in source and not path.is_relative_to(PACKAGE):
+        return frozenset()
     names: set[str] = set()
-    for node in ast.walk(tree):
+    for node in _statements(ast.parse(source, filename=str(path)).body):
         if isinstance(node, ast.Import):
             for alias in node.names:
                 parts = alias.name.split(".")
@@ -58,7 +75,7 @@ def _imported(path: Path) -> set[str]:
             parts = module.split(".")
             names |= {".".join(parts[: i + 1]) for i in range(len(parts))}
             names |= {f"{module}.{alias.name}" for alias in node.names}
-    return names
+    return frozenset(names)
 
 
 @functools.cache
