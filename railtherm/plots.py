@@ -30,6 +30,7 @@ from typing import Any
 import matplotlib
 import numpy as np
 import pandas as pd
+import yaml
 from matplotlib import transforms
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -37,7 +38,7 @@ from matplotlib.layout_engine import ConstrainedLayoutEngine, PlaceHolderLayoutE
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
 
-from railtherm import aggregate, pem
+from railtherm import aggregate, ingest, pem
 from railtherm.acf import autocorrelation
 from railtherm.diagnostics import cumulated_periodogram
 from railtherm.kvalue import KValue
@@ -53,6 +54,7 @@ __all__ = [
     "save_figure",
     "synthetic_note",
     "sindy_figure",
+    "vehicle_figures",
     "window_offset_s",
 ]
 
@@ -1357,3 +1359,67 @@ def reference_validation_figure(
         for ax in (ax_a, ax_b):
             ax.grid(True, lw=0.3, alpha=0.5)
     return _finish(fig, synthetic, note)
+
+
+# ---------------------------------------------------------------------------------------------
+# Every figure of one vehicle (rule vehicle_figures)
+
+FIT_MODELS = {
+    "first_order": "first-order model (eq. 9)",
+    "second_order": "second-order model (eqs. 7-8)",
+    "interior_envelope": "interior-envelope model",
+}
+
+
+def vehicle_figures(
+    vehicle: str,
+    *,
+    kvalue: Mapping[str, str] | None = None,
+    fits: Mapping[str, Mapping[str, str]] | None = None,
+    synthetic: bool = False,
+) -> list[str]:
+    """Draw every figure of one vehicle from its result files, as PNG and SVG: the record with
+    the k window and the k-test verdict (:func:`kvalue_figure`), and per fit the measured vs
+    simulated temperatures (:func:`fit_figure`) and, for a Kalman-filter fit, its one-step
+    innovations (:func:`innovation_figure`).
+
+    ``kvalue``: the files ``record`` and ``window`` (tidy tables), ``result`` (kvalue.yaml) and
+    ``png`` (the figure's PNG path; the SVG beside it), or None. ``fits``: per model key the
+    files ``fit`` (fit_<key>.yaml), ``series`` (its measured vs simulated series), ``png`` and,
+    for a Kalman-filter fit, ``innovations_png``. Returns what was drawn, a line per figure.
+    """
+    drawn = []
+    if kvalue is not None:
+        result = KValue.from_dict(yaml.safe_load(Path(kvalue["result"]).read_text("utf-8")))
+        figure = kvalue_figure(
+            ingest.read_tidy(kvalue["record"]),
+            ingest.read_tidy(kvalue["window"]),
+            result,
+            f"{vehicle}: static k test (eq. 10)",
+            synthetic=synthetic,
+        )
+        save_figure(figure, kvalue["png"].removesuffix(".png"))
+        drawn.append(f"k figure of {vehicle}")
+    for files in (fits or {}).values():
+        fit = yaml.safe_load(Path(files["fit"]).read_text("utf-8"))
+        series = pd.read_csv(files["series"])
+        fit_synthetic = bool(fit.get("synthetic", False))
+        model = FIT_MODELS[fit["structure"].split("+")[0]]
+        if fit.get("estimator") == "kalman":
+            model += ", Kalman-filter estimator"
+        figure = fit_figure(series, fit, f"{fit['vehicle']}: {model}", synthetic=fit_synthetic)
+        save_figure(figure, files["png"].removesuffix(".png"))
+        drawn.append(f"fit figure of {fit['vehicle']}, {fit['structure']}")
+        if "innovations_png" in files:
+            names = list(fit["outputs"])
+            innovation_figure(
+                series["time"].to_numpy(float),
+                series[[f"{s}_innovation" for s in names]].to_numpy(float),
+                series[[f"{s}_innovation_sd" for s in names]].to_numpy(float),
+                title=f"{fit['vehicle']}: {fit['structure']}, Kalman-filter estimator",
+                path=files["innovations_png"],
+                names=names,
+                synthetic=fit_synthetic,
+            )
+            drawn.append(f"innovation figure of {fit['vehicle']}, {fit['structure']}")
+    return drawn

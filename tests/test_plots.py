@@ -480,3 +480,68 @@ def test_footer_figures_are_byte_identical_across_processes(tmp_path):
     local = plots.save_figure(plots.fit_figure(series(), FIT, "x", synthetic=True), tmp_path / "x")
     outputs.append([path.read_bytes() for path in local])
     assert outputs[0] == outputs[1] == outputs[2]
+
+
+def test_vehicle_figures_draws_the_k_figure_and_each_fit_from_their_files(tmp_path):
+    """The files of one vehicle's k test and of two fits (one by the Kalman-filter estimator)
+    in, their figures out: the same PNG and SVG bytes as the figure functions drawing the same
+    data, the title naming the model and estimator, and innovations only for the Kalman fit."""
+    import yaml
+
+    from railtherm import ingest
+
+    rec = record()
+    win = k_window(rec)
+    result = kvalue.static_k(win, 400.0, 4e4, SETTINGS, INSTRUMENTS, {"indoor": 4, "outdoor": 2})
+    ingest.write_tidy(rec, tmp_path / "record.csv")
+    ingest.write_tidy(win, tmp_path / "kvalue.csv")
+    (tmp_path / "kvalue.yaml").write_text(yaml.safe_dump(result.to_dict()))
+    s = series()
+    for name in ("T", "T_veh"):
+        s[f"{name}_innovation"] = 0.01 * np.sin(np.arange(len(s)) * 1.3 + len(name))
+        s[f"{name}_innovation_sd"] = 0.02
+    s.to_csv(tmp_path / "series.csv", index=False)
+    fits = {}
+    for key, estimator in (("order2", "output_error"), ("order2_kalman", "kalman")):
+        fit = FIT | {"structure": "second_order", "estimator": estimator}
+        (tmp_path / f"fit_{key}.yaml").write_text(yaml.safe_dump(fit))
+        fits[key] = {
+            "fit": str(tmp_path / f"fit_{key}.yaml"),
+            "series": str(tmp_path / "series.csv"),
+            "png": str(tmp_path / "out" / f"fit_{key}.png"),
+        }
+    fits["order2_kalman"]["innovations_png"] = str(tmp_path / "out" / "innovations.png")
+    kfiles = {
+        "record": str(tmp_path / "record.csv"),
+        "window": str(tmp_path / "kvalue.csv"),
+        "result": str(tmp_path / "kvalue.yaml"),
+        "png": str(tmp_path / "out" / "kvalue.png"),
+    }
+    drawn = plots.vehicle_figures("Tram9", kvalue=kfiles, fits=fits, synthetic=True)
+    assert drawn == [
+        "k figure of Tram9",
+        "fit figure of Tram9, second_order",
+        "fit figure of Tram9, second_order",
+        "innovation figure of Tram9, second_order",
+    ]
+    out = tmp_path / "out"
+    assert sorted(p.name for p in out.iterdir()) == [
+        "fit_order2.png",
+        "fit_order2.svg",
+        "fit_order2_kalman.png",
+        "fit_order2_kalman.svg",
+        "innovations.png",
+        "innovations.svg",
+        "kvalue.png",
+        "kvalue.svg",
+    ]
+    direct = tmp_path / "direct"
+    read = pd.read_csv(tmp_path / "series.csv")
+    for key, title in (
+        ("order2", "Tram9: second-order model (eqs. 7-8)"),
+        ("order2_kalman", "Tram9: second-order model (eqs. 7-8), Kalman-filter estimator"),
+    ):
+        fit = yaml.safe_load((tmp_path / f"fit_{key}.yaml").read_text())
+        plots.save_figure(plots.fit_figure(read, fit, title, synthetic=True), direct / key)
+        for ext in ("png", "svg"):
+            assert (out / f"fit_{key}.{ext}").read_bytes() == (direct / f"{key}.{ext}").read_bytes()
