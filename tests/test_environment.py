@@ -8,6 +8,7 @@ from __future__ import annotations
 import importlib.metadata
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -45,16 +46,38 @@ def lock() -> dict[str, Version]:
     return pins
 
 
+def installed_extras() -> set[str]:
+    """The extras the README's environment installs: those the test extra names."""
+    return {
+        extra
+        for r in requirements("test")
+        if canonicalize_name(r.name) == "railtherm"
+        for extra in r.extras
+    } | {"test"}
+
+
 def test_lock_pins_every_dependency_within_pyproject_ranges():
     pins = lock()
     assert "railtherm" not in pins
-    extras = PYPROJECT["optional-dependencies"]
-    for req in requirements() + [r for e in extras for r in requirements(e)]:
+    for req in requirements() + [r for e in installed_extras() for r in requirements(e)]:
         name = canonicalize_name(req.name)
         if name == "railtherm":
             continue  # an extra naming others
         assert name in pins, f"{req.name} is in pyproject.toml but not in requirements.lock"
         assert pins[name] in req.specifier, f"requirements.lock pins {name} {pins[name]}: {req}"
+
+
+def test_an_extra_outside_the_lock_is_installed_by_its_doc_at_a_version_in_range():
+    """The slurm extra (the submit host of a cluster) stays out of the default environment;
+    docs/cluster.md installs it at an exact version, which pyproject's range must hold."""
+    others = set(PYPROJECT["optional-dependencies"]) - installed_extras()
+    assert others == {"slurm"}
+    doc = (REPO / "docs" / "cluster.md").read_text(encoding="utf-8")
+    for req in requirements("slurm"):
+        pin = re.search(rf"pip install {re.escape(req.name)}==([\w.]+)", doc)
+        assert pin, f"docs/cluster.md does not install {req.name} at an exact version"
+        assert Version(pin.group(1)) in req.specifier, (req, pin.group(1))
+        assert canonicalize_name(req.name) not in lock()
 
 
 def test_lock_holds_everything_the_dependencies_pull_in():
