@@ -770,6 +770,25 @@ def clean_window(
     return tidy(raw, vehicle_data, window, file, window_key=key)
 
 
+def clean_windows(
+    vehicle_data: dict[str, Any],
+    sources: Mapping[str, str],
+    workdir: str | os.PathLike[str] = ".",
+) -> dict[str, pd.DataFrame]:
+    """The tidy table of each window named in ``sources`` (window name -> the raw file it is
+    cut from, relative to ``workdir``, as messages name it; names as in :func:`window_spec`),
+    in the order of ``sources``, each raw file read once."""
+    raws: dict[str, pd.DataFrame] = {}
+    tables = {}
+    for name, path in sources.items():
+        _, window, key = window_spec(vehicle_data, name)
+        if path not in raws:
+            local = os.path.join(str(workdir), path)
+            raws[path] = read_raw(local, vehicle_data["format"], label=path)
+        tables[name] = tidy(raws[path], vehicle_data, window, path, window_key=key)
+    return tables
+
+
 # ---------------------------------------------------------------------------------------------
 # Writing
 

@@ -34,17 +34,11 @@ class VehicleResult:
 def tidy_tables(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> dict[str, pd.DataFrame]:
     """Every window of ``vehicle`` cleaned (rule ``clean``): the k window and the
     identification windows, each raw file read once."""
-    raws: dict[str, pd.DataFrame] = {}
-    tables = {}
-    for name in ingest.window_names(vehicle.data):
-        raw_name, window, key = ingest.window_spec(vehicle.data, name)
-        path = vehicle.raw_files[raw_name]
-        if path not in raws:
-            raws[path] = ingest.read_raw(
-                os.path.join(str(workdir), path), vehicle.format, label=path
-            )
-        tables[name] = ingest.tidy(raws[path], vehicle.data, window, path, window_key=key)
-    return tables
+    sources = {
+        name: vehicle.raw_files[ingest.window_spec(vehicle.data, name)[0]]
+        for name in ingest.window_names(vehicle.data)
+    }
+    return ingest.clean_windows(vehicle.data, sources, workdir)
 
 
 def fit_vehicle(

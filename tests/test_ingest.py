@@ -507,6 +507,28 @@ def test_clean_window_by_name(tmp_path):
         ingest.clean_window(path, data, "kvalue", "data/raw.csv")
 
 
+def test_clean_windows_reads_each_raw_file_once_and_cuts_every_window(tmp_path, monkeypatch):
+    t = np.arange(61) * 60.0
+    _write(_simple_frame(t, Ti=t / 60.0), tmp_path / "raw.csv")
+    data = _vehicle(SIMPLE)
+    data["windows"] = {
+        "kvalue": {"start": _iso([600])[0], "end": _iso([1200])[0]},
+        "identification": [{"name": "cool", "start": _iso([1800])[0], "end": _iso([3000])[0]}],
+    }
+    reads = []
+    read_raw = ingest.read_raw
+    monkeypatch.setattr(
+        ingest, "read_raw", lambda path, *a, **k: reads.append(path) or read_raw(path, *a, **k)
+    )
+    names = ["record", "kvalue", "cool"]
+    tables = ingest.clean_windows(data, dict.fromkeys(names, "raw.csv"), tmp_path)
+    assert len(reads) == 1
+    assert list(tables) == names
+    for name in names:
+        alone = ingest.clean_window(tmp_path / "raw.csv", data, name, "raw.csv")
+        pd.testing.assert_frame_equal(tables[name], alone)
+
+
 # ---------------------------------------------------------------------------------------------
 # Property-based: arbitrary layouts, units, steps and dropouts give the right table or an error
 
