@@ -172,7 +172,7 @@ def raw_digests(wildcards):
 
 @functools.cache
 def _kvalue_vehicles():
-    return tuple(vid for vid in VEHICLES if "kvalue" in STUDY.vehicles[vid].windows)
+    return tuple(vid for vid in VEHICLES if has_kvalue(vid))
 
 
 def kvalue_vehicles():
@@ -180,9 +180,9 @@ def kvalue_vehicles():
     return list(_kvalue_vehicles())
 
 
-@functools.cache
 def has_kvalue(vehicle):
-    return vehicle in set(_kvalue_vehicles())
+    """Whether a vehicle of the study has a steady window for the static k test."""
+    return "kvalue" in STUDY.vehicles[vehicle].windows
 
 
 @functools.cache
@@ -258,9 +258,9 @@ def fit_targets():
     return list(_fit_targets())
 
 
-@functools.cache
 def has_fit(vehicle, order):
-    return (vehicle, order) in set(_fit_targets())
+    """Whether a vehicle of the study fits the model of this order."""
+    return order in STUDY.vehicles[vehicle].model["orders"]
 
 
 @per_job
