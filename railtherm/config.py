@@ -39,7 +39,7 @@ from typing import Any
 
 import pandas as pd
 
-from railtherm import timeaxis
+from railtherm import codedigest, timeaxis
 from railtherm.errors import ConfigError, DataError
 from railtherm.ingest import irradiance_names
 from railtherm.rawfile import (
@@ -787,23 +787,16 @@ def add_vehicle(
 
 @functools.cache
 def _code_version() -> str:
-    """Digest of the railtherm package (every module and schema: what validation runs and
-    reads) and of the libraries that parse files: any change invalidates the cache."""
-    here = os.path.dirname(os.path.abspath(__file__))
+    """Digest of the railtherm code validation can run and read (this module's imports in
+    turn, with the schemas: :func:`railtherm.codedigest.code_digest`) and of the libraries that
+    parse files: any change invalidates the cache."""
     h = hashlib.sha256(sys.version.encode())
     for dist in ("pandas", "numpy", "PyYAML", "jsonschema"):
         try:
             h.update(f"{dist} {importlib.metadata.version(dist)}".encode())
         except importlib.metadata.PackageNotFoundError:
             h.update(f"{dist} ?".encode())
-    files = []
-    for root, dirs, names in os.walk(here):
-        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-        files += [os.path.join(root, n) for n in names if n.endswith((".py", ".yaml"))]
-    for file in sorted(files):
-        h.update(os.path.relpath(file, here).encode())
-        with open(file, "rb") as stream:
-            h.update(stream.read())
+    h.update(codedigest.code_digest(__file__).encode())
     return h.hexdigest()
 
 

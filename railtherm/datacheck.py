@@ -15,9 +15,8 @@ import json
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 
-from railtherm import ingest, kvalue, timeaxis
+from railtherm import codedigest, ingest, kvalue, timeaxis
 from railtherm.config import Study, Vehicle
 from railtherm.rawfile import DigestCache
 
@@ -91,20 +90,9 @@ def check_values(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> Dat
 
 
 def _code_version() -> str:
-    """Digest of the code that reads and judges the values (a change re-checks them)."""
-    h = hashlib.sha256()
-    here = Path(__file__).parent
-    for name in (
-        "datacheck.py",
-        "ingest.py",
-        "kvalue.py",
-        "rawfile.py",
-        "config.py",
-        "readers.py",
-        "timeaxis.py",
-    ):
-        h.update((here / name).read_bytes())
-    return h.hexdigest()
+    """Digest of the code that reads and judges the values, this module's imports in turn
+    (:func:`railtherm.codedigest.code_digest`): a change re-checks them."""
+    return codedigest.code_digest(__file__)
 
 
 def check_study_values(
