@@ -443,7 +443,9 @@ class Generalised:
     @classmethod
     def from_values(cls, name: str, unit: str, values: Mapping[str, float]) -> Generalised:
         """The summary of ``values`` (by vehicle; at least two, each positive)."""
-        import scipy.stats  # only when a reference model is built
+        # the Student t quantile: scipy.special.stdtrit is what scipy.stats.t.ppf evaluates,
+        # without the second of scipy.stats's import
+        from scipy.special import stdtrit
 
         for vid, v in values.items():
             if v is None or not (math.isfinite(v) and v > 0):
@@ -455,7 +457,7 @@ class Generalised:
         logs = np.log(np.array([float(v) for v in values.values()]))
         n = len(logs)
         mean, sd = float(logs.mean()), float(logs.std(ddof=1))
-        half = float(scipy.stats.t.ppf(0.975, n - 1)) * sd * math.sqrt(1.0 + 1.0 / n)
+        half = float(stdtrit(n - 1, 0.975)) * sd * math.sqrt(1.0 + 1.0 / n)
         return cls(
             name=name,
             unit=unit,

@@ -441,16 +441,6 @@ def _loads(
     return out, np.argmax(out, axis=1)
 
 
-def _step_state(steps: _Steps, g: int, x: np.ndarray, u: np.ndarray, s: np.ndarray):
-    """x(s) within a step from x (S, n) under the constant input u (S, m), s (S,) seconds:
-    x* + V exp(Lambda s) V^-1 (x - x*) with x* the step's equilibrium."""
-    A, B = steps.A[g], steps.B[g]
-    xs = -np.linalg.solve(A, np.einsum("sij,sj->si", B, u)[..., None])[..., 0]
-    z = np.einsum("sij,sj->si", steps.Vinv[g], (x - xs).astype(complex))
-    z = z * np.exp(steps.lam[g] * s[:, None])
-    return (xs + np.einsum("sij,sj->si", steps.V[g], z).real)[:, 0]
-
-
 def _crossing(
     T: np.ndarray,
     X: np.ndarray,
@@ -462,39 +452,35 @@ def _crossing(
     rising: bool,
 ) -> np.ndarray:
     """The first time (s) T crosses ``threshold`` (rising or falling) for each draw; 0 if it
-    starts beyond it, inf if it never crosses. Exact within the step (bisection on x(s))."""
+    starts beyond it, inf if it never crosses. Exact within the step: bisection on
+    x(s) = x* + V exp(Lambda s) V^-1 (x_k - x*), every draw at once in the step it crosses
+    in (the equilibrium x* and V^-1 (x_k - x*) taken once per draw)."""
     S, N1 = T.shape
     beyond = T >= threshold if rising else T <= threshold
     first = np.where(beyond.any(axis=1), beyond.argmax(axis=1), -1)
     out = np.full(S, math.inf)
     out[first == 0] = 0.0
-    todo = np.flatnonzero(first > 0)
+    rows = np.flatnonzero(first > 0)
+    if not len(rows):
+        return out
     dt = t[1] - t[0]
-    for n in np.unique(first[todo]):
-        rows = todo[first[todo] == n]
-        k = n - 1  # the step [t_k, t_k+1) in which it crosses
-        g = int(g_index[k])
-        lo = np.zeros(len(rows))
-        hi = np.full(len(rows), dt)
-        sub = _Steps(
-            A=steps.A[:, rows],
-            B=steps.B[:, rows],
-            Ad=steps.Ad[:, rows],
-            Bd=steps.Bd[:, rows],
-            lam=steps.lam[:, rows],
-            V=steps.V[:, rows],
-            Vinv=steps.Vinv[:, rows],
-            Qchol=None,
-        )
-        for _ in range(BISECTION_STEPS):
-            mid = (lo + hi) / 2.0
-            Tm = _step_state(sub, g, X[rows, k], U[rows, k], mid)
-            past = Tm >= threshold if rising else Tm <= threshold
-            hi = np.where(past, mid, hi)
-            lo = np.where(past, lo, mid)
-            if np.all(hi - lo <= 1e-9 * dt):
-                break
-        out[rows] = t[k] + (lo + hi) / 2.0
+    k = first[rows] - 1  # per draw, the step [t_k, t_k+1) in which it crosses
+    g = g_index[k]
+    A, B = steps.A[g, rows], steps.B[g, rows]
+    V, lam = steps.V[g, rows], steps.lam[g, rows]
+    xs = -np.linalg.solve(A, np.einsum("sij,sj->si", B, U[rows, k])[..., None])[..., 0]
+    z0 = np.einsum("sij,sj->si", steps.Vinv[g, rows], (X[rows, k] - xs).astype(complex))
+    lo = np.zeros(len(rows))
+    hi = np.full(len(rows), dt)
+    for _ in range(BISECTION_STEPS):
+        mid = (lo + hi) / 2.0
+        Tm = (xs + np.einsum("sij,sj->si", V, z0 * np.exp(lam * mid[:, None])).real)[:, 0]
+        past = Tm >= threshold if rising else Tm <= threshold
+        hi = np.where(past, mid, hi)
+        lo = np.where(past, lo, mid)
+        if np.all(hi - lo <= 1e-9 * dt):
+            break
+    out[rows] = t[k] + (lo + hi) / 2.0
     return out
 
 
