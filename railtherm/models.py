@@ -42,7 +42,6 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-from scipy.linalg import expm, schur
 
 __all__ = [
     "STRUCTURES",
@@ -69,6 +68,21 @@ __all__ = [
 
 FREE_RESPONSE_CUT = 1e-30  # |lambda|^n below this (relative to 1) is taken as 0
 _MODAL_COND_MAX = 1e8  # cond(V) above this: use the Schur form instead of eigenvectors
+
+
+def expm(M: np.ndarray) -> np.ndarray:
+    """``scipy.linalg.expm``, imported on first use: scipy.linalg's import is a tenth of a
+    second of every job's start-up, and the jobs that only read results never discretise."""
+    from scipy.linalg import expm as expm_
+
+    return expm_(M)
+
+
+def schur(a: np.ndarray, output: str = "real") -> tuple[np.ndarray, np.ndarray]:
+    """``scipy.linalg.schur``, imported on first use (see :func:`expm`)."""
+    from scipy.linalg import schur as schur_
+
+    return schur_(a, output=output)
 
 
 def lfilter(b, a, x, **kwargs):

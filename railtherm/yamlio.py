@@ -18,12 +18,12 @@ import math
 import os
 import re
 from collections.abc import Iterable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import jsonschema
 import yaml
-from jsonschema import Draft202012Validator
-from jsonschema.exceptions import ValidationError, best_match
+
+if TYPE_CHECKING:
+    from jsonschema.exceptions import ValidationError
 
 from railtherm.errors import ConfigError
 
@@ -144,12 +144,17 @@ def read_yaml(path: str | os.PathLike[str], display: str | None = None) -> Any:
 # JSON Schema with default filling
 
 
-def _extend_with_default(validator_class: type) -> type:
-    """A validator class that fills in ``default`` values of ``properties`` while validating.
+@functools.cache
+def _default_filling_validator() -> type:
+    """The Draft 2020-12 validator class that fills in ``default`` values of ``properties``
+    while validating, built on first use (jsonschema's import is a job's start-up cost).
 
     The same technique as ``snakemake.utils.validate(..., set_default=True)`` (see the
     jsonschema FAQ); defaults are deep-copied so that no two configs share a list.
     """
+    import jsonschema
+
+    validator_class = jsonschema.Draft202012Validator
     validate_properties = validator_class.VALIDATORS["properties"]
 
     def set_defaults(validator, properties, instance, schema):
@@ -160,9 +165,6 @@ def _extend_with_default(validator_class: type) -> type:
         yield from validate_properties(validator, properties, instance, schema)
 
     return jsonschema.validators.extend(validator_class, {"properties": set_defaults})
-
-
-_DefaultFillingValidator = _extend_with_default(Draft202012Validator)
 
 
 @functools.cache
@@ -296,7 +298,9 @@ def validate_schema(file: str, data: Any, schema: dict[str, Any], prefix: str = 
 
     ``prefix`` is the key path of ``data`` inside ``file`` (e.g. ``vehicles.Tram1``).
     """
-    validator = _DefaultFillingValidator(schema)
+    from jsonschema.exceptions import best_match
+
+    validator = _default_filling_validator()(schema)
     error = best_match(validator.iter_errors(data))
     if error is not None:
         raise _schema_error(file, error, prefix)
