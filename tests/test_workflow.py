@@ -44,7 +44,7 @@ def test_dry_run_plans_the_whole_campaign(tmp_path):
     counts = job_counts(run.stdout + run.stderr)
     assert counts["ground_truth"] == 1
     assert counts["synthesize"] >= 13  # at least one raw file per vehicle
-    assert counts["sindy"] == 13 and counts["sindy_summary"] == 1  # on in the shipped config
+    assert counts["sindy"] == 1 and counts["sindy_summary"] == 1  # on in the shipped config
     assert not (study / "resources").exists()
 
 
@@ -58,7 +58,24 @@ def test_switched_off_the_sindy_stage_plans_no_job(tmp_path):
     assert run.returncode == 0, run.stderr
     counts = job_counts(run.stdout + run.stderr)
     assert "sindy" not in counts and "sindy_summary" not in counts
-    assert counts["identify"] == 4
+    assert counts["identify"] == 2  # one job per vehicle, both models
+
+
+def test_sindy_fits_share_a_job_up_to_vehicles_per_job(tmp_path):
+    """pysindy's import outweighs a fit: the SINDy vehicles go to jobs in batches, in study
+    order; one vehicle to a job gives a rule per vehicle, each writing only its vehicle's file."""
+    study = make_study(tmp_path, SMALL)
+    cfg_path = study / "config" / "config.yaml"
+    cfg = yaml.safe_load(cfg_path.read_text())
+    cfg["sindy"]["vehicles_per_job"] = 1
+    cfg_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    run = snakemake(study, "--dry-run")
+    assert run.returncode == 0, run.stderr
+    counts = job_counts(run.stdout + run.stderr)
+    assert counts["sindy"] == 1 and counts["sindy_2"] == 1
+    for rule, vehicle in (("sindy", "Tram2"), ("sindy_2", "Metro3")):
+        planned = re.findall(rf"^rule {rule}:\n\s+input: .*\n\s+output: (.+)$", run.stdout, re.M)
+        assert planned == [f"results/vehicles/{vehicle}/sindy.yaml"]
 
 
 @pytest.fixture(scope="module")
@@ -178,12 +195,14 @@ def test_editing_one_vehicle_config_reruns_only_its_jobs_and_the_aggregates(smal
     run = snakemake(study, "--dry-run")
     assert run.returncode == 0, run.stderr
     counts = job_counts(run.stdout + run.stderr)
-    assert counts["check"] == 2  # Metro3, orders 1 and 2
+    assert counts["check"] == 1  # Metro3, orders 1 and 2 in one job
     for rule in ("aggregate", "fit_table", "figure5"):
         assert counts[rule] == 1
     assert "synthesize" not in counts and "ground_truth" not in counts  # raw data untouched
-    planned = re.findall(r"^\s+output: (.+)$", run.stdout, re.MULTILINE)
-    assert planned and not any("Tram2" in line for line in planned)  # the other vehicle rests
+    planned = re.findall(r"^rule (\w+):\n(?:\s+input: .*\n)?\s+output: (.+)$", run.stdout, re.M)
+    assert planned
+    # the other vehicle rests, but for the SINDy job the two share (sindy.vehicles_per_job)
+    assert [rule for rule, line in planned if "Tram2" in line] == ["sindy"]
     assert "figure3" not in counts  # Tram2's figure
 
 

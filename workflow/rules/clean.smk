@@ -21,6 +21,7 @@ for _rule, _tables, _constraint in rule_groups("clean", tidy_tables):
             code=script_code("clean.py"),
         log:
             "logs/clean/{vehicle}.log",
+        priority: CHAIN_PRIORITY
         threads: 1
         resources:
             mem_mb=1000,

@@ -39,6 +39,13 @@ CAMPAIGN_VEHICLES = list(CAMPAIGN["vehicles"]) if CAMPAIGN else []
 CAMPAIGN_ROOT = "resources/campaign"
 
 
+# The chain from raw file to the study's tables (synthesize, clean, kvalue, identify, check,
+# aggregate, the predictions) goes first among the jobs ready to run; figures and other leaves
+# fill the cores around it. Left alone, Snakemake prefers the job with the largest input
+# files, a vehicle's figures, and the study's last vehicle reaches its tables late.
+CHAIN_PRIORITY = 1
+
+
 VEHICLE_ID = "[A-Za-z][A-Za-z0-9_-]*"
 
 
@@ -326,6 +333,20 @@ def _sindy_vehicles():
 def sindy_vehicles():
     """Vehicles the SINDy cross-check runs on: with it enabled, those with surface sensors."""
     return list(_sindy_vehicles())
+
+
+SINDY_SETTINGS = {
+    k: v for k, v in config["sindy"].items() if k not in ("enabled", "vehicles_per_job")
+}
+
+
+def sindy_batches():
+    """[(name of the rule, vehicles)]: the SINDy vehicles in study order, sindy.vehicles_per_job
+    to a job; the first batch's rule is ``sindy``, further ones ``sindy_2``, ``sindy_3``, ..."""
+    vids = sindy_vehicles()
+    size = config["sindy"]["vehicles_per_job"]
+    batches = [vids[i : i + size] for i in range(0, len(vids), size)]
+    return [("sindy" if i == 0 else f"sindy_{i + 1}", batch) for i, batch in enumerate(batches)]
 
 
 def figure_signature(vehicle):

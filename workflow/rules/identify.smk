@@ -1,52 +1,78 @@
 # Identification of the first- and second-order models by simulation-error PEM (eqs. 15-20).
 
 
-rule identify:
-    input:
-        windows=identification_tables,
-        kvalue=kvalue_input,
-    output:
-        estimate="results/vehicles/{vehicle}/identify/{model}.yaml",
-        series="results/vehicles/{vehicle}/identify/{model}_series.csv",
-    wildcard_constraints:
-        model="(order[12]|interior_envelope)(_kalman)?",
-    params:
-        vehicle=vehicle_data,
-        windows=identification_names,
-        code=script_code("identify.py"),
-    log:
-        "logs/identify/{vehicle}/{model}.log",
-    threads: 1
-    resources:
-        mem_mb=2000,
-        runtime=10,
-    conda:
-        "../envs/railtherm.yaml"
-    script:
-        "../scripts/identify.py"
+# One identify job and one check job per vehicle, each over all of the vehicle's models: a
+# job's time is mostly its interpreter and imports, so a vehicle's fits share them. A rule's
+# outputs are fixed, so vehicles with another set of models get rules of their own
+# (`identify_2`, `check_2`, ...; rule_groups in common.smk).
+for _rule, _keys, _constraint in rule_groups("identify", model_keys):
+
+    rule:
+        name: _rule
+        input:
+            windows=identification_tables,
+            kvalue=kvalue_input,
+        output:
+            **{
+                f"estimate_{key}": f"results/vehicles/{{vehicle}}/identify/{key}.yaml"
+                for key in _keys
+            },
+            **{
+                f"series_{key}": f"results/vehicles/{{vehicle}}/identify/{key}_series.csv"
+                for key in _keys
+            },
+        wildcard_constraints:
+            vehicle=_constraint,
+        params:
+            vehicle=vehicle_data,
+            windows=identification_names,
+            models=list(_keys),
+            code=script_code("identify.py"),
+        log:
+            "logs/identify/{vehicle}.log",
+        priority: CHAIN_PRIORITY
+        threads: 1
+        resources:
+            mem_mb=2000,
+            runtime=10 * len(_keys),
+        conda:
+            "../envs/railtherm.yaml"
+        script:
+            "../scripts/identify.py"
 
 
-rule check:
-    input:
-        estimate="results/vehicles/{vehicle}/identify/{model}.yaml",
-        series="results/vehicles/{vehicle}/identify/{model}_series.csv",
-    output:
-        "results/vehicles/{vehicle}/fit_{model}.yaml",
-    wildcard_constraints:
-        model="(order[12]|interior_envelope)(_kalman)?",
-    params:
-        check=check_settings,
-        code=script_code("check.py"),
-    log:
-        "logs/check/{vehicle}/{model}.log",
-    threads: 1
-    resources:
-        mem_mb=1000,
-        runtime=5,
-    conda:
-        "../envs/railtherm.yaml"
-    script:
-        "../scripts/check.py"
+for _rule, _keys, _constraint in rule_groups("check", model_keys):
+
+    rule:
+        name: _rule
+        input:
+            **{
+                f"estimate_{key}": f"results/vehicles/{{vehicle}}/identify/{key}.yaml"
+                for key in _keys
+            },
+            **{
+                f"series_{key}": f"results/vehicles/{{vehicle}}/identify/{key}_series.csv"
+                for key in _keys
+            },
+        output:
+            **{f"fit_{key}": f"results/vehicles/{{vehicle}}/fit_{key}.yaml" for key in _keys},
+        wildcard_constraints:
+            vehicle=_constraint,
+        params:
+            check=check_settings,
+            models=list(_keys),
+            code=script_code("check.py"),
+        log:
+            "logs/check/{vehicle}.log",
+        priority: CHAIN_PRIORITY
+        threads: 1
+        resources:
+            mem_mb=1000,
+            runtime=5,
+        conda:
+            "../envs/railtherm.yaml"
+        script:
+            "../scripts/check.py"
 
 
 rule fit_table:
@@ -63,6 +89,7 @@ rule fit_table:
         code=script_code("fit_table.py"),
     log:
         "logs/fit_table.log",
+    priority: CHAIN_PRIORITY
     threads: 1
     resources:
         mem_mb=500,

@@ -11,6 +11,7 @@ rule kvalue:
         code=script_code("kvalue.py"),
     log:
         "logs/kvalue/{vehicle}.log",
+    priority: CHAIN_PRIORITY
     threads: 1
     resources:
         mem_mb=1000,

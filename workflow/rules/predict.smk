@@ -33,6 +33,7 @@ rule simulate:
         code=script_code("simulate.py"),
     log:
         "logs/simulate.log",
+    priority: CHAIN_PRIORITY
     threads: 1
     resources:
         mem_mb=2000,
@@ -79,6 +80,7 @@ rule reference_validation:
         code=script_code("reference_validation.py"),
     log:
         "logs/reference_validation.log",
+    priority: CHAIN_PRIORITY
     threads: 1
     resources:
         mem_mb=2000,

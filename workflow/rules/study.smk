@@ -119,6 +119,7 @@ rule aggregate:
         code=script_code("aggregate.py"),
     log:
         "logs/aggregate.log",
+    priority: CHAIN_PRIORITY
     threads: 1
     resources:
         mem_mb=1000,

@@ -12,6 +12,7 @@ rule synthesize:
         code=script_code("synthesize.py"),
     log:
         "logs/synthesize/{vehicle}/{filename}.log",
+    priority: CHAIN_PRIORITY
     threads: 1
     resources:
         mem_mb=1000,

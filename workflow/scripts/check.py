@@ -1,4 +1,4 @@
-"""Adapter for rule check: diagnostics and verdict of one fit."""
+"""Adapter for rule check: diagnostics and verdict of each of a vehicle's fits."""
 
 import pandas as pd
 import yaml
@@ -7,9 +7,10 @@ from railtherm import identify, logs
 from railtherm.fit import Fit
 
 log = logs.to_file(snakemake.log[0])
-with open(snakemake.input.estimate, encoding="utf-8") as stream:
-    estimate = yaml.safe_load(stream)
-series = pd.read_csv(snakemake.input.series)
-fit = Fit(identify.check(estimate, series, snakemake.params.check), series)
-fit.write(snakemake.output[0])
-log.info("%s: R2 = %.4f; %s", fit.vehicle, fit.R2, fit.verdict)
+for model in snakemake.params.models:
+    with open(snakemake.input[f"estimate_{model}"], encoding="utf-8") as stream:
+        estimate = yaml.safe_load(stream)
+    series = pd.read_csv(snakemake.input[f"series_{model}"])
+    fit = Fit(identify.check(estimate, series, snakemake.params.check), series)
+    fit.write(snakemake.output[f"fit_{model}"])
+    log.info("%s, %s: R2 = %.4f; %s", fit.vehicle, model, fit.R2, fit.verdict)

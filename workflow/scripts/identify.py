@@ -1,4 +1,4 @@
-"""Adapter for rule identify: PEM fit of one model to a vehicle's windows."""
+"""Adapter for rule identify: PEM fit of each of a vehicle's models to its windows."""
 
 import yaml
 
@@ -14,11 +14,12 @@ kvalue = None
 if snakemake.input.kvalue:
     with open(snakemake.input.kvalue, encoding="utf-8") as stream:
         kvalue = yaml.safe_load(stream)
-estimate, series = identify.identify(
-    tables, snakemake.params.vehicle, kvalue, snakemake.wildcards.model
-)
-write_yaml(estimate, snakemake.output.estimate)
-ingest.write_tidy(series, snakemake.output.series)
-fit = estimate["fit"]
-criterion = f"log-likelihood {fit['loglik']:.6g}" if "loglik" in fit else f"cost {fit['cost']:.6g}"
-log.info("%s: %s, %s", snakemake.wildcards.model, estimate["k_source"], criterion)
+for model in snakemake.params.models:
+    estimate, series = identify.identify(tables, snakemake.params.vehicle, kvalue, model)
+    write_yaml(estimate, snakemake.output[f"estimate_{model}"])
+    ingest.write_tidy(series, snakemake.output[f"series_{model}"])
+    fit = estimate["fit"]
+    criterion = (
+        f"log-likelihood {fit['loglik']:.6g}" if "loglik" in fit else f"cost {fit['cost']:.6g}"
+    )
+    log.info("%s: %s, %s", model, estimate["k_source"], criterion)
