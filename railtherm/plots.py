@@ -268,16 +268,17 @@ def synthetic_note(fig: Figure, text: str = SYNTHETIC_NOTE) -> Text:
     return note
 
 
-def _settle(fig: Figure, passes: int = 10, tol: float = 1e-6) -> Figure:
+def _settle(fig: Figure, passes: int = 10, tol_px: float = 0.5) -> Figure:
     """Run the constrained layout to its fixed point, then keep that layout for good.
 
     Twin and secondary axes, titles above top tick labels and legends in small grid cells make
     each constrained-layout pass start from the previous one's result, so a figure drawn twice
-    would come out slightly different. Laying out (without rendering) until the axes stop
-    moving (by less than ``tol`` of the figure size; the passes converge geometrically, in 3
-    to 6 passes) and then swapping the engine for a placeholder makes every later draw, PNG or
-    SVG, first save or second, use the very same layout: :func:`save_figure` stays byte for
-    byte."""
+    would come out slightly different. Laying out (without rendering) until no axes edge moves
+    by more than ``tol_px`` pixels at the figure's resolution (the passes converge
+    geometrically: 2 or 3 passes to half a pixel) and then swapping the engine for a
+    placeholder makes every later draw, PNG or SVG, first save or second, use the very same
+    layout: :func:`save_figure` stays byte for byte."""
+    tol = tol_px / (fig.dpi * float(max(fig.get_size_inches())))  # in figure fractions
     with matplotlib.rc_context(_RC):
         before = None
         for _ in range(passes):
