@@ -5,7 +5,7 @@ The fleet is N copies of the validation study's Armadillo Box (validation/config
 Armadillo.yaml: measured data, three structures by two estimators, six fits a vehicle), each
 reading its own copy of the real raw file (data/armadillo/armadillo_data_H2.csv), so that the
 parse-time checks read N files as they would a real fleet's. Per vehicle the workflow plans
-one clean job, six identify and six check jobs and one figure job.
+one clean job, one identify and one check job (each over the six fits) and one figure job.
 
 Each study is dry-run twice: first with no ``.snakemake/`` (cold: railtherm's parse caches
 empty, every vehicle validated and its raw file read), then again (warm: the caches under
@@ -18,7 +18,7 @@ two runs each:
 - the bare Snakefile of the same DAG: rules clean, identify, check, figures, fit_table,
   compare_models and all with railtherm's inputs and outputs per job, ``script:`` jobs, but
   no railtherm code, no params, logs, resources or conda environment. What Snakemake itself
-  spends on a DAG of this shape (railtherm's jobs have ~4.5 input files each, the one-rule
+  spends on a DAG of this shape (railtherm's jobs have several input files each, the one-rule
   jobs one).
 
 Wall time and peak memory (max RSS of the process and its children) come from ``os.wait4``;
@@ -99,18 +99,18 @@ rule identify:
     input:
         "results/vehicles/{{vehicle}}/clean/h2.csv",
     output:
-        "results/vehicles/{{vehicle}}/identify/{{model}}.yaml",
-        "results/vehicles/{{vehicle}}/identify/{{model}}_series.csv",
+        expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}.yaml", k=KEYS),
+        expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}_series.csv", k=KEYS),
     script:
         "job.py"
 
 
 rule check:
     input:
-        "results/vehicles/{{vehicle}}/identify/{{model}}.yaml",
-        "results/vehicles/{{vehicle}}/identify/{{model}}_series.csv",
+        expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}.yaml", k=KEYS),
+        expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}_series.csv", k=KEYS),
     output:
-        "results/vehicles/{{vehicle}}/fit_{{model}}.yaml",
+        expand("results/vehicles/{{{{vehicle}}}}/fit_{{k}}.yaml", k=KEYS),
     script:
         "job.py"
 
