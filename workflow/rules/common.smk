@@ -285,6 +285,16 @@ def model_keys(vehicle):
     return tuple(rt_identify.model_keys(STUDY.vehicles[vehicle].data))
 
 
+def identify_files(keys):
+    """{estimate_<key>: the fit's estimate, series_<key>: its series} of a vehicle's models
+    ``keys``, with the {vehicle} wildcard: the outputs of identify, the inputs of check."""
+    files = {f"estimate_{key}": f"results/vehicles/{{vehicle}}/identify/{key}.yaml" for key in keys}
+    files |= {
+        f"series_{key}": f"results/vehicles/{{vehicle}}/identify/{key}_series.csv" for key in keys
+    }
+    return files
+
+
 def model_targets():
     """(vehicle, model key) of every configured fit, in config order."""
     return [(vid, key) for vid in VEHICLES for key in model_keys(vid)]

@@ -13,14 +13,7 @@ for _rule, _keys, _constraint in rule_groups("identify", model_keys):
             windows=identification_tables,
             kvalue=kvalue_input,
         output:
-            **{
-                f"estimate_{key}": f"results/vehicles/{{vehicle}}/identify/{key}.yaml"
-                for key in _keys
-            },
-            **{
-                f"series_{key}": f"results/vehicles/{{vehicle}}/identify/{key}_series.csv"
-                for key in _keys
-            },
+            **identify_files(_keys),
         wildcard_constraints:
             vehicle=_constraint,
         params:
@@ -46,14 +39,7 @@ for _rule, _keys, _constraint in rule_groups("check", model_keys):
     rule:
         name: _rule
         input:
-            **{
-                f"estimate_{key}": f"results/vehicles/{{vehicle}}/identify/{key}.yaml"
-                for key in _keys
-            },
-            **{
-                f"series_{key}": f"results/vehicles/{{vehicle}}/identify/{key}_series.csv"
-                for key in _keys
-            },
+            **identify_files(_keys),
         output:
             **{f"fit_{key}": f"results/vehicles/{{vehicle}}/fit_{key}.yaml" for key in _keys},
         wildcard_constraints:
