@@ -74,6 +74,8 @@ ORDERS = [key for key in KEYS if key in ("order1", "order2")]
 FIGURES = [f"fit_{{key}}" for key in KEYS]
 FIGURES += [f"innovations_{{key}}" for key in KEYS if key.endswith("_kalman")]
 FIG = expand("results/vehicles/{{{{vehicle}}}}/{{f}}.{{e}}", f=FIGURES, e=("png", "svg"))
+FITS = expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}.yaml", k=KEYS)
+FITS += expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}_series.csv", k=KEYS)
 
 
 rule all:
@@ -99,16 +101,14 @@ rule identify:
     input:
         "results/vehicles/{{vehicle}}/clean/h2.csv",
     output:
-        expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}.yaml", k=KEYS),
-        expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}_series.csv", k=KEYS),
+        FITS,
     script:
         "job.py"
 
 
 rule check:
     input:
-        expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}.yaml", k=KEYS),
-        expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}_series.csv", k=KEYS),
+        FITS,
     output:
         expand("results/vehicles/{{{{vehicle}}}}/fit_{{k}}.yaml", k=KEYS),
     script:

@@ -270,14 +270,6 @@ def has_fit(vehicle, order):
     return order in STUDY.vehicles[vehicle].model["orders"]
 
 
-@per_job
-def second_order_fit(wildcards):
-    """A vehicle's second-order fit, if it has one (input of sindy)."""
-    if has_fit(wildcards.vehicle, 2):
-        return f"results/vehicles/{wildcards.vehicle}/fit_order2.yaml"
-    return []
-
-
 @functools.cache
 def model_keys(vehicle):
     """The model keys of a vehicle's fits: order1, order2, then further structures, each per
