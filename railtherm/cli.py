@@ -224,6 +224,7 @@ def _simulate(args: argparse.Namespace) -> int:
     for option, value in (("--draws", args.draws), ("--seed", args.seed)):
         if value < 0:
             raise ConfigError(option, option[2:], value, "expected 0 or more")
+    sim.air_capacity(args.volume_m3, "--volume-m3")
     workdir = args.directory
     local = os.path.join(workdir, args.params)
     try:
@@ -256,6 +257,7 @@ def _simulate(args: argparse.Namespace) -> int:
                 draws=args.draws,
                 seed=args.seed,
                 allow_unreachable=args.allow_unreachable,
+                volume_m3=args.volume_m3,
             )
         except sim.NotPredictable as exc:
             raise type(exc)(f"{args.params} ({exc.file})", exc.key, exc.value, exc.reason) from None
@@ -477,6 +479,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     simulate.add_argument(
         "--seed", type=int, default=0, help="seed of the draws (default: %(default)s)"
+    )
+    simulate.add_argument(
+        "--volume-m3",
+        type=float,
+        metavar="V",
+        help=(
+            "the vehicle's interior volume (m³): the draws' air capacity C is held at or above "
+            "that of its air, rho c_p V (without it, only positivity)"
+        ),
     )
     simulate.add_argument(
         "--out", metavar="DIR", help="directory to write <scenario name>.csv and .yaml into"

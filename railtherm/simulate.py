@@ -33,6 +33,21 @@ state equation, discretised exactly). For a class reference model, the draws com
 spread of the class's vehicles (:meth:`railtherm.classmodel.ReferenceModel.draws`). A result
 some draws do not reach within the duration has an open upper band ("> duration").
 
+**Physical limits of the draws.** A drawn parameter set is a vehicle only if every capacity
+and conductance is finite and positive and the air node's capacity (C of eqs. 7-8, C_bar of
+eq. 9) is at least that of the air it holds, rho c_p V (V the vehicle's ``volume_m3``,
+rho c_p = :data:`railtherm.identify.RHO_CP_AIR`). With C >= rho c_p V no draw heats up
+faster than the air alone would: C dT/dt <= Q_H while T lies above T_o and T_veh, so a rise
+by Delta T at power P takes at least rho c_p V Delta T / P. Draws beyond the limits are
+rejected and replaced by further draws from the same generator (rejection sampling: the
+distribution truncated at the limits, deterministic for a seed); the share rejected is
+reported. Where it reaches 2.5 % the untruncated band's end would lie beyond the limit: the
+band's end rests on the limit, not on the data. Without a volume only positivity is
+enforced, and the result says so.
+
+**No band from a fit in doubt.** A fit whose verdict is not "fit acceptable" gives the central
+prediction only: its intervals hold where its assumptions do, and they are in doubt.
+
 A fit with a parameter the data do not determine is not simulated (:class:`NotPredictable`):
 its prediction would rest on a value set by the search's bound.
 """
@@ -68,6 +83,8 @@ DEFAULT_DRAWS = 200
 PI_KP_PER_W = 0.5  # default PI gain: full power at a 2 K error (kp = power_max / 2 K)
 PI_TI_S = 1800.0  # default PI integral time (s)
 DRAW_FACTOR = 1e8  # a class model's draws are held within this factor of its centre
+MAX_DRAW_ROUNDS = 50  # rejection sampling: at most this many batches of draws per band
+LIMIT_DOMINATED = 0.025  # a rejected share from which a band's end rests on the limit
 BISECTION_STEPS = 60  # bisection of a threshold crossing within one step: dt / 2^60
 
 
@@ -86,7 +103,9 @@ class ParameterSet:
     and a way to draw parameter sets (and, for the kalman estimator, the process noise).
 
     ``draw(n, rng)`` returns {parameter: (n,) array}; ``sigma`` the diffusion of each state
-    (K/sqrt(s)) or None; ``band_sources`` says in words what the bands carry."""
+    (K/sqrt(s)) or None; ``band_sources`` says in words what the bands carry;
+    ``band_withheld`` why the prediction carries no band ("" when it may: a fit whose
+    verdict is not "fit acceptable" carries none)."""
 
     label: str
     source: str
@@ -96,6 +115,7 @@ class ParameterSet:
     sigma: np.ndarray | None = None
     band_sources: tuple[str, ...] = ()
     not_identified: tuple[str, ...] = ()
+    band_withheld: str = ""
 
 
 @dataclass(frozen=True)
@@ -160,18 +180,48 @@ class SimulationResult:
     draws: int
     band_sources: tuple[str, ...] = ()
     notes: list[str] = field(default_factory=list)
+    band_withheld: str = ""
+    rejected: int = 0
+    limits: str = ""
+
+    @property
+    def rejected_share(self) -> float:
+        """The share of the parameter draws rejected at the physical limits (0 without
+        draws)."""
+        tried = self.draws + self.rejected
+        return self.rejected / tried if tried else 0.0
+
+    def limit_note(self) -> str:
+        """A sentence on the draws rejected at the physical limits ("" when none was)."""
+        if not self.rejected:
+            return ""
+        share = self.rejected_share
+        text = (
+            f"{100 * share:.1f} % of the parameter draws ({self.rejected} of "
+            f"{self.draws + self.rejected}) lay beyond the physical limits and were "
+            "replaced"
+        )
+        if share >= LIMIT_DOMINATED:
+            text += ": the band reaches the limit, an end of it rests on the limit, not on the data"
+        return text
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "scenario": self.scenario.name,
             "scenario_file": self.scenario.file,
             "parameters": self.label,
             "source": self.source,
             "draws": self.draws,
             "band": list(self.band_sources),
-            "outcomes": {k: o.to_dict() for k, o in self.outcomes.items()},
-            "notes": list(self.notes),
         }
+        if self.band_withheld:
+            out["no_band"] = self.band_withheld
+        if self.draws:
+            out["limits"] = self.limits
+            out["draws_rejected"] = self.rejected
+        out["outcomes"] = {k: o.to_dict() for k, o in self.outcomes.items()}
+        out["notes"] = list(self.notes)
+        return out
 
     def summary(self) -> str:
         o = self.outcomes
@@ -183,7 +233,10 @@ class SimulationResult:
         lines.append(f"  final T:        {o['final_T_C'].text(digits=3)}")
         if self.draws:
             lines.append(f"  95 % bands from {self.draws} draws: {', '.join(self.band_sources)}")
-        lines += [f"  - {n}" for n in self.notes]
+            lines.append(f"  draws held to {self.limits}")
+        if self.band_withheld:
+            lines.append(f"  no 95 % band: {self.band_withheld}")
+        lines += [f"  - {n}" for n in [self.limit_note(), *self.notes] if n]
         return "\n".join(lines)
 
 
@@ -254,8 +307,14 @@ def parameter_set(params: Any) -> ParameterSet:
     """The :class:`ParameterSet` of a :class:`railtherm.fit.Fit` or a class reference model
     (:class:`railtherm.classmodel.ReferenceModel`)."""
     from railtherm.fit import Fit
+    from railtherm.metrics import ACCEPTABLE
 
     if isinstance(params, Fit):
+        withheld = (
+            ""
+            if params.verdict == ACCEPTABLE
+            else f"fit verdict {params.verdict!r}: its intervals hold only where its assumptions do"
+        )
         not_identified = tuple(p for p, q in params.parameters.items() if not q.identified)
         draw, what = _fit_draws(params)
         sigma = None
@@ -275,6 +334,7 @@ def parameter_set(params: Any) -> ParameterSet:
             sigma=sigma,
             band_sources=what,
             not_identified=not_identified,
+            band_withheld=withheld,
         )
     from railtherm import classmodel
 
@@ -293,6 +353,66 @@ def parameter_set(params: Any) -> ParameterSet:
             band_sources=("spread of the class's vehicles (95 % prediction)",),
         )
     raise TypeError(f"cannot simulate a {type(params).__name__}: give a Fit or a ReferenceModel")
+
+
+def air_capacity(volume_m3: float | None, label: str = "volume_m3") -> float | None:
+    """rho c_p V (J/K): the capacity of the air in the vehicle's ``volume_m3``, the least
+    the air node's capacity can be (None without a volume). A volume that is not a positive
+    number is a :class:`ConfigError` naming ``label``."""
+    if volume_m3 is None:
+        return None
+    from railtherm.identify import RHO_CP_AIR
+
+    if isinstance(volume_m3, bool) or not isinstance(volume_m3, int | float | np.floating):
+        raise ConfigError(label, "volume_m3", volume_m3, "expected a volume > 0 (m³)")
+    if not (math.isfinite(volume_m3) and volume_m3 > 0):
+        raise ConfigError(label, "volume_m3", volume_m3, "expected a volume > 0 (m³)")
+    return RHO_CP_AIR * float(volume_m3)
+
+
+def _limits(structure: models.Structure, floor: float | None) -> str:
+    """The physical limits the draws are held to, in words."""
+    text = "every capacity and conductance > 0"
+    if floor is None:
+        return text + "; no volume_m3 given: the air node's capacity is not held above the air's"
+    return text + f", {structure.air} ≥ ρ c_p V = {floor:.4g} J/K (the air alone)"
+
+
+def _physical(
+    draws: Mapping[str, np.ndarray], structure: models.Structure, floor: float | None
+) -> np.ndarray:
+    """Which draws are vehicles: every parameter finite and > 0 and the air node's capacity
+    at least ``floor`` (rho c_p V)."""
+    ok = np.ones(len(next(iter(draws.values()))), dtype=bool)
+    for v in draws.values():
+        v = np.asarray(v, dtype=float)
+        ok &= np.isfinite(v) & (v > 0)
+    if floor is not None and structure.air in draws:
+        ok &= np.asarray(draws[structure.air], dtype=float) >= floor
+    return ok
+
+
+def _physical_draws(
+    ps: ParameterSet, n: int, rng: np.random.Generator, floor: float | None
+) -> tuple[dict[str, np.ndarray] | None, int]:
+    """``n`` parameter draws within the physical limits by rejection sampling: batches of
+    ``n`` from ``ps.draw`` with ``rng``, each draw kept in order if it is a vehicle
+    (:func:`_physical`), until ``n`` are kept; and how many of those examined were rejected.
+    None (and the number examined) when :data:`MAX_DRAW_ROUNDS` batches keep fewer than n."""
+    kept: dict[str, list[np.ndarray]] = {}
+    count = rejected = 0
+    for _ in range(MAX_DRAW_ROUNDS):
+        d = ps.draw(n, rng)
+        ok = _physical(d, ps.structure, floor)
+        idx = np.flatnonzero(ok)[: n - count]
+        examined = (int(idx[-1]) + 1) if count + len(idx) == n else len(ok)
+        rejected += examined - len(idx)
+        for p, v in d.items():
+            kept.setdefault(p, []).append(np.asarray(v, dtype=float)[idx])
+        count += len(idx)
+        if count == n:
+            return {p: np.concatenate(v) for p, v in kept.items()}, rejected
+    return None, rejected + count
 
 
 def load_parameters(path: str | os.PathLike[str]) -> ParameterSet:
@@ -629,9 +749,15 @@ def simulate(
     draws: int = DEFAULT_DRAWS,
     seed: int = 0,
     allow_unreachable: bool = False,
+    volume_m3: float | None = None,
 ) -> SimulationResult:
     """Run ``scenario`` through ``params`` (a :class:`ParameterSet`, a Fit or a class
     reference model) and its ``draws`` parameter sets for the 95 % bands (0: no bands).
+
+    The draws are held to the physical limits (module docstring): every capacity and
+    conductance > 0 and, given the vehicle's ``volume_m3``, the air node's capacity at least
+    rho c_p V; draws beyond them are rejected and replaced. A fit whose verdict is not "fit
+    acceptable" gives no band (``band_withheld`` says why).
 
     Raises :class:`UnreachableSetpoint` when the controller's power limit is below the
     steady-state load under the scenario's most demanding input row (unless
@@ -649,17 +775,36 @@ def simulate(
     structure = ps.structure
     u, zero_irradiance = _inputs(structure, scenario)
     G_values, g_index = np.unique(scenario.air_exchange_W_K, return_inverse=True)
+    floor = air_capacity(volume_m3, ps.label)
+    limits = _limits(structure, floor)
+    notes: list[str] = []
+    if floor is not None and ps.theta[structure.air] < floor:
+        notes.append(
+            f"the central {structure.air} = {ps.theta[structure.air]:.4g} J/K is below the "
+            f"capacity of the air in {volume_m3:g} m³ ({floor:.4g} J/K)"
+        )
+    withheld = ps.band_withheld
+    if withheld:
+        draws = 0
     thetas = [dict(ps.theta)]
-    noise_on = ps.sigma is not None and draws > 0 and np.any(ps.sigma > 0)
     rng = np.random.default_rng(seed)
+    rejected = 0
     if draws > 0 and ps.draw is not None:
-        d = ps.draw(draws, rng)
-        thetas += [
-            {p: float(d[p][i]) if p in d else ps.theta[p] for p in ps.theta} for i in range(draws)
-        ]
+        d, rejected = _physical_draws(ps, draws, rng, floor)
+        if d is None:
+            withheld = (
+                f"fewer than {draws} of {MAX_DRAW_ROUNDS * draws} parameter draws lie within "
+                f"the physical limits ({limits}): the spread is dominated by the limit"
+            )
+            rejected = 0
+        else:
+            thetas += [
+                {p: float(d[p][i]) if p in d else ps.theta[p] for p in ps.theta}
+                for i in range(draws)
+            ]
+    noise_on = ps.sigma is not None and len(thetas) > 1 and np.any(ps.sigma > 0)
     sigma = ps.sigma if noise_on else None
     steps = _prepare(structure, thetas, G_values, scenario.dt_s, sigma)
-    notes: list[str] = []
     if zero_irradiance:
         notes.append(f"irradiance {zero_irradiance} not in the scenario: taken as 0 W/m²")
 
@@ -751,4 +896,7 @@ def simulate(
         draws=len(thetas) - 1,
         band_sources=ps.band_sources if has_band else (),
         notes=notes,
+        band_withheld=withheld,
+        rejected=rejected,
+        limits=limits,
     )
