@@ -2,9 +2,14 @@
 second-order model (eqs. 7-8), tabulated with 95 % bands (rule ``simulate``).
 
 A fit whose parameters the data do not all determine is not simulated: its row says which
-parameter is not identified. A set point the heating cannot hold is reported as
-"unreachable", with the load it would need. Times are written in hours, energy in kWh and
-power in kW, at 4 significant digits in the CSV (:func:`railtherm.tables.write_csv`).
+parameter is not identified. A fit whose verdict is not "fit acceptable" gives its central
+prediction without a band (column ``no_band`` says why; marked :data:`DOUBT_MARK` in the
+Markdown table). The bands' parameter draws are held to the physical limits (C at least the
+capacity of the air in the vehicle's ``volume_m3``, :mod:`railtherm.simulate`); column
+``draws_rejected_pct`` gives the share of draws rejected there. A set point the heating
+cannot hold is reported as "unreachable", with the load it would need. Times are written in
+hours, energy in kWh and power in kW, at 4 significant digits in the CSV
+(:func:`railtherm.tables.write_csv`).
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from railtherm import simulate as sim
 from railtherm.fit import Fit
 from railtherm.scenario import Scenario
 
-__all__ = ["OUTCOMES", "outcome_text", "scenario_markdown", "scenario_table"]
+__all__ = ["DOUBT_MARK", "OUTCOMES", "outcome_text", "scenario_markdown", "scenario_table"]
 
 # (outcome key, column stem, scale to the column's unit, unit)
 OUTCOMES = (
@@ -30,6 +35,7 @@ OUTCOMES = (
     ("final_T_C", "final_T_C", 1.0, "°C"),
 )
 DIGITS = 4  # significant digits of the CSV
+DOUBT_MARK = "†"  # a prediction without a band: the fit's assumptions are in doubt
 
 
 def _row_outcomes(result: sim.SimulationResult) -> dict[str, Any]:
@@ -53,11 +59,15 @@ def scenario_table(
     scenarios: Sequence[Scenario],
     draws: int = sim.DEFAULT_DRAWS,
     seed: int = 0,
+    volumes: Mapping[str, float | None] | None = None,
 ) -> tuple[pd.DataFrame, dict[tuple[str, str], sim.SimulationResult]]:
     """One row per scenario and vehicle (in the given orders): the outcomes with their 95 %
     bands, or why the vehicle was not simulated; and the simulation results by (scenario,
     vehicle). Each run draws from its own seed (``seed`` + its position), so a row does not
-    depend on which other vehicles the study holds."""
+    depend on which other vehicles the study holds. ``volumes``: each vehicle's
+    ``volume_m3``, the floor of its draws' air capacity (a vehicle without one has its draws
+    held to positive values only)."""
+    volumes = volumes or {}
     rows, results = [], {}
     for i, sc in enumerate(scenarios):
         for j, (vid, fit) in enumerate(fits.items()):
@@ -70,7 +80,12 @@ def scenario_table(
             }
             try:
                 result = sim.simulate(
-                    fit, sc, draws=draws, seed=seed + 1000 * i + j, allow_unreachable=True
+                    fit,
+                    sc,
+                    draws=draws,
+                    seed=seed + 1000 * i + j,
+                    allow_unreachable=True,
+                    volume_m3=volumes.get(vid),
                 )
             except sim.NotPredictable as err:
                 names = ", ".join(err.value)
@@ -79,6 +94,8 @@ def scenario_table(
                 continue
             results[sc.name, vid] = result
             row["status"] = "; ".join(result.notes) if result.notes else "simulated"
+            row["no_band"] = result.band_withheld
+            row["draws_rejected_pct"] = 100.0 * result.rejected_share if result.draws else math.nan
             row.update(_row_outcomes(result))
             rows.append(row)
     return pd.DataFrame(rows), results
@@ -86,7 +103,9 @@ def scenario_table(
 
 def outcome_text(row: Mapping[str, Any], stem: str, unit: str, duration_h: float) -> str:
     """``value [lo, hi]`` at 3 significant digits; an open band as "> duration"; the status
-    where there is no value."""
+    where there is no value; a value whose band is withheld (``no_band``) marked
+    :data:`DOUBT_MARK`."""
+    mark = f" {DOUBT_MARK}" if isinstance(row.get("no_band"), str) and row["no_band"] else ""
     status = row.get(f"{stem}_status")
     if not isinstance(status, str):
         return str(row.get("status", ""))
@@ -104,17 +123,22 @@ def outcome_text(row: Mapping[str, Any], stem: str, unit: str, duration_h: float
     if not pd.isna(row.get(f"{stem}_lo")):
         band = f" [{fmt(row[f'{stem}_lo'])}, {fmt(row[f'{stem}_hi'])}]"
     if status == "ok":
-        return f"{fmt(row[stem])}{band}"
+        return f"{fmt(row[stem])}{band}{mark}"
     if status == "not reached":
-        return f"not reached (> {duration_h:g} h){band}"
-    return f"{status}{band}"
+        return f"not reached (> {duration_h:g} h){band}{mark}"
+    return f"{status}{band}{mark}"
 
 
 def scenario_markdown(
-    table: pd.DataFrame, scenarios: Sequence[Scenario], source: str, draws: int
+    table: pd.DataFrame,
+    scenarios: Sequence[Scenario],
+    source: str,
+    draws: int,
+    volumes: Mapping[str, float | None] | None = None,
 ) -> str:
     """The scenario table for people: one section per scenario, only the outcomes it asks
-    for, with its description and source."""
+    for, with its description and source; the share of draws rejected at the physical limits
+    where it is not 0; ``volumes`` (by vehicle) to name the vehicles without a volume."""
     parts = [
         "**Predictions of the identified second-order models (eqs. 7-8) for the study's "
         f"scenarios, with 95 % bands.** Data: {source}.",
@@ -153,6 +177,18 @@ def scenario_markdown(
                 cells = [outcome_text(row, s, u, sc.duration_s / 3600.0) for s, u in wanted]
                 if row["status"] != "simulated":
                     notes.append(f"- {row['vehicle']}: {row['status']}")
+                rejected = row.get("draws_rejected_pct")
+                if isinstance(rejected, float) and rejected > 0:
+                    dominated = (
+                        ": the band reaches the limit, an end of it rests on the limit, not on "
+                        "the data"
+                        if rejected >= 100 * sim.LIMIT_DOMINATED
+                        else ""
+                    )
+                    notes.append(
+                        f"- {row['vehicle']}: {rejected:.1f} % of the parameter draws lay beyond "
+                        f"the physical limits and were replaced{dominated}"
+                    )
             lines.append(
                 f"| {row['vehicle']} | {row['class']} | "
                 + " | ".join(cells)
@@ -160,10 +196,19 @@ def scenario_markdown(
             )
         lines += ["", *notes, "", f"Source of the scenario: {' '.join(sc.source.split())}", ""]
         parts += lines
+    no_volume = [v for v in table["vehicle"].unique() if volumes is not None and not volumes.get(v)]
     parts += [
         f"- Bands: 2.5 and 97.5 % quantiles of {draws} runs with parameter sets drawn from each "
         "fit's statistical covariance and its systematic (type B) error sources, kA of the "
-        "static test included (railtherm.simulate).",
+        "static test included (railtherm.simulate). The draws are truncated at the physical "
+        "limits by rejection sampling: every capacity and conductance > 0, and C at least the "
+        "capacity of the vehicle's air, ρ c_p V, so that no draw heats up faster than the air "
+        "alone would"
+        + (f" (no volume_m3, positivity only: {', '.join(no_volume)})" if no_volume else "")
+        + ".",
+        f"- {DOUBT_MARK}: assumptions in doubt, no band: the fit's verdict is not \"fit "
+        'acceptable", and its intervals hold only where its assumptions do; the central '
+        "prediction is given.",
         "- not simulated: a parameter the data do not determine would set the prediction "
         "(results/vehicles/<id>/fit_order2.yaml).",
         "- Scenario keys and the controller: docs/simulation.md.",

@@ -9,16 +9,27 @@ vehicles = snakemake.params.vehicles
 fits = {vid: read_fit(path) for vid, path in zip(vehicles, snakemake.input.fits, strict=True)}
 classes = {vid: str(data["class"]) for vid, data in vehicles.items()}
 scenarios = [load_scenario(path) for path in snakemake.params.scenarios]
+volumes = {vid: data.get("volume_m3") for vid, data in vehicles.items()}
 draws, seed = snakemake.params.draws, snakemake.params.seed
-table, runs = predictions.scenario_table(fits, classes, scenarios, draws=draws, seed=seed)
+table, runs = predictions.scenario_table(
+    fits, classes, scenarios, draws=draws, seed=seed, volumes=volumes
+)
 source = aggregate.data_source(vehicles)
 tables.write_csv(table, snakemake.output.csv, digits=predictions.DIGITS)
 with open(snakemake.output.md, "w", encoding="utf-8") as stream:
-    stream.write(predictions.scenario_markdown(table, scenarios, source, draws))
+    stream.write(predictions.scenario_markdown(table, scenarios, source, draws, volumes))
 chosen = next(sc for sc in scenarios if sc.name == snakemake.params.figure)
+mark = predictions.DOUBT_MARK
 fig = plots.scenario_figure(
-    {vid: run for (name, vid), run in runs.items() if name == chosen.name},
-    title=f"{chosen.name}: identified second-order models, 95 % bands",
+    {
+        vid + (f" {mark}" if run.band_withheld else ""): run
+        for (name, vid), run in runs.items()
+        if name == chosen.name
+    },
+    title=(
+        f"{chosen.name}: identified second-order models, 95 % bands "
+        f"({mark}: assumptions in doubt, no band)"
+    ),
     threshold_C=chosen.heat_up_to_C,
     note=plots.provenance_note(table.assign(source=source)),
 )
