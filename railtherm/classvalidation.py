@@ -14,7 +14,13 @@ run where no heat-up test is). That model then
   identified model.
 
 A class with too few vehicles left to build a model from is reported as such, with the
-minimum (``reference_model.min_vehicles``).
+minimum (``reference_model.min_vehicles``). A model resting on fewer than
+:data:`MIN_BAND_VEHICLES` other vehicles gives its central prediction without a band: the
+class spread from two vehicles is a t with one degree of freedom (a Cauchy), whose band
+reaches any value (``band_note`` says so). The bands' draws are held to the physical limits
+(:mod:`railtherm.simulate`: C at least the capacity of the vehicle's air, ρ c_p V); where the
+vehicle's data are synthetic, its declared truth (the virtual campaign's parameters) is run
+through the same scenario (``heat_up_true_h``) and compared with the reference band.
 """
 
 from __future__ import annotations
@@ -53,6 +59,10 @@ COLUMNS = (
     "heat_up_fit_h_hi",
     "heat_up_ratio",
     "heat_up_inside",
+    "heat_up_true_h",
+    "heat_up_true_inside",
+    "band_note",
+    "draws_rejected_pct",
     "energy_ref_kWh",
     "energy_ref_kWh_lo",
     "energy_ref_kWh_hi",
@@ -61,6 +71,7 @@ COLUMNS = (
     "energy_inside",
 )
 K_FROM = ("class", "measured")
+MIN_BAND_VEHICLES = 3  # a reference band needs the spread of at least this many vehicles
 
 
 def window_rmse(theta: Mapping[str, float], structure: models.Structure, series: pd.DataFrame):
@@ -114,6 +125,24 @@ def _compared(stem: str, unit: str, ref: tuple, own: tuple, own_band: bool) -> d
     return out
 
 
+def true_heat_up_h(truth: Mapping[str, float], scenario: Scenario, vehicle: str) -> float:
+    """The heat-up time (h) of ``scenario`` through the second-order model (eqs. 7-8) at the
+    declared true parameters ``truth`` (kA, C, K_veh, C_veh: the virtual campaign's,
+    :func:`railtherm.synth.ground_truth_table`); inf where the threshold is not reached."""
+    structure = models.structure_for(classmodel.STRUCTURE)
+    missing = [p for p in structure.parameters if p not in truth]
+    if missing:
+        raise ConfigError(f"truth of {vehicle}", "parameters", sorted(truth), f"lacks {missing}")
+    ps = sim.ParameterSet(
+        label=f"{vehicle} (declared truth)",
+        source="ground truth of the virtual campaign",
+        structure=structure,
+        theta={p: float(truth[p]) for p in structure.parameters},
+    )
+    o = sim.simulate(ps, scenario, draws=0, allow_unreachable=True).outcomes["heat_up_time_s"]
+    return _band(o, 3600.0)[0]
+
+
 def leave_one_out(
     members: Sequence[classmodel.ClassMember],
     fits: Mapping[str, Fit],
@@ -122,18 +151,41 @@ def leave_one_out(
     min_vehicles: int = 2,
     draws: int = sim.DEFAULT_DRAWS,
     seed: int = 0,
+    volumes: Mapping[str, float | None] | None = None,
+    truth: Mapping[str, Mapping[str, float]] | None = None,
 ) -> pd.DataFrame:
     """One row per usable vehicle, basis (its class, every rail class pooled) and source of
     k (the class's, its own measured one): the model from the other vehicles, its RMSE over
     the vehicle's windows and its heat-up time and energy in ``scenario`` with 95 % bands,
-    beside the vehicle's own fit; or why no model could be built (status)."""
+    beside the vehicle's own fit; or why no model could be built (status).
+
+    A model from fewer than :data:`MIN_BAND_VEHICLES` other vehicles has no band
+    (``band_note``). ``volumes``: each vehicle's ``volume_m3``, the floor of the draws' air
+    capacity (its own fit's and its reference model's). ``truth``: by vehicle, the declared
+    kA, C, K_veh and C_veh of a synthetic vehicle; its heat-up time (``heat_up_true_h``) and
+    whether the reference band holds it (``heat_up_true_inside``)."""
+    volumes = volumes or {}
+    truth = truth or {}
     rows = []
     usable = [m for m in members if m.usable and m.vehicle in fits]
     for i, m in enumerate(usable):
         fit = fits[m.vehicle]
-        own = sim.simulate(fit, scenario, draws=draws, seed=seed + 100 * i, allow_unreachable=True)
+        volume = volumes.get(m.vehicle)
+        own = sim.simulate(
+            fit,
+            scenario,
+            draws=draws,
+            seed=seed + 100 * i,
+            allow_unreachable=True,
+            volume_m3=volume,
+        )
         own_heat = _band(own.outcomes["heat_up_time_s"], 3600.0)
         own_energy = _band(own.outcomes["energy_kWh"], 1.0)
+        true_h = (
+            true_heat_up_h(truth[m.vehicle], scenario, m.vehicle)
+            if m.vehicle in truth
+            else math.nan
+        )
         for basis in BASES:
             for k_from in K_FROM:
                 row: dict[str, Any] = {
@@ -172,11 +224,25 @@ def leave_one_out(
                     continue
                 ps = sim.parameter_set(ref)
                 rmse_ref, rmse_fit = window_rmse(ps.theta, ps.structure, series[m.vehicle])
+                few = len(ref.basis) < MIN_BAND_VEHICLES
                 pred = sim.simulate(
-                    ps, scenario, draws=draws, seed=seed + 100 * i + 7, allow_unreachable=True
+                    ps,
+                    scenario,
+                    draws=0 if few else draws,
+                    seed=seed + 100 * i + 7,
+                    allow_unreachable=True,
+                    volume_m3=volume,
                 )
                 heat = _band(pred.outcomes["heat_up_time_s"], 3600.0)
                 energy = _band(pred.outcomes["energy_kWh"], 1.0)
+                note = pred.band_withheld
+                if few:
+                    note = (
+                        f"no band: the class statistic rests on {len(ref.basis)} other "
+                        f"vehicles, fewer than {MIN_BAND_VEHICLES}"
+                    )
+                elif pred.rejected:
+                    note = pred.limit_note()
                 row.update(
                     {
                         "n_basis": len(ref.basis),
@@ -186,6 +252,12 @@ def leave_one_out(
                         "rmse_fit_K": rmse_fit,
                         **_compared("heat_up", "h", heat, own_heat, own_band=True),
                         **_compared("energy", "kWh", energy, own_energy, own_band=False),
+                        "heat_up_true_h": true_h,
+                        "heat_up_true_inside": _inside(true_h, heat[1], heat[2]),
+                        "band_note": note,
+                        "draws_rejected_pct": (
+                            100.0 * pred.rejected_share if pred.draws else math.nan
+                        ),
                     }
                 )
                 rows.append(row)
@@ -212,20 +284,38 @@ def summary_lines(table: pd.DataFrame) -> list[str]:
             r = r[~np.isnan(r) & (r > 0)]
             with np.errstate(divide="ignore"):
                 factor = float(np.median(np.maximum(r, 1 / r))) if len(r) else math.nan
-            inside = part["heat_up_inside"].dropna()
             lo = part["heat_up_ref_h_lo"].astype(float).to_numpy()
             hi = part["heat_up_ref_h_hi"].astype(float).to_numpy()
-            open_above = int(np.isinf(hi).sum())
+            banded = ~np.isnan(lo)
             rmse_ratio = float(np.median(part["rmse_ref_K"] / part["rmse_fit_K"]))
             rmse = part["rmse_ref_K"].astype(float)
-            lines.append(
+            text = (
                 f"- {basis}, k from {k_from}: {len(part)} of {n_total} vehicles predicted; "
-                f"heat-up time off by a median factor {factor:.2f}; the own heat-up time "
-                f"inside the 95 % band for {int(inside.sum())} of {len(inside)}, the band "
-                f"reaching from a median {np.median(lo):.2g} h to beyond the scenario's end "
-                f"for {open_above} of {len(part)}; RMSE of T over the measured windows "
-                f"{rmse.min():.2g} to {rmse.max():.2g} K, a median {rmse_ratio:.0f}× the "
-                "vehicle's own fit"
+                f"heat-up time off by a median factor {factor:.2f}; "
+            )
+            if banded.any():
+                inside = part["heat_up_inside"][banded].dropna()
+                text += (
+                    f"the own heat-up time inside the 95 % band for {int(inside.sum())} of "
+                    f"{len(inside)}, the band reaching from a median "
+                    f"{np.median(lo[banded]):.2g} h to beyond the scenario's end for "
+                    f"{int(np.isinf(hi[banded]).sum())} of {int(banded.sum())}; "
+                )
+                if "heat_up_true_inside" in part:
+                    true_inside = part["heat_up_true_inside"][banded].dropna()
+                    if len(true_inside):
+                        text += (
+                            f"the declared truth's heat-up time inside the band for "
+                            f"{int(true_inside.astype(bool).sum())} of {len(true_inside)}; "
+                        )
+            if (~banded).any():
+                text += (
+                    f"no band for {int((~banded).sum())} (fewer than {MIN_BAND_VEHICLES} other "
+                    "vehicles, or none within the physical limits); "
+                )
+            lines.append(
+                text + f"RMSE of T over the measured windows {rmse.min():.2g} to "
+                f"{rmse.max():.2g} K, a median {rmse_ratio:.0f}× the vehicle's own fit"
             )
     return lines
 
@@ -249,37 +339,54 @@ def validation_markdown(table: pd.DataFrame, scenario: Scenario, source: str) ->
         "the vehicle's own identification windows, from its fit's initial state.",
         "",
         "| Name | class | basis | k from | n | RMSE ref (K) | RMSE fit (K) | heat-up ref (h) "
-        "| heat-up fit (h) | inside | energy ref (kWh) | energy fit (kWh) |",
-        "|:--|:--|:--|:--|--:|--:|--:|--:|--:|:--|--:|--:|",
+        "| heat-up fit (h) | inside | heat-up truth (h) | truth inside | energy ref (kWh) "
+        "| energy fit (kWh) |",
+        "|:--|:--|:--|:--|--:|--:|--:|--:|--:|:--|--:|:--|--:|--:|",
     ]
+    notes = []
     for _, r in table.iterrows():
         if r["status"] != "predicted":
             lines.append(
                 f"| {r['vehicle']} | {r['class']} | {r['basis']} | {r['k_from']} | "
-                f"{int(r['n_basis'])} | {r['status']} | | | | | | |"
+                f"{int(r['n_basis'])} | {r['status']} | | | | | | | | |"
             )
             continue
 
         def band(stem: str, r: Any = r) -> str:
-            hi = r[stem + "_hi"]
+            lo, hi = r[stem + "_lo"], r[stem + "_hi"]
+            if lo is None or (isinstance(lo, float) and math.isnan(lo)):
+                return f"{_cell(r[stem])} ‡"
             return (
-                f"{_cell(r[stem])} [{_cell(r[stem + '_lo'])}, "
+                f"{_cell(r[stem])} [{_cell(lo)}, "
                 f"{_cell(hi) if math.isfinite(hi) else '> duration'}]"
             )
 
-        inside = {True: "yes", False: "no"}.get(r["heat_up_inside"], "")
+        yes_no = {True: "yes", False: "no"}
+        note = r.get("band_note")
+        if isinstance(note, str) and note:
+            notes.append(f"- {r['vehicle']}, {r['basis']}, k from {r['k_from']}: {note}")
         lines.append(
             f"| {r['vehicle']} | {r['class']} | {r['basis']} | {r['k_from']} | "
             f"{int(r['n_basis'])} | {_cell(r['rmse_ref_K'])} | {_cell(r['rmse_fit_K'])} | "
-            f"{band('heat_up_ref_h')} | {_cell(r['heat_up_fit_h'])} | {inside} | "
+            f"{band('heat_up_ref_h')} | {_cell(r['heat_up_fit_h'])} | "
+            f"{yes_no.get(r['heat_up_inside'], '')} | {_cell(r.get('heat_up_true_h'))} | "
+            f"{yes_no.get(r.get('heat_up_true_inside'), '')} | "
             f"{band('energy_ref_kWh')} | {_cell(r['energy_fit_kWh'])} |"
         )
+    lines += ["", *notes] if notes else []
     lines += ["", "Summary:", "", *summary_lines(table), ""]
     lines += [
         "- Bands: 95 % prediction bands of a new vehicle of the class (the spread of the "
         "other vehicles' generalised parameters, Student t), railtherm.classmodel.",
         "- inside: the vehicle's own identified heat-up time lies within the reference "
-        "model's band.",
+        "model's band; truth inside: the heat-up time of the vehicle's declared true parameters "
+        "(synthetic data only) lies within it.",
+        f"- ‡: no band, the central prediction only (why: in the notes under the table): the "
+        f"class statistic rests on fewer than {MIN_BAND_VEHICLES} other vehicles (a t with one "
+        "degree of freedom reaches any value).",
+        "- The bands' draws are truncated at the physical limits by rejection sampling: every "
+        "capacity and conductance > 0 and C at least the capacity of the vehicle's air, "
+        "ρ c_p V, so that no draw heats up faster than the air alone.",
         "- A class whose other vehicles number fewer than reference_model.min_vehicles has no "
         "model; the pooled basis takes every rail class together.",
     ]

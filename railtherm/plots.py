@@ -1291,9 +1291,10 @@ def reference_validation_figure(
                     float(r[c]) for c in ("heat_up_ref_h", "heat_up_ref_h_lo", "heat_up_ref_h_hi")
                 )
                 c = colors[r["vehicle"]]
-                # the band: to the axis top with an arrow where it is open above
+                # the band: to the axis top with an arrow where it is open above (none where
+                # the model rests on too few vehicles: lo and hi NaN)
                 ax_a.plot([x, x], [lo, min(hi, top)], color=c, lw=0.6, alpha=0.6)
-                if not math.isfinite(hi):
+                if math.isinf(hi):
                     ax_a.plot(x, top, marker="^", color=c, ms=3, alpha=0.6)
                 if math.isfinite(y):
                     ax_a.plot(
@@ -1309,7 +1310,7 @@ def reference_validation_figure(
                     named.add(r["vehicle"])
                     ax_a.annotate(
                         r["vehicle"],
-                        (x, lo),
+                        (x, lo if math.isfinite(lo) else min(y, top)),
                         xytext=(2, -8),
                         textcoords="offset points",
                         fontsize=5.5,

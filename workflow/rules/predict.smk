@@ -57,6 +57,7 @@ rule reference_validation:
         ],
         scenario=getattr(figure_scenario(), "file", []),
         profiles=scenario_files(),
+        truth="results/campaign/ground_truth.csv" if CAMPAIGN else [],
     output:
         csv=report(
             "results/tables/reference_validation.csv",

@@ -19,6 +19,14 @@ series = {
     vid: pd.read_csv(path) for vid, path in zip(vehicles, snakemake.input.series, strict=True)
 }
 scenario = load_scenario(snakemake.input.scenario)
+truth = {}
+if snakemake.input.truth:  # the virtual campaign's declared parameters (synthetic vehicles)
+    declared = pd.read_csv(snakemake.input.truth).set_index("vehicle")
+    truth = {
+        vid: declared.loc[vid, ["kA", "C", "K_veh", "C_veh"]].astype(float).to_dict()
+        for vid in vehicles
+        if vid in declared.index
+    }
 table = classvalidation.leave_one_out(
     members,
     fits,
@@ -27,6 +35,8 @@ table = classvalidation.leave_one_out(
     min_vehicles=snakemake.params.min_vehicles,
     draws=snakemake.params.draws,
     seed=snakemake.params.seed,
+    volumes={vid: data.get("volume_m3") for vid, data in vehicles.items()},
+    truth=truth,
 )
 source = aggregate.data_source(vehicles)
 tables.write_csv(table, snakemake.output.csv, digits=4)
