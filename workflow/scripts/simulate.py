@@ -20,16 +20,15 @@ with open(snakemake.output.md, "w", encoding="utf-8") as stream:
     stream.write(predictions.scenario_markdown(table, scenarios, source, draws, volumes))
 chosen = next(sc for sc in scenarios if sc.name == snakemake.params.figure)
 mark = predictions.DOUBT_MARK
+shown = {
+    vid + (f" {mark}" if run.band_withheld else ""): run
+    for (name, vid), run in runs.items()
+    if name == chosen.name
+}
+doubt = f" ({mark}: assumptions in doubt, no band)" if any(mark in v for v in shown) else ""
 fig = plots.scenario_figure(
-    {
-        vid + (f" {mark}" if run.band_withheld else ""): run
-        for (name, vid), run in runs.items()
-        if name == chosen.name
-    },
-    title=(
-        f"{chosen.name}: identified second-order models, 95 % bands "
-        f"({mark}: assumptions in doubt, no band)"
-    ),
+    shown,
+    title=f"{chosen.name}: identified second-order models, 95 % bands{doubt}",
     threshold_C=chosen.heat_up_to_C,
     note=plots.provenance_note(table.assign(source=source)),
 )
