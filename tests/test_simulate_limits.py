@@ -269,3 +269,13 @@ def test_leave_one_out_compares_the_band_with_the_declared_truth():
     assert done.loc["M3", "class", "class"]["heat_up_true_inside"] is None
     md = classvalidation.validation_markdown(table.reset_index(drop=True), sc, "test")
     assert "the declared truth's heat-up time inside the band for" in md
+
+
+def test_a_fit_below_the_air_capacity_has_no_band_and_says_so():
+    """A fit whose C is far below the air's capacity (a unit mistake): no draw is a vehicle,
+    so no band is drawn, and the result says why and that the central C is below the air's."""
+    small = fit({**THETA, "C": 1.0e4})
+    r = sim.simulate(small, preheat(), draws=20, seed=0, volume_m3=VOLUME)
+    assert r.draws == 0 and r.outcomes["heat_up_time_s"].lo is None
+    assert "physical limits" in r.band_withheld and "dominated by the limit" in r.band_withheld
+    assert any("below the capacity of the air" in n for n in r.notes)
