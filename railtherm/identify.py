@@ -267,9 +267,36 @@ def _settings(
         if kA_start is not None:
             initial.setdefault("kA", kA_start)
         bounds.setdefault("kA", KA_BOUNDS)
+    for p, (floor, _) in physical_bounds(structure, vehicle_data).items():
+        bounds.setdefault(p, (floor, float(structure.bounds[p][1])))
     initial = {p: v for p, v in initial.items() if p in structure.parameters and p not in fixed}
     bounds = {p: b for p, b in bounds.items() if p in structure.parameters and p not in fixed}
     return fixed, initial, bounds, k_source, notes
+
+
+AIR_CAPACITY = "the air's capacity ρ c_p V"
+
+
+def physical_bounds(
+    structure: models.Structure, vehicle_data: Mapping[str, Any]
+) -> dict[str, tuple[float, str]]:
+    """The lower search bounds the vehicle's metadata make physical, {param: (bound, what it
+    is)}: the air node's capacity (C of eqs. 7-8, C_bar of eq. 9, ``structure.air``) holds
+    at least the air in ``volume_m3``, ρ c_p V (:data:`RHO_CP_AIR`). Without a volume, none:
+    the structure's loose default (1e4 J/K) stays. A volume that is not a positive number is
+    a :class:`ConfigError` naming the key."""
+    if vehicle_data.get("volume_m3") is None or structure.air not in structure.parameters:
+        return {}
+    volume = vehicle_data["volume_m3"]
+    try:
+        V = float(volume)
+    except (TypeError, ValueError):
+        V = math.nan
+    if not (math.isfinite(V) and V > 0):
+        raise ConfigError(
+            vehicle_data.get("id", "(vehicle)"), "volume_m3", volume, "a positive volume in m³"
+        )
+    return {structure.air: (RHO_CP_AIR * V, AIR_CAPACITY)}
 
 
 def identify(
@@ -309,7 +336,17 @@ def identify(
     combine_uncertainty(fitted["parameters"], budget)
     if "kA" not in fitted["parameters"]:
         fitted["parameters"]["kA"] = derived_kA(fitted)
-    judge_identification(fitted, {**structure.bounds, **options["bounds"]})
+    judge_identification(
+        fitted,
+        {**structure.bounds, **options["bounds"]},
+        structure,
+        physical={
+            p: what
+            for p, (floor, what) in physical_bounds(structure, vehicle_data).items()
+            if float(options["bounds"].get(p, (math.nan,))[0]) == floor
+        },
+        budget=budget,
+    )
     estimate = {
         "vehicle": vehicle_data["id"],
         "synthetic": bool(vehicle_data.get("synthetic", False)),
@@ -608,11 +645,26 @@ def combine_uncertainty(parameters: dict[str, Any], budget: Mapping[str, Any]) -
             ]
 
 
-def judge_identification(fitted: dict[str, Any], bounds: Mapping[str, tuple]) -> None:
+def judge_identification(
+    fitted: dict[str, Any],
+    bounds: Mapping[str, tuple],
+    structure: models.Structure | None = None,
+    physical: Mapping[str, str] | None = None,
+    budget: Mapping[str, Any] | None = None,
+) -> None:
     """Mark every estimated parameter of ``fitted`` (a ``FitResult.to_dict()`` with combined
     intervals) with :func:`railtherm.pem.identification`, and judge the width of the interval
     a reader sees - the combined one - rather than the fit's statistical one: the
-    ``wide_interval`` flags are replaced by flags on the combined intervals."""
+    ``wide_interval`` flags are replaced by flags on the combined intervals.
+
+    With the ``structure``: its coupled parameters (``Structure.coupled``, the dynamic part)
+    are judged together (:func:`railtherm.pem.coupled_identification`), and each of its
+    totals (``Structure.totals``: C_total = C + C_veh, the capacity eq. 9 lumps into C_bar)
+    is written under ``fitted["totals"]`` with its 95 % interval
+    (:func:`railtherm.pem.total_capacity`, ``budget`` the systematic budget). ``physical``:
+    {param: what its lower bound is} for a bound the metadata make physical
+    (:func:`physical_bounds`), named in the reason."""
+    physical = dict(physical or {})
     pinned = {p for f in fitted["flags"] if f["code"] == "at_bound" for p in f["parameters"]}
     flags = [f for f in fitted["flags"] if f["code"] != "wide_interval"]
     for p, entry in fitted["parameters"].items():
@@ -623,6 +675,8 @@ def judge_identification(fitted: dict[str, Any], bounds: Mapping[str, tuple]) ->
             lo_b, hi_b = (float(b) for b in bounds[p])
             lower = abs(math.log(entry["value"] / lo_b)) <= abs(math.log(hi_b / entry["value"]))
             at_bound = ("lower", lo_b) if lower else ("upper", hi_b)
+            if lower and p in physical:
+                at_bound = ("lower", lo_b, physical[p])
         entry.update(pem.identification(entry["value"], entry["ci95"], at_bound))
         lo, hi = entry["ci95"]
         if not (lo > 0 and hi / lo <= pem.WIDE_RATIO) and p in fitted["free"]:
@@ -635,6 +689,18 @@ def judge_identification(fitted: dict[str, Any], bounds: Mapping[str, tuple]) ->
                 ).to_dict()
             )
     fitted["flags"] = flags
+    if structure is None:
+        return
+    params = fitted["parameters"]
+    estimated = {p: params[p] for p in structure.coupled if params.get(p, {}).get("estimated")}
+    for p, judged in pem.coupled_identification(estimated, structure.coupled).items():
+        params[p].update(judged)
+    totals = {}
+    for name, parts in structure.totals.items():
+        if all(p in params for p in parts):
+            totals[name] = pem.total_capacity(fitted, parts, (budget or {}).get("effects_log"))
+    if totals:
+        fitted["totals"] = totals
 
 
 def _series(structure, exps, result) -> pd.DataFrame:
@@ -882,6 +948,8 @@ def check(
         "reasons": reasons,
         "notes": notes,
         "parameters": fit["parameters"],
+        # combinations the data determine however the capacity splits (C_total = C + C_veh)
+        **({"totals": fit["totals"]} if fit.get("totals") else {}),
         # statistical correlation of the free log parameters (order of ``free``): the
         # aggregate propagates it into ratios such as delta = C_veh / C (eq. 25)
         "free": fit["free"],
