@@ -795,7 +795,9 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
     ``thresholds``: the ``check`` section (defaults filled in by :func:`check_thresholds`).
     A check whose quantity the config does not give (no surface, mass or volume) is skipped
     (:func:`skipped_checks` says so). A parameter the data do not determine is not judged here
-    (its flag already is)."""
+    (its flag already is); where the data determine only the total capacity C_total = C +
+    C_veh (``fit.totals``), the sum stands for the capacities, and for the air node's as an
+    upper bound (C <= C_total)."""
     thresholds = check_thresholds(thresholds)
     par = estimate["fit"]["parameters"]
     out = []
@@ -815,7 +817,12 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
             f"{lo:g}-{hi:g} W/(m² K) (check.k_range_W_m2K): are the units of the power and "
             "temperature channels right (W or kW, degC or K), and A the whole surface?"
         )
+    total = (estimate["fit"].get("totals") or {}).get("C_total")
+    if total is not None and not pem.parameter_identification(total)["identified"]:
+        total = None
     capacities = [value(p) for p in ("C_bar", "C", "C_veh", "C_e") if p in par]
+    if None in capacities and total is not None:  # the split unknown, the sum determined
+        capacities = [float(total["value"])]
     if capacities and None not in capacities and estimate.get("mass_kg"):
         per_kg = sum(capacities) / estimate["mass_kg"]
         ceiling = float(thresholds["max_capacity_per_kg_J_kgK"])
@@ -838,13 +845,16 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 "declared seconds divides every capacity by 60), or the mass?"
             )
     air = value("C") if "C" in par else value("C_bar")
+    what = "the air node's capacity"
+    if air is None and total is not None:  # C <= C + C_veh: a total below the air's is too
+        air, what = float(total["value"]), "the total capacity C_total (at least the air node's)"
     if air is not None and estimate.get("volume_m3"):
         ratio = float(thresholds["min_air_capacity_ratio"])
         floor = ratio * RHO_CP_AIR * estimate["volume_m3"]
         if air < floor:
             share = "half" if ratio == 0.5 else f"{ratio:g} times (check.min_air_capacity_ratio)"
             out.append(
-                f"the air node's capacity {air:.4g} J/K is below {share} that of the air in "
+                f"{what} {air:.4g} J/K is below {share} that of the air in "
                 f"{estimate['volume_m3']:g} m³ ({floor:.4g} J/K): a unit mistake (power in kW "
                 "declared W, time in minutes declared seconds?) or the wrong volume"
             )

@@ -545,3 +545,13 @@ def test_vehicle_figures_draws_the_k_figure_and_each_fit_from_their_files(tmp_pa
         plots.save_figure(plots.fit_figure(read, fit, title, synthetic=True), direct / key)
         for ext in ("png", "svg"):
             assert (out / f"fit_{key}.{ext}").read_bytes() == (direct / f"{key}.{ext}").read_bytes()
+
+
+def test_figure5_draws_no_box_for_a_class_of_fewer_than_three_values():
+    a, b = plots.figure5(table3())  # c_veh: tram 2, metro 3, regional 2, main-line 2
+    medians = [ln for ln in data_axes(a).lines if ln.get_color() == "0.1"]
+    assert len(medians) == 1 and np.mean(medians[0].get_xdata()) == pytest.approx(2.0)
+    # delta: Metro2 open to infinity leaves the metros two values: no box at all
+    assert not [ln for ln in data_axes(b).lines if ln.get_color() == "0.1"]
+    points = [ln for ln in data_axes(b).lines if (ln.get_gid() or "").startswith("vehicle")]
+    assert len(points) == len(table3())  # every vehicle still drawn
