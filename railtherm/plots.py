@@ -885,9 +885,10 @@ def figure5(
     Box plots per class in the order tram, metro, regional, main-line (then any other class),
     only classes present, a box only for a class with at least 3 values the data determine
     (:data:`BOX_MIN`; fewer: the points alone); every vehicle's value as a point (evenly
-    spread inside its box, sorted by value), its 95 % interval as a thin bar (left out when a bound is not finite)
-    and its name (nudged up or down where names would overlap). Vehicles whose verdict is
-    "assumptions in doubt" have a hollow square, the others a filled circle. Tick labels give
+    spread inside its box, sorted by value), its 95 % interval as a thin bar (left out when
+    a bound is not finite) and its name (nudged up or down where names would overlap).
+    Vehicles whose verdict is "assumptions in doubt" have a hollow square, the others a
+    filled circle. Tick labels give
     the class and, below it, the number of vehicles with a value the data determine and of
     those without ("metro\n(n=4+1)"); the latter are drawn apart, never in a box
     (:func:`_class_figure`). delta gets a log axis when its values span more than a factor 20
