@@ -268,7 +268,9 @@ def _settings(
             initial.setdefault("kA", kA_start)
         bounds.setdefault("kA", KA_BOUNDS)
     for p, (floor, _) in physical_bounds(structure, vehicle_data).items():
-        bounds.setdefault(p, (floor, float(structure.bounds[p][1])))
+        # physics over an arbitrary lower bound: a configured one below the air's is raised
+        lo, hi = bounds.get(p, structure.bounds[p])
+        bounds[p] = (max(float(lo), floor), float(hi))
     initial = {p: v for p, v in initial.items() if p in structure.parameters and p not in fixed}
     bounds = {p: b for p, b in bounds.items() if p in structure.parameters and p not in fixed}
     return fixed, initial, bounds, k_source, notes
@@ -343,7 +345,7 @@ def identify(
         physical={
             p: what
             for p, (floor, what) in physical_bounds(structure, vehicle_data).items()
-            if float(options["bounds"].get(p, (math.nan,))[0]) == floor
+            if float(options["bounds"][p][0]) == floor
         },
         budget=budget,
     )
@@ -844,7 +846,15 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 "(check.min_capacity_per_kg_J_kgK): is the time column's unit right (minutes "
                 "declared seconds divides every capacity by 60), or the mass?"
             )
-    air = value("C") if "C" in par else value("C_bar")
+    air_name = "C" if "C" in par else "C_bar"
+    reason = str((par.get(air_name) or {}).get("reason", ""))
+    if reason.startswith("at its physical lower bound") and estimate.get("volume_m3"):
+        out.append(
+            f"the air node's capacity {air_name} sits {reason}: the data "
+            f"ask for less than the air in {estimate['volume_m3']:g} m³ holds - a unit mistake "
+            "(power in kW declared W, time in minutes declared seconds?) or the wrong volume"
+        )
+    air = value(air_name)
     what = "the air node's capacity"
     if air is None and total is not None:  # C <= C + C_veh: a total below the air's is too
         air, what = float(total["value"]), "the total capacity C_total (at least the air node's)"

@@ -1380,9 +1380,10 @@ def total_capacity(
     ``correlation`` over ``free``), e the signed systematic effects of each source
     (``effects_log``, railtherm.identify.systematic_budget). A part at a bound of the search
     (its entry's ``at_bound``, :func:`identification`) is held there: the sum is conditional
-    on it (its variance and effects left out, ``note`` says so); a part at an upper bound
-    leaves the sum not identified, and one with an unbounded variance not at a bound leaves
-    it unbounded. Judged by :func:`identification` like a parameter."""
+    on it (its variance and effects left out, ``note`` says so); a part at an upper bound, or
+    every part at a bound, leaves the sum not identified, and a part with an unbounded
+    variance not at a bound leaves it unbounded. Judged by :func:`identification` like a
+    parameter."""
     params = fitted["parameters"]
     at_bounds = {p: params[p]["at_bound"] for p in parts if params[p].get("at_bound")}
     values = np.array([float(params[p]["value"]) for p in parts])
@@ -1431,6 +1432,9 @@ def total_capacity(
     upper = [p for p in held if at_bounds[p] == "upper"]
     if upper:  # the sum grows with a part the search stopped: no value the data give
         reason = f"{', '.join(upper)} at the upper bound of the search"
+        entry.update(identified=False, limit="none", limit_value=None, reason=reason)
+    elif not varying:  # every part held: a sum of bounds, nothing the data give
+        reason = f"every part ({', '.join(parts)}) at a bound of the search"
         entry.update(identified=False, limit="none", limit_value=None, reason=reason)
     return entry
 

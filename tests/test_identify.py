@@ -184,7 +184,8 @@ def test_without_surface_sensors_the_fit_uses_T_and_still_cross_validates():
     ("factor", "reasons"),
     [
         (1000.0, ("outside the physical range",)),  # W logged, kW declared: C at its bound
-        (1e-3, ("outside the physical range", "below half that of the air")),  # the reverse
+        # the reverse: the air node pinned at the air's own capacity (volume_m3's bound)
+        (1e-3, ("outside the physical range", "sits at its physical lower bound")),
     ],
 )
 def test_a_unit_mistake_in_the_power_is_never_fit_acceptable(factor, reasons):
@@ -257,9 +258,14 @@ def test_the_air_in_the_volume_is_the_lower_bound_of_the_air_node(order, air):
     _, _, bounds, _, _ = identify._settings(structure, without, k_result(), TABLES)
     assert air not in bounds  # the structure's loose 1e4 J/K stays
     assert structure.bounds[air][0] == 1e4
-    given = vehicle(bounds={air: [2e4, 1e9]})  # a bound the config sets wins
+    # a configured lower bound below the air's capacity (1.45e5 J/K) is raised to it ...
+    given = vehicle(bounds={air: [2e4, 1e9]})
     _, _, bounds, _, _ = identify._settings(structure, given, k_result(), TABLES)
-    assert bounds[air] == (2e4, 1e9)
+    assert bounds[air] == pytest.approx((identify.RHO_CP_AIR * 120.0, 1e9))
+    # ... one above it is kept
+    given = vehicle(bounds={air: [1e6, 1e9]})
+    _, _, bounds, _, _ = identify._settings(structure, given, k_result(), TABLES)
+    assert bounds[air] == (1e6, 1e9)
 
 
 def test_a_bad_volume_is_refused_naming_the_key():

@@ -245,6 +245,11 @@ def test_a_hand_built_fit_at_a_bound_is_judged_with_its_coupling():
     # C held at its bound: the sum's spread is C_veh's, weighted by its share of the sum
     w = 5.7e6 / (5.7e6 + 1e4)
     assert total["sd_log_total"] == pytest.approx(w * 0.3)
+    # every part at a bound: a sum of bounds is nothing the data give
+    both = fit(1e4, 500, 1e4, pinned={"C": ("lower", 1e4), "C_veh": ("lower", 1e4)})
+    assert not aggregate.fit_totals(both)["C_total"]["identified"]
+    upper = fit(1e7, 500, 1e10, pinned={"C_veh": ("upper", 1e10)})
+    assert not aggregate.fit_totals(upper)["C_total"]["identified"]
 
 
 def test_the_total_capacity_follows_the_covariance_and_the_systematic_effects():
