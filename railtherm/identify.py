@@ -852,7 +852,8 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
         out.append(
             f"the air node's capacity {air_name} sits {reason}: the data "
             f"ask for less than the air in {estimate['volume_m3']:g} m³ holds - a unit mistake "
-            "(power in kW declared W, time in minutes declared seconds?) or the wrong volume"
+            "(power in kW declared W, time in minutes declared seconds?), the wrong volume, or "
+            "a dynamic the model lacks"
         )
     air = value(air_name)
     what = "the air node's capacity"
