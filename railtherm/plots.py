@@ -777,7 +777,7 @@ def _class_figure(
         sep = 6.5 / (0.55 * 72.0 * fig.get_figheight())
         name_at = transforms.offset_copy(ax.get_xaxis_transform(), fig=fig, x=3.0, units="points")
         classes = aggregate.class_order(table3["class"].tolist())
-        boxes, labels, any_open = [], [], False
+        boxes, labels, open_kinds = [], [], set()
         for pos, cls in enumerate(classes, start=1):
             in_class = (table3["class"].astype(str) == cls).to_numpy()
             part = table3[in_class]
@@ -803,8 +803,8 @@ def _class_figure(
                     doubt = str(row["verdict"]) == IN_DOUBT
                     (point,) = ax.plot([x], [y], ls="none", zorder=5, **_POINT[doubt])
                 else:
-                    any_open = True
                     kind = str(kinds[in_class].iloc[i])
+                    open_kinds.add("limit" if kind in ("upper", "lower") else "none")
                     if kind in ("upper", "lower"):
                         edge = ylim[1] if kind == "lower" else ylim[0]
                         ax.annotate(
@@ -867,10 +867,12 @@ def _class_figure(
         ]
         bar = {"marker": "|", "ms": 9, "mew": 0.6, "color": COLORS["T_veh"]}
         handles.append(Line2D([], [], ls="none", label="95 % interval", **bar))
-        if any_open:
+        if "limit" in open_kinds:
             handles.append(
                 Line2D([], [], ls="none", label="not identified: limit", **_OPEN["lower"])
             )
+        if "none" in open_kinds:  # no limit the data give: anywhere on the axis
+            handles.append(Line2D([], [], ls="none", label="not identified", **_OPEN["none"]))
         if skipped:  # its own line: the names may be long
             handles.append(Line2D([], [], ls="none", label=f"not shown: {skipped}"))
         _legend_row(fig, grid[1], handles, ncols=1 if skipped else 2, handlelength=1.2)

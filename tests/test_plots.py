@@ -555,3 +555,16 @@ def test_figure5_draws_no_box_for_a_class_of_fewer_than_three_values():
     assert not [ln for ln in data_axes(b).lines if ln.get_color() == "0.1"]
     points = [ln for ln in data_axes(b).lines if (ln.get_gid() or "").startswith("vehicle")]
     assert len(points) == len(table3())  # every vehicle still drawn
+
+
+def test_figure5_names_a_value_without_a_limit_in_the_legend():
+    t3 = table3()
+    for q in ("c_veh", "delta"):
+        t3[f"{q}_status"], t3[f"{q}_limit"], t3[f"{q}_limit_kind"] = "estimated", np.nan, ""
+    metro3 = t3["vehicle"] == "Metro3"
+    t3.loc[metro3, ["delta", "delta_lo", "delta_hi"]] = np.nan
+    t3.loc[metro3, "delta_status"] = "not identified: C_veh coupled to C, which is not identified"
+    t3.loc[metro3, "delta_limit_kind"] = "none"
+    b = plots.figure5(t3)[1]
+    legend = [t.get_text() for x in b.axes if x.get_legend() for t in x.get_legend().texts]
+    assert "not identified" in legend and "not identified: limit" not in legend
