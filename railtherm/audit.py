@@ -1467,7 +1467,7 @@ def check_reproduction(
         if TOTAL in est.columns and "C" in row and "C_veh" in row:
             out.append(_total_finding(vid, row, line, pub, synthetic, verdict_of_fit, source))
         if f"{TOTAL}_vs_C_bar" in est.columns:
-            finding = _first_order_finding(vid, line, pub)
+            finding = _first_order_finding(vid, line, source)
             if finding is not None:
                 out.append(finding)
     return out
@@ -1498,7 +1498,7 @@ def _total_finding(vid, row, line, pub, synthetic, verdict_of_fit, source) -> Fi
     )
 
 
-def _first_order_finding(vid, line, pub) -> Finding | None:
+def _first_order_finding(vid, line, source) -> Finding | None:
     """The re-estimates' own check of eq. 9: C_total = C + C_veh of the second-order fit
     against C_bar of the first-order fit of the same vehicle, the same capacity lumped into
     one node. Overlapping 95 % intervals agree."""
@@ -1525,7 +1525,7 @@ def _first_order_finding(vid, line, pub) -> Finding | None:
         recomputed,
         f"{verdict}{reason}: the re-estimated C_total = C + C_veh (eqs. 7-8) and the "
         f"first-order C_bar (eq. 9) of the same vehicle, the same capacity: {recomputed} "
-        f"({'95 % intervals overlap' if verdict == AGREES else check})",
+        f"({'95 % intervals overlap' if verdict == AGREES else check}; {source})",
     )
 
 
