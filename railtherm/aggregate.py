@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import pem
+from railtherm import models, pem
 from railtherm.metrics import ACCEPTABLE
 from railtherm.smallsample import t_interval, two_class_test
 from railtherm.yamlio import packaged_schema
@@ -96,18 +96,93 @@ def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame |
 
 
 PARAMETERS = ("kA", "C_bar", "C", "K_veh", "C_veh")
-# Recovery tolerance of the second-order estimates against the campaign's truth.
-RECOVERY_TOLERANCE = {"C": 0.05, "K_veh": 0.10, "C_veh": 0.05}
+# Tolerance of the second-order estimates against the campaign's truth (relative error):
+# ``<p>_within_tolerance``; C_total = C + C_veh as its parts.
+RECOVERY_TOLERANCE = {"C": 0.05, "K_veh": 0.10, "C_veh": 0.05, "C_total": 0.05}
+TOTAL = "C_total"  # C + C_veh (eqs. 7-8), the capacity the first-order C_bar lumps (eq. 9)
+
+
+def fit_structure(fit: Mapping[str, Any]) -> models.Structure | None:
+    """The structure of a written fit (``structure``, irradiance inputs stripped); a fit
+    without the key but with C, K_veh and C_veh is the second-order model (eqs. 7-8)."""
+    name = str(fit.get("structure") or "").split("+")[0]
+    if not name and {"C", "K_veh", "C_veh"} <= set(fit["parameters"]):
+        name = "second_order"
+    return models.STRUCTURES.get(name)
+
+
+def judged_parameters(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
+    """{param: identification} of a written fit: each estimated parameter as
+    :func:`railtherm.pem.parameter_identification` judges it, then the structure's coupled
+    parameters together (``Structure.coupled``, :func:`railtherm.pem.coupled_identification`):
+    a capacity or the internal conductance coupled to one the data do not determine is not an
+    estimate either. A fixed parameter (kA from the static test) is identified."""
+    judged = {
+        p: (pem.parameter_identification(e) if e.get("estimated") else {"identified": True})
+        for p, e in fit["parameters"].items()
+    }
+    structure = fit_structure(fit)
+    if structure is not None:
+        estimated = {p: judged[p] for p in structure.coupled if p in judged}
+        judged |= pem.coupled_identification(estimated, structure.coupled)
+    return judged
+
+
+def fit_totals(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
+    """The totals of a written fit (``totals``: C_total = C + C_veh with its 95 % interval),
+    as recorded, or computed from its parameters, correlation and systematic effects
+    (:func:`railtherm.pem.total_capacity`) for a fit written without them."""
+    if fit.get("totals"):
+        return dict(fit["totals"])
+    structure = fit_structure(fit)
+    params = fit["parameters"]
+    out = {}
+    for name, parts in (structure.totals if structure is not None else {}).items():
+        if all(params.get(p, {}).get("estimated") for p in parts):
+            effects = (fit.get("systematic") or {}).get("effects_log")
+            out[name] = pem.total_capacity(fit, parts, effects)
+    return out
+
+
+def intervals_overlap(a: Sequence[float], b: Sequence[float]) -> bool:
+    """Whether two closed intervals [lo, hi] meet."""
+    return bool(float(a[0]) <= float(b[1]) and float(b[0]) <= float(a[1]))
+
+
+def total_vs_C_bar(total: Mapping[str, Any] | None, C_bar: Mapping[str, Any] | None) -> str:
+    """C_total = C + C_veh of the second-order fit against C_bar of the first-order fit of the
+    same vehicle, the same capacity by eq. 9: "overlap" when their 95 % intervals meet,
+    "disjoint" when not, "not comparable: <why>" when either is not an estimate."""
+    if total is None:
+        return "not comparable: no C_total"
+    if C_bar is None:
+        return "not comparable: no first-order fit"
+    for name, entry in ((TOTAL, total), ("C_bar", C_bar)):
+        judged = pem.parameter_identification(entry)
+        if not judged.get("identified", True):
+            return f"not comparable: {name} not identified"
+    return "overlap" if intervals_overlap(total["ci95"], C_bar["ci95"]) else "disjoint"
 
 
 def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) -> pd.DataFrame:
     """One row per vehicle and model order: verdict, R^2 (eq. 21), NRMSE fit, how k was
-    obtained, every parameter with its 95 % interval, the flags; and, for second-order fits of
-    campaign vehicles, the truth, the relative error and whether the estimate is recovered
-    (within 5 % for C and C_veh, 10 % for K_veh, or the truth inside the 95 % interval). A
-    parameter the data do not determine has no value there (``<p>_status`` says why) and is
-    never recovered: a comparison with the truth needs a bounded interval."""
+    obtained, every parameter with its 95 % interval, the flags; the total capacity C_total =
+    C + C_veh of a second-order fit (``C_total``, ``_lo``, ``_hi``, ``_status``) and whether
+    its interval meets that of the same vehicle's first-order C_bar (``C_total_vs_C_bar``, the
+    same capacity by eq. 9: :func:`total_vs_C_bar`). A parameter the data do not determine,
+    or coupled to one they do not determine, has no value there (``<p>_status`` says why).
+
+    For second-order fits of campaign vehicles, per C, K_veh, C_veh and C_total: the truth,
+    the relative error, ``<p>_inside`` (the truth inside the 95 % interval),
+    ``<p>_within_tolerance`` (|relative error| within :data:`RECOVERY_TOLERANCE`) and
+    ``<p>_recovered`` (either of the two). Each needs an identified estimate: a value the
+    data do not determine is never compared with the truth (all three False)."""
     truth_by_id = truth.set_index("vehicle") if truth is not None else None
+    first_order = {
+        (f["vehicle"], f.get("estimator", "output_error")): f["parameters"].get("C_bar")
+        for f in fits
+        if "C_bar" in f["parameters"] and f["parameters"]["C_bar"].get("estimated")
+    }
     rows = []
     for fit in fits:
         row: dict[str, Any] = {
@@ -118,6 +193,7 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
             "nrmse_fit": fit["nrmse_fit"],
             "k_source": fit["k_source"],
         }
+        judged = judged_parameters(fit)
         for p in PARAMETERS:
             entry = fit["parameters"].get(p)
             if entry is None:
@@ -126,22 +202,34 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
                 value = float(entry["value"])
                 row |= {p: value, f"{p}_lo": math.nan, f"{p}_hi": math.nan, f"{p}_status": "fixed"}
             else:
-                judged = pem.parameter_identification(entry)
-                q = quantity(entry["value"], entry["ci95"], judged)
+                q = quantity(entry["value"], entry["ci95"], judged[p])
                 row |= {f"{p}{suffix}": q[suffix] for suffix in ("", "_lo", "_hi", "_status")}
+        total = fit_totals(fit).get(TOTAL)
+        if total is None:
+            row |= {TOTAL: math.nan, f"{TOTAL}_lo": math.nan, f"{TOTAL}_hi": math.nan}
+            row |= {f"{TOTAL}_status": "", f"{TOTAL}_vs_C_bar": ""}
+        else:
+            q = quantity(total["value"], total["ci95"], pem.parameter_identification(total))
+            row |= {f"{TOTAL}{suffix}": q[suffix] for suffix in ("", "_lo", "_hi", "_status")}
+            key = (fit["vehicle"], fit.get("estimator", "output_error"))
+            row[f"{TOTAL}_vs_C_bar"] = total_vs_C_bar(total, first_order.get(key))
         row["flags"] = ";".join(sorted({f["code"] for f in fit["flags"]}))
         known = truth_by_id is not None and fit["vehicle"] in truth_by_id.index
         if known and fit["order"] == 2:
             t = truth_by_id.loc[fit["vehicle"]]
             row["deviations"] = "" if pd.isna(t["deviations"]) else t["deviations"]
             for p, tol in RECOVERY_TOLERANCE.items():
-                # only an identified estimate can be recovered: a bounded interval is needed
-                error = row[p] / t[p] - 1.0
-                inside = row[f"{p}_lo"] <= t[p] <= row[f"{p}_hi"]
+                true = float(t["C"] + t["C_veh"]) if p == TOTAL else float(t[p])
+                # NaN where not identified: never inside, never within tolerance
+                error = row[p] / true - 1.0
+                inside = bool(row[f"{p}_lo"] <= true <= row[f"{p}_hi"])
+                within = bool(abs(error) <= tol)
                 row |= {
-                    f"{p}_truth": float(t[p]),
+                    f"{p}_truth": true,
                     f"{p}_rel_error": float(error),
-                    f"{p}_recovered": bool(abs(error) <= tol or inside),
+                    f"{p}_inside": inside,
+                    f"{p}_within_tolerance": within,
+                    f"{p}_recovered": inside or within,
                 }
         rows.append(row)
     table = pd.DataFrame(rows)
@@ -315,8 +403,7 @@ def _ratio_limit(num: tuple[str, float], den: tuple[str, float]) -> tuple[str, f
     return (kinds.pop() if kinds else "point"), num[1] / den[1]
 
 
-def _part(entry: Mapping[str, Any]) -> tuple[str, float]:
-    judged = pem.parameter_identification(entry)
+def _part(entry: Mapping[str, Any], judged: Mapping[str, Any]) -> tuple[str, float]:
     if judged.get("identified", True):
         return "point", float(entry["value"])
     limit = judged.get("limit_value")
@@ -327,6 +414,7 @@ def table2(
     fits: Mapping[str, Mapping[str, Any]],
     kvalues: Mapping[str, Mapping[str, Any] | None],
     vehicles: Mapping[str, Mapping[str, Any]],
+    first_order: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> pd.DataFrame:
     """Table 2: per vehicle k (W/(m^2 K)), C (J/K), K_veh (W/K), C_veh (J/K) and R^2 (eq. 21) of
     the second-order model, each estimate with its 95 % interval and its status, the verdict
@@ -334,27 +422,35 @@ def table2(
     within a class in the order of ``vehicles`` (the study config's order).
 
     ``fits``: vehicle -> its fit_order2.yaml; ``kvalues``: vehicle -> its kvalue.yaml (or None);
-    ``vehicles``: vehicle -> its config. k from the static test carries k +- 2 u(k) (expanded
-    uncertainty, coverage factor 2, as the k table); k from joint estimation kA / A with kA's
-    interval. C, K_veh, C_veh intervals are the combined ones (statistical and systematic); a
-    parameter the data do not determine has no value, its status and its one-sided limit
-    (:func:`quantity`). A vehicle without ``surface_m2`` has no k: status "not given: no
-    surface_m2" (:func:`not_given`)."""
+    ``vehicles``: vehicle -> its config; ``first_order``: vehicle -> its fit_order1.yaml, where
+    fitted. k from the static test carries k +- 2 u(k) (expanded uncertainty, coverage factor
+    2, as the k table); k from joint estimation kA / A with kA's interval. C, K_veh, C_veh
+    intervals are the combined ones (statistical and systematic); a parameter the data do not
+    determine, or coupled to one they do not determine (:func:`judged_parameters`), has no
+    value, its status and any one-sided limit the data give (:func:`quantity`).
+
+    Beside them the total capacity C_total = C + C_veh (:func:`fit_totals`), which the data
+    determine even where they cannot split it between the nodes, the first-order C_bar of the
+    same vehicle (eq. 9: the same capacity lumped into one node) and whether the two 95 %
+    intervals meet (``C_total_vs_C_bar``, :func:`total_vs_C_bar`). A vehicle without
+    ``surface_m2`` has no k: status "not given: no surface_m2" (:func:`not_given`)."""
+    first_order = first_order or {}
     rows = []
     for vid in by_class(vehicles):
         vehicle, fit = vehicles[vid], fits[vid]
         params = fit["parameters"]
+        judged = judged_parameters(fit)
         A = None if vehicle.get("surface_m2") is None else float(vehicle["surface_m2"])
         kv = kvalues.get(vid)
         if A is None:
             k = not_given("surface_m2")
         elif params["kA"]["estimated"] or kv is None:
             entry = params["kA"]
-            judged = dict(pem.parameter_identification(entry))
-            if judged.get("limit_value") is not None:
-                judged["limit_value"] = judged["limit_value"] / A
+            judged_kA = dict(judged["kA"])
+            if judged_kA.get("limit_value") is not None:
+                judged_kA["limit_value"] = judged_kA["limit_value"] / A
             ci = [c / A for c in entry.get("ci95", (math.nan, math.nan))]
-            k = quantity(entry["value"] / A, ci, judged)
+            k = quantity(entry["value"] / A, ci, judged_kA)
         else:
             U = COVERAGE_FACTOR * float(kv["u_k"])
             k = quantity(float(kv["k"]), (float(kv["k"]) - U, float(kv["k"]) + U), {})
@@ -363,9 +459,21 @@ def table2(
         row["k_source"] = fit["k_source"]
         for p in ("C", "K_veh", "C_veh"):
             entry = params[p]
-            row |= _columns(
-                p, quantity(entry["value"], entry["ci95"], pem.parameter_identification(entry))
-            )
+            row |= _columns(p, quantity(entry["value"], entry["ci95"], judged[p]))
+        total = fit_totals(fit).get(TOTAL)
+        if total is None:
+            row |= _columns(TOTAL, quantity(math.nan, (math.nan, math.nan), {}))
+        else:
+            judged_total = pem.parameter_identification(total)
+            row |= _columns(TOTAL, quantity(total["value"], total["ci95"], judged_total))
+        C_bar = (first_order.get(vid) or {}).get("parameters", {}).get("C_bar")
+        if C_bar is None or not C_bar.get("estimated"):
+            row |= _columns("C_bar", quantity(math.nan, (math.nan, math.nan), {}))
+            C_bar = None
+        else:
+            judged_C_bar = pem.parameter_identification(C_bar)
+            row |= _columns("C_bar", quantity(C_bar["value"], C_bar["ci95"], judged_C_bar))
+        row[f"{TOTAL}_vs_C_bar"] = total_vs_C_bar(total, C_bar)
         row |= {
             "R2": float(fit["R2"]),
             "verdict": fit["verdict"],
@@ -401,8 +509,10 @@ def table3(
     95 % intervals, in Table 2's row order. c_veh takes C_veh's interval (the mass is taken as
     exact); delta's interval is exp(log delta +- z_0.975 sd), sd combining the statistical
     variances and the correlation of log C and log C_veh with the systematic effects of each
-    source on both. A ratio with a part the data do not determine is not identified either;
-    its limit follows from the parts' (C at its lower bound: delta at least C_veh / bound).
+    source on both. A ratio with a part the data do not determine (or coupled to one they do
+    not determine, :func:`judged_parameters`) is not identified either; a one-sided limit
+    follows only from parts that are one-sided limits the data give, never from a bound of
+    the search.
     A vehicle without ``mass_kg`` has no m_veh and no c_veh: status "not given: no mass_kg"
     (:func:`not_given`); delta needs no mass."""
     rows = []
@@ -411,20 +521,21 @@ def table3(
     ):
         fit = fits[vid]
         params = fit["parameters"]
+        judged = judged_parameters(fit)
         mass = vehicles[vid].get("mass_kg")
         m = math.nan if mass is None else float(mass)
         C_veh, C = params["C_veh"], params["C"]
-        c_kind, c_value = _ratio_limit(_part(C_veh), ("point", m))
+        c_kind, c_value = _ratio_limit(_part(C_veh, judged["C_veh"]), ("point", m))
         if mass is None:
             c_veh = not_given("mass_kg")
         elif c_kind == "point":
             ci = [c / m for c in C_veh["ci95"]]
             c_veh = quantity(c_value, ci, pem.identification(c_value, ci))
         else:
-            reason = f"C_veh {pem.parameter_identification(C_veh)['reason']}"
-            judged = {"limit": c_kind, "limit_value": c_value, "reason": reason}
-            c_veh = quantity(math.nan, (math.nan, math.nan), {"identified": False, **judged})
-        d_kind, d_value = _ratio_limit(_part(C_veh), _part(C))
+            reason = f"C_veh {judged['C_veh']['reason']}"
+            limit = {"limit": c_kind, "limit_value": c_value, "reason": reason}
+            c_veh = quantity(math.nan, (math.nan, math.nan), {"identified": False, **limit})
+        d_kind, d_value = _ratio_limit(_part(C_veh, judged["C_veh"]), _part(C, judged["C"]))
         if d_kind == "point":
             sd = _sd_log_ratio(fit, "C_veh", "C")
             with np.errstate(over="ignore"):
@@ -432,13 +543,13 @@ def table3(
             delta = quantity(d_value, ci, pem.identification(d_value, ci))
         else:
             why = "; ".join(
-                f"{p} {pem.parameter_identification(params[p])['reason']}"
+                f"{p} {judged[p]['reason']}"
                 for p in ("C", "C_veh")
-                if not pem.parameter_identification(params[p]).get("identified", True)
+                if not judged[p].get("identified", True)
             )
-            judged = {"identified": False, "limit": d_kind, "reason": why}
-            judged["limit_value"] = None if d_kind == "none" else d_value
-            delta = quantity(math.nan, (math.nan, math.nan), judged)
+            limit = {"identified": False, "limit": d_kind, "reason": why}
+            limit["limit_value"] = None if d_kind == "none" else d_value
+            delta = quantity(math.nan, (math.nan, math.nan), limit)
         row = {"vehicle": vid, "class": cls, "m_veh": m}
         row |= _columns("c_veh", c_veh) | _columns("delta", delta)
         row |= {"verdict": verdict, "source": source}
@@ -469,7 +580,7 @@ def table1(
             ),
             "vehicles with C, K_veh, C_veh identified": sum(
                 all(
-                    pem.parameter_identification(fits[vid]["parameters"][p]).get("identified", True)
+                    judged_parameters(fits[vid])[p].get("identified", True)
                     for p in ("C", "K_veh", "C_veh")
                 )
                 for vid in ids
@@ -495,15 +606,27 @@ SELECTIONS = {
 }
 
 
+def geometric_sd(x: Sequence[float]) -> float:
+    """The geometric standard deviation exp(sd(log x)) (n - 1 in the sd): the spread of a
+    positive quantity on the log scale, a factor (x/÷) about the geometric mean; NaN below
+    two values or for a value that is not positive."""
+    x = np.asarray(x, dtype=float)
+    if x.size < 2 or not np.all(x > 0):
+        return math.nan
+    return float(np.exp(np.log(x).std(ddof=1)))
+
+
 def class_summary(t3: pd.DataFrame) -> pd.DataFrame:
     """Per selection (every identified value; only fits judged acceptable), class and quantity
     (c_veh, delta): n, mean with its 95 % t interval, the geometric mean with its t interval on
     the log scale (the natural centre of a ratio such as delta, whose values span decades),
-    median, sample sd, min and max, the vehicles used and those left out because the data do
-    not determine their value. A t interval (n - 1 degrees of freedom) is exact for normal
-    data and honest at n = 2 (wide); a percentile bootstrap of 3 to 5 values returns little
-    more than their range and covers far less than 95 %. A value not given (no metadata for
-    it, :data:`NOT_GIVEN`) is skipped: neither used nor listed as not identified."""
+    median, sample sd, the geometric sd (:func:`geometric_sd`, delta's spread on the log
+    scale beside its geometric mean), min and max, the vehicles used and those left out
+    because the data do not determine their value. A t interval (n - 1 degrees of freedom)
+    is exact for normal data and honest at n = 2 (wide); a percentile bootstrap of 3 to 5
+    values returns little more than their range and covers far less than 95 %. A value not
+    given (no metadata for it, :data:`NOT_GIVEN`) is skipped: neither used nor listed as not
+    identified."""
     rows = []
     for selection, pick in SELECTIONS.items():
         sub = pick(t3)
@@ -532,6 +655,7 @@ def class_summary(t3: pd.DataFrame) -> pd.DataFrame:
                         "geometric_mean_ci_hi": math.exp(ghi) if math.isfinite(ghi) else math.nan,
                         "median": float(np.median(x)),
                         "sd": float(x.std(ddof=1)) if x.size > 1 else math.nan,
+                        "geometric_sd": geometric_sd(x),
                         "min": float(x.min()),
                         "max": float(x.max()),
                     }
@@ -542,7 +666,7 @@ def class_summary(t3: pd.DataFrame) -> pd.DataFrame:
                 rows.append(row)
     columns = ["selection", "class", "quantity", "n", "mean", "mean_ci_lo", "mean_ci_hi"]
     columns += ["geometric_mean", "geometric_mean_ci_lo", "geometric_mean_ci_hi", "median"]
-    columns += ["sd", "min", "max", "vehicles", "not_identified"]
+    columns += ["sd", "geometric_sd", "min", "max", "vehicles", "not_identified"]
     return pd.DataFrame(rows, columns=columns)
 
 
@@ -554,11 +678,12 @@ def class_test(
 ) -> pd.DataFrame:
     """The paper's open question (section 6.3): do metros and regional trains differ in c_veh?
     Per selection of vehicles (values the data do not determine left out): Welch's t-test
-    (needs 2 vehicles per group) and the exact two-sided Mann-Whitney U test, each run only
-    when it can reach significance at ``alpha`` - the exact test's smallest attainable p is
-    2 / C(n_a + n_b, n_a) (railtherm.smallsample: 0.2 at 3 vs 2), so with fewer
-    vehicles "no significant difference" would be certain before any data; the table says
-    "too few vehicles to test" instead. A plain conclusion from the tests that ran."""
+    (needs 3 vehicles per group: with 2, one sample sd is a single difference and the test
+    has almost no power) and the exact two-sided Mann-Whitney U test, each run only when it
+    can reach significance at ``alpha`` - the exact test's smallest attainable p is
+    2 / C(n_a + n_b, n_a) (railtherm.smallsample: 0.2 at 3 vs 2), so with fewer vehicles
+    "no significant difference" would be certain before any data; the conclusion then reads
+    "not testable". A plain conclusion from the tests that ran."""
     a_name, b_name = groups
     rows = []
     for selection, pick in SELECTIONS.items():
@@ -587,7 +712,7 @@ def class_test(
         ran, n = test.ran, f"n = {len(a)} and {len(b)}"
         significant = [name for name, p in ran.items() if p < alpha]
         if not ran:
-            conclusion = f"too few vehicles to test ({n}: {'; '.join(test.not_run)})"
+            conclusion = f"not testable: too few vehicles ({n}: {'; '.join(test.not_run)})"
         elif len(significant) == len(ran):
             conclusion = f"differ: {' and '.join(ran)} significant at {alpha:g} ({n})"
         elif significant:
@@ -610,9 +735,11 @@ def study_tables(
     kvalues: Mapping[str, Mapping[str, Any] | None],
     vehicles: Mapping[str, Mapping[str, Any]],
     class_test_groups: Sequence[str] = ("metro", "regional"),
+    first_order: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> dict[str, pd.DataFrame]:
-    """Tables 1-3, the class summary and the class test from the second-order fits."""
-    t2 = table2(fits, kvalues, vehicles)
+    """Tables 1-3, the class summary and the class test from the second-order fits;
+    ``first_order``: the vehicles' first-order fits, whose C_bar Table 2 sets beside C_total."""
+    t2 = table2(fits, kvalues, vehicles, first_order)
     t3 = table3(t2, fits, vehicles)
     return {
         "table1": table1(vehicles, kvalues, fits),

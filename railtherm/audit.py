@@ -54,7 +54,7 @@ from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 SEVERITIES = ("error", "warning", "info")
 FAMILIES = ("consistency", "claims", "plausibility", "fitness", "units", "reproduction")
 PAPER_FAMILIES = FAMILIES[:-1]  # findings about the published values; "reproduction" is not
-SOURCE_KINDS = ("published", "physics", "definition", "assumption")
+SOURCE_KINDS = ("published", "physics", "definition", "datasheet", "assumption")
 COLUMNS = (
     "severity",
     "family",
@@ -643,7 +643,7 @@ def check_counts(pub: Published, ranges: Mapping[str, Any] | None = None) -> lis
 CONTRADICTED, NOT_CONTRADICTED, TOO_FEW = (
     "contradicted",
     "not contradicted",
-    "too few vehicles to test",
+    "not testable: too few vehicles",
 )
 
 
@@ -651,11 +651,11 @@ CONTRADICTED, NOT_CONTRADICTED, TOO_FEW = (
 class ClassTest:
     """Welch's t-test and the exact two-sided Mann-Whitney U test of two classes.
 
-    A test runs only when its smallest attainable p-value is below α (Welch: at least two
-    values per class; Mann-Whitney: railtherm.smallsample.smallest_mann_whitney_p).
-    ``verdict`` on a claim that the difference is not significant: ``contradicted`` when both
-    tests ran and both give p < α, ``too few vehicles to test`` when neither could run, else
-    ``not contradicted``."""
+    A test runs only when it can say something at α (Welch: at least three values per class,
+    railtherm.smallsample.WELCH_MIN; Mann-Whitney: its smallest attainable p-value below α,
+    railtherm.smallsample.smallest_mann_whitney_p). ``verdict`` on a claim that the
+    difference is not significant: ``contradicted`` when both tests ran and both give p < α,
+    ``not testable: too few vehicles`` when neither could run, else ``not contradicted``."""
 
     verdict: str
     welch_p: float | None  # None: not run
@@ -681,11 +681,7 @@ def class_test(
     name_a, name_b = names
     parts = []
     if test.welch_p is None:
-        parts.append(
-            f"Welch: too few vehicles to test ({test.welch_why}: no p-value is attainable)"
-            if na < 2 or nb < 2
-            else f"Welch: not run ({test.welch_why})"
-        )
+        parts.append(f"Welch: not testable ({test.welch_why})")
     else:
         ma, mb = statistics.fmean(a), statistics.fmean(b)
         sa, sb = statistics.stdev(a), statistics.stdev(b)
@@ -698,7 +694,7 @@ def class_test(
     floor_text = f"2 / C({na + nb}, {na}) = 2/{splits} = {_g(test.mwu_min_p, 3)}"
     if test.mwu_p is None:
         parts.append(
-            f"Mann-Whitney: too few vehicles to test (the smallest two-sided p it can give for "
+            f"Mann-Whitney: not testable (the smallest two-sided p it can give for "
             f"{na} against {nb} is {floor_text} ≥ α = {alpha})"
         )
     else:
@@ -1370,9 +1366,10 @@ def check_separators(pub: Published, ranges: Mapping[str, Any] | None = None) ->
 # Reproduction: findings about this project's re-estimation, not about the paper
 
 REESTIMATED = ("k", "C", "K_veh", "C_veh", "c_veh", "delta")
-# An interval reaching below x / UNBOUNDED or above UNBOUNDED x is printed 0 and ∞ in the
-# re-estimates' Table 2: the data do not bound the value, and it cannot be compared.
+# An interval spanning more than a factor UNBOUNDED in total (hi / lo) is no estimate
+# (railtherm.pem.identification): the data do not determine the value, and it is not compared.
 UNBOUNDED = 1000.0
+TOTAL = "C_total"  # C + C_veh of the re-estimates' Table 2: the capacity the data determine
 AGREES, DIFFERS, NOT_COMPARABLE = "agrees", "differs", "not comparable"
 REESTIMATE_VERDICTS = (DIFFERS, NOT_COMPARABLE, AGREES)  # the report's order
 
@@ -1389,9 +1386,10 @@ def compare_reestimate(
 ) -> tuple[str, Interval | None]:
     """``agrees``, ``differs`` or ``not comparable: <reason>``, and the interval compared.
 
-    ``agrees`` needs an identified re-estimate (``status`` missing or ``estimated``) with a
-    finite, bounded 95 % interval [lo, hi] (lo > x / 1000 and hi < 1000 x) that meets the
-    printed interval of the published value. A re-estimate "not given" (its vehicle config
+    ``agrees`` needs an identified re-estimate (``status`` missing or ``estimated``: not
+    "not identified", which includes a parameter coupled to one not identified) with a finite
+    95 % interval [lo, hi] spanning at most a factor 1000 in total (hi / lo <= 1000) that
+    meets the printed interval of the published value. A re-estimate "not given" (its vehicle config
     lacks the metadata it needs: k without surface_m2, c_veh without mass_kg) is not
     comparable, with that reason."""
     status = "" if status is None or pd.isna(status) else str(status).strip()
@@ -1406,10 +1404,10 @@ def compare_reestimate(
         return f"{NOT_COMPARABLE}: the 95 % interval is not finite", None
     if x <= 0:
         return f"{NOT_COMPARABLE}: the re-estimate {_g(x)} is not positive", None
-    if lo <= x / UNBOUNDED or hi >= UNBOUNDED * x:
+    if not (lo > 0 and hi / lo <= UNBOUNDED):
         return (
-            f"{NOT_COMPARABLE}: the 95 % interval is unbounded (it reaches x/{_g(UNBOUNDED)} or "
-            f"{_g(UNBOUNDED)} x, printed 0 or ∞): the data do not determine the value"
+            f"{NOT_COMPARABLE}: the 95 % interval spans more than a factor {_g(UNBOUNDED)} in "
+            "total: the data do not determine the value"
         ), None
     interval = Interval(min(lo, x), max(hi, x))
     return (AGREES if interval.overlaps(published.interval) else DIFFERS), interval
@@ -1466,7 +1464,69 @@ def check_reproduction(
                     f"re-estimate {shown}; re-estimate's verdict: {verdict_of_fit} ({source})",
                 )
             )
+        if TOTAL in est.columns and "C" in row and "C_veh" in row:
+            out.append(_total_finding(vid, row, line, pub, synthetic, verdict_of_fit, source))
+        if f"{TOTAL}_vs_C_bar" in est.columns:
+            finding = _first_order_finding(vid, line, source)
+            if finding is not None:
+                out.append(finding)
     return out
+
+
+def _total_finding(vid, row, line, pub, synthetic, verdict_of_fit, source) -> Finding:
+    """The published C + C_veh (the printed intervals added) beside the re-estimated total
+    capacity C_total = C + C_veh: the quantity the data determine even where they cannot
+    split it between the nodes (eqs. 7-8), compared like a parameter."""
+    total = row["C"].interval + row["C_veh"].interval
+    value = row["C"].value + row["C_veh"].value
+    printed = Printed(f"{row['C'].text} + {row['C_veh'].text}", value, total)
+    x, lo, hi = (line.get(c) for c in (TOTAL, f"{TOTAL}_lo", f"{TOTAL}_hi"))
+    verdict, interval = compare_reestimate(printed, x, lo, hi, line.get(f"{TOTAL}_status"))
+    shown = "-" if interval is None else f"{_g(_number(x), 3)} {interval.text(3)}"
+    severity = "warning" if verdict == DIFFERS and not synthetic else "info"
+    return _finding(
+        "reproduction",
+        "reestimate_total",
+        f"{vid} C + C_veh",
+        severity,
+        pub.location("parameters"),
+        printed.text,
+        shown,
+        f"{verdict}: published C + C_veh = {printed.text} ({total.text()}); re-estimated "
+        f"C_total = C + C_veh {shown} (determined even where C and C_veh are not); "
+        f"re-estimate's verdict: {verdict_of_fit} ({source})",
+    )
+
+
+def _first_order_finding(vid, line, source) -> Finding | None:
+    """The re-estimates' own check of eq. 9: C_total = C + C_veh of the second-order fit
+    against C_bar of the first-order fit of the same vehicle, the same capacity lumped into
+    one node. Overlapping 95 % intervals agree."""
+    check = str(line.get(f"{TOTAL}_vs_C_bar") or "")
+    if not check or check == "nan":
+        return None
+    verdict = {"overlap": AGREES, "disjoint": DIFFERS}.get(check, NOT_COMPARABLE)
+    reason = "" if verdict != NOT_COMPARABLE else check.removeprefix("not comparable")
+
+    def shown(q):
+        x, lo, hi = (_number(line.get(c)) for c in (q, f"{q}_lo", f"{q}_hi"))
+        if not math.isfinite(x):
+            return "-"
+        return f"{_g(x, 3)} [{_g(lo, 3)}, {_g(hi, 3)}]"
+
+    recomputed = f"C_total {shown(TOTAL)}; C_bar {shown('C_bar')}"
+    return _finding(
+        "reproduction",
+        "total_vs_first_order",
+        f"{vid} C_total vs C_bar",
+        "info",
+        "re-estimates (Table 2)",
+        "-",
+        recomputed,
+        f"{verdict}{reason}: the re-estimated C_total = C + C_veh (eqs. 7-8) and the "
+        f"first-order C_bar (eq. 9) of the same vehicle, the same capacity: {recomputed} "
+        f"({'95 % intervals overlap' if verdict == AGREES else check}; {source})",
+    )
 
 
 def read_estimates(tables: str | Path) -> pd.DataFrame | None:
@@ -1562,9 +1622,13 @@ def _reestimation_section(findings: pd.DataFrame, note: str | None) -> list[str]
     lines += [
         "The published values beside this project's re-estimates. These findings are about the "
         "re-estimation and are not counted with the findings about the paper above. A value the "
-        "data do not determine (not identified, or a 95 % interval that is not finite or reaches "
-        "x/1000 or 1000 x) is not comparable; agreement needs a bounded interval that meets the "
-        "printed one.",
+        "data do not determine (not identified: at a bound of the search, a 95 % interval "
+        "spanning more than a factor 1000 in total, or coupled to such a parameter - C, K_veh "
+        "and C_veh are determined only together) is not comparable; agreement needs an "
+        "identified value whose interval meets the printed one. Where the data cannot split "
+        "the capacity between the nodes, the total C_total = C + C_veh is compared with the "
+        "published C + C_veh, and checked against the same vehicle's first-order C_bar "
+        "(eq. 9, the same capacity).",
         "",
     ]
     if note:

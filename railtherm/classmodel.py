@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from railtherm import metrics
+from railtherm import metrics, models, pem
 from railtherm.errors import ConfigError
 from railtherm.fit import Fit, write_yaml
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
@@ -90,6 +90,7 @@ UNITS = {"kA": "W/K", "C": "J/K", "K_veh": "W/K", "C_veh": "J/K"}
 # the kinds of a parameter the data do not determine
 AT_BOUND = "at a bound"
 UNBOUNDED = "interval unbounded"
+COUPLED = "coupled to a parameter not identified"
 TABLE2 = os.path.join("tables", "table2.csv")  # Table 2 under the study's results directory
 # Table 2's column of each fit parameter: k = kA / A (eq. 5), the others as fitted
 TABLE_COLUMNS = {"kA": "k", "C": "C", "K_veh": "K_veh", "C_veh": "C_veh"}
@@ -154,9 +155,12 @@ def _metadata(vehicle: Mapping[str, Any], key: str) -> float | None:
 
 def _kind(reason: str) -> str:
     """The kind of a "not identified" reason (:func:`railtherm.pem.identification`): an
-    estimate at a bound of the search ("at its lower bound 1e+04"), or a 95 % interval
-    unbounded on a side ("95 % interval unbounded above ..."; also without a reason)."""
-    if "unbounded" in reason:
+    estimate at a bound of the search ("at its lower search bound 1e+04"), a 95 % interval
+    unbounded or wider than a factor 1000 in total (also without a reason), or a parameter
+    coupled to one of those (:func:`railtherm.pem.coupled_identification`)."""
+    if "coupled to" in reason:
+        return COUPLED
+    if "unbounded" in reason or "spans a factor" in reason:
         return UNBOUNDED
     return AT_BOUND if "bound" in reason else UNBOUNDED
 
@@ -173,10 +177,15 @@ def _member(
     ``estimates``: kA, C, K_veh and C_veh (None where not identified or not known);
     ``not_identified``: parameter -> kind (:data:`AT_BOUND` or :data:`UNBOUNDED`); ``verdict``
     the fit's (:data:`railtherm.metrics.ACCEPTABLE` to be usable). c_veh by eq. 24, delta by
-    eq. 25. Usable: acceptable, every parameter identified and estimated, mass and surface
-    given; ``why`` one phrase per kind of unidentified parameters ("C, K_veh not identified
-    (at a bound)"), then the verdict, then the missing metadata."""
+    eq. 25. A parameter of the dynamic part (C, K_veh, C_veh: ``Structure.coupled``) coupled to
+    one not identified is not identified either (:data:`COUPLED`). Usable: acceptable, every
+    parameter identified and estimated, mass and surface given; ``why`` one phrase per kind of
+    unidentified parameters ("C, K_veh not identified (at a bound)"), then the verdict, then the
+    missing metadata."""
     mass, surface = _metadata(vehicle, "mass_kg"), _metadata(vehicle, "surface_m2")
+    coupled = models.STRUCTURES[STRUCTURE].coupled
+    if any(p in not_identified for p in coupled):  # the others of the dynamic part neither
+        not_identified = {**{p: COUPLED for p in coupled}, **not_identified}
     value = {p: None if p in not_identified else estimates.get(p) for p in FIT_PARAMETERS}
 
     def ratio(num: float | None, den: float | None) -> float | None:
@@ -186,7 +195,8 @@ def _member(
     for p in FIT_PARAMETERS:
         if p in not_identified:
             by_kind.setdefault(not_identified[p], []).append(p)
-    why = [f"{', '.join(ps)} not identified ({kind})" for kind, ps in by_kind.items()]
+    kinds = sorted(by_kind, key=lambda kind: kind == COUPLED)  # the cause before its coupling
+    why = [f"{', '.join(by_kind[kind])} not identified ({kind})" for kind in kinds]
     if verdict != metrics.ACCEPTABLE:
         doubt = verdict == metrics.IN_DOUBT
         why.append("fit assumptions in doubt" if doubt else f"fit verdict {verdict!r}")
@@ -597,6 +607,18 @@ class ReferenceModel:
                 out[name] = {**entry, "unit": unit, "given": True}
             else:
                 out[name] = {"value": g.centre, "ci95": list(g.pi95), "unit": unit}
+        # the vehicles' rule applied to the class: an interval wider than a factor 1000 in
+        # total is no estimate, nor a parameter of the dynamic part coupled to one
+        judged = {
+            p: {"identified": True} if e.get("given") else pem.identification(e["value"], e["ci95"])
+            for p, e in out.items()
+        }
+        coupled = models.STRUCTURES[STRUCTURE].coupled
+        judged |= pem.coupled_identification(judged, coupled)
+        for p, j in judged.items():
+            out[p]["identified"] = bool(j["identified"])
+            if not j["identified"]:
+                out[p]["reason"] = str(j["reason"])
         return out
 
     @property
@@ -678,6 +700,9 @@ class ReferenceModel:
             p = params[name]
             lo, hi = p["ci95"]
             unit = "" if p["unit"] == "1" else f" {p['unit']}"
+            if not p.get("identified", True):  # no value: the class does not determine it
+                lines.append(f"  {label.get(name, name):<20}   not identified ({p['reason']})")
+                continue
             if p.get("given"):
                 interval = " (given)"
             elif name == "kA" and self.k_given is not None:

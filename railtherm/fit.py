@@ -29,7 +29,8 @@ class Parameter:
     from the static test, eq. 10) or "derived" (kA of losses in series). ``ci95`` is the
     combined 95 % interval (statistical and systematic), None for a fixed parameter.
     ``identified`` is False where the data do not determine the value: then ``limit``
-    ("upper" | "lower" | "none") and ``limit_value`` say what the data do bound."""
+    ("upper" | "lower" | "none") and ``limit_value`` say what the data do bound, ``reason``
+    why (a bound of the search, an interval too wide, or coupled to such a parameter)."""
 
     name: str
     value: float
@@ -38,6 +39,7 @@ class Parameter:
     identified: bool = True
     limit: str | None = None
     limit_value: float | None = None
+    reason: str = ""
 
     @classmethod
     def from_entry(cls, name: str, entry: Mapping[str, Any]) -> Parameter:
@@ -51,13 +53,15 @@ class Parameter:
             identified=bool(ident["identified"]),
             limit=ident.get("limit"),
             limit_value=ident.get("limit_value"),
+            reason=str(ident.get("reason", "")),
         )
 
     def __str__(self) -> str:
         if not self.identified:
-            bound = "" if self.limit_value is None else f" {self.limit_value:.3g}"
-            side = {"upper": "at most", "lower": "at least"}.get(self.limit or "", "no bound")
-            return f"{self.name}: not identified ({side}{bound})"
+            if self.limit in ("upper", "lower") and self.limit_value is not None:
+                side = {"upper": "at most", "lower": "at least"}[self.limit]
+                return f"{self.name}: not identified ({side} {self.limit_value:.3g})"
+            return f"{self.name}: not identified ({self.reason or 'no limit the data give'})"
         if self.ci95 is None:
             return f"{self.name} = {self.value:.4g} (fixed)"
         return f"{self.name} = {self.value:.4g} [{self.ci95[0]:.4g}, {self.ci95[1]:.4g}]"

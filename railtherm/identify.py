@@ -267,9 +267,38 @@ def _settings(
         if kA_start is not None:
             initial.setdefault("kA", kA_start)
         bounds.setdefault("kA", KA_BOUNDS)
+    for p, (floor, _) in physical_bounds(structure, vehicle_data).items():
+        # physics over an arbitrary lower bound: a configured one below the air's is raised
+        lo, hi = bounds.get(p, structure.bounds[p])
+        bounds[p] = (max(float(lo), floor), float(hi))
     initial = {p: v for p, v in initial.items() if p in structure.parameters and p not in fixed}
     bounds = {p: b for p, b in bounds.items() if p in structure.parameters and p not in fixed}
     return fixed, initial, bounds, k_source, notes
+
+
+AIR_CAPACITY = "the air's capacity ρ c_p V"
+
+
+def physical_bounds(
+    structure: models.Structure, vehicle_data: Mapping[str, Any]
+) -> dict[str, tuple[float, str]]:
+    """The lower search bounds the vehicle's metadata make physical, {param: (bound, what it
+    is)}: the air node's capacity (C of eqs. 7-8, C_bar of eq. 9, ``structure.air``) holds
+    at least the air in ``volume_m3``, ρ c_p V (:data:`RHO_CP_AIR`). Without a volume, none:
+    the structure's loose default (1e4 J/K) stays. A volume that is not a positive number is
+    a :class:`ConfigError` naming the key."""
+    if vehicle_data.get("volume_m3") is None or structure.air not in structure.parameters:
+        return {}
+    volume = vehicle_data["volume_m3"]
+    try:
+        V = float(volume)
+    except (TypeError, ValueError):
+        V = math.nan
+    if not (math.isfinite(V) and V > 0):
+        raise ConfigError(
+            vehicle_data.get("id", "(vehicle)"), "volume_m3", volume, "a positive volume in m³"
+        )
+    return {structure.air: (RHO_CP_AIR * V, AIR_CAPACITY)}
 
 
 def identify(
@@ -309,7 +338,17 @@ def identify(
     combine_uncertainty(fitted["parameters"], budget)
     if "kA" not in fitted["parameters"]:
         fitted["parameters"]["kA"] = derived_kA(fitted)
-    judge_identification(fitted, {**structure.bounds, **options["bounds"]})
+    judge_identification(
+        fitted,
+        {**structure.bounds, **options["bounds"]},
+        structure,
+        physical={
+            p: what
+            for p, (floor, what) in physical_bounds(structure, vehicle_data).items()
+            if float(options["bounds"][p][0]) == floor
+        },
+        budget=budget,
+    )
     estimate = {
         "vehicle": vehicle_data["id"],
         "synthetic": bool(vehicle_data.get("synthetic", False)),
@@ -608,11 +647,26 @@ def combine_uncertainty(parameters: dict[str, Any], budget: Mapping[str, Any]) -
             ]
 
 
-def judge_identification(fitted: dict[str, Any], bounds: Mapping[str, tuple]) -> None:
+def judge_identification(
+    fitted: dict[str, Any],
+    bounds: Mapping[str, tuple],
+    structure: models.Structure | None = None,
+    physical: Mapping[str, str] | None = None,
+    budget: Mapping[str, Any] | None = None,
+) -> None:
     """Mark every estimated parameter of ``fitted`` (a ``FitResult.to_dict()`` with combined
     intervals) with :func:`railtherm.pem.identification`, and judge the width of the interval
     a reader sees - the combined one - rather than the fit's statistical one: the
-    ``wide_interval`` flags are replaced by flags on the combined intervals."""
+    ``wide_interval`` flags are replaced by flags on the combined intervals.
+
+    With the ``structure``: its coupled parameters (``Structure.coupled``, the dynamic part)
+    are judged together (:func:`railtherm.pem.coupled_identification`), and each of its
+    totals (``Structure.totals``: C_total = C + C_veh, the capacity eq. 9 lumps into C_bar)
+    is written under ``fitted["totals"]`` with its 95 % interval
+    (:func:`railtherm.pem.total_capacity`, ``budget`` the systematic budget). ``physical``:
+    {param: what its lower bound is} for a bound the metadata make physical
+    (:func:`physical_bounds`), named in the reason."""
+    physical = dict(physical or {})
     pinned = {p for f in fitted["flags"] if f["code"] == "at_bound" for p in f["parameters"]}
     flags = [f for f in fitted["flags"] if f["code"] != "wide_interval"]
     for p, entry in fitted["parameters"].items():
@@ -623,6 +677,8 @@ def judge_identification(fitted: dict[str, Any], bounds: Mapping[str, tuple]) ->
             lo_b, hi_b = (float(b) for b in bounds[p])
             lower = abs(math.log(entry["value"] / lo_b)) <= abs(math.log(hi_b / entry["value"]))
             at_bound = ("lower", lo_b) if lower else ("upper", hi_b)
+            if lower and p in physical:
+                at_bound = ("lower", lo_b, physical[p])
         entry.update(pem.identification(entry["value"], entry["ci95"], at_bound))
         lo, hi = entry["ci95"]
         if not (lo > 0 and hi / lo <= pem.WIDE_RATIO) and p in fitted["free"]:
@@ -635,6 +691,18 @@ def judge_identification(fitted: dict[str, Any], bounds: Mapping[str, tuple]) ->
                 ).to_dict()
             )
     fitted["flags"] = flags
+    if structure is None:
+        return
+    params = fitted["parameters"]
+    estimated = {p: params[p] for p in structure.coupled if params.get(p, {}).get("estimated")}
+    for p, judged in pem.coupled_identification(estimated, structure.coupled).items():
+        params[p].update(judged)
+    totals = {}
+    for name, parts in structure.totals.items():
+        if all(p in params for p in parts):
+            totals[name] = pem.total_capacity(fitted, parts, (budget or {}).get("effects_log"))
+    if totals:
+        fitted["totals"] = totals
 
 
 def _series(structure, exps, result) -> pd.DataFrame:
@@ -729,7 +797,9 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
     ``thresholds``: the ``check`` section (defaults filled in by :func:`check_thresholds`).
     A check whose quantity the config does not give (no surface, mass or volume) is skipped
     (:func:`skipped_checks` says so). A parameter the data do not determine is not judged here
-    (its flag already is)."""
+    (its flag already is); where the data determine only the total capacity C_total = C +
+    C_veh (``fit.totals``), the sum stands for the capacities, and for the air node's as an
+    upper bound (C <= C_total)."""
     thresholds = check_thresholds(thresholds)
     par = estimate["fit"]["parameters"]
     out = []
@@ -749,7 +819,12 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
             f"{lo:g}-{hi:g} W/(m² K) (check.k_range_W_m2K): are the units of the power and "
             "temperature channels right (W or kW, degC or K), and A the whole surface?"
         )
+    total = (estimate["fit"].get("totals") or {}).get("C_total")
+    if total is not None and not pem.parameter_identification(total)["identified"]:
+        total = None
     capacities = [value(p) for p in ("C_bar", "C", "C_veh", "C_e") if p in par]
+    if None in capacities and total is not None:  # the split unknown, the sum determined
+        capacities = [float(total["value"])]
     if capacities and None not in capacities and estimate.get("mass_kg"):
         per_kg = sum(capacities) / estimate["mass_kg"]
         ceiling = float(thresholds["max_capacity_per_kg_J_kgK"])
@@ -771,14 +846,26 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 "(check.min_capacity_per_kg_J_kgK): is the time column's unit right (minutes "
                 "declared seconds divides every capacity by 60), or the mass?"
             )
-    air = value("C") if "C" in par else value("C_bar")
+    air_name = "C" if "C" in par else "C_bar"
+    reason = str((par.get(air_name) or {}).get("reason", ""))
+    if reason.startswith("at its physical lower bound") and estimate.get("volume_m3"):
+        out.append(
+            f"the air node's capacity {air_name} sits {reason}: the data "
+            f"ask for less than the air in {estimate['volume_m3']:g} m³ holds - a unit mistake "
+            "(power in kW declared W, time in minutes declared seconds?), the wrong volume, or "
+            "a dynamic the model lacks"
+        )
+    air = value(air_name)
+    what = "the air node's capacity"
+    if air is None and total is not None:  # C <= C + C_veh: a total below the air's is too
+        air, what = float(total["value"]), "the total capacity C_total (at least the air node's)"
     if air is not None and estimate.get("volume_m3"):
         ratio = float(thresholds["min_air_capacity_ratio"])
         floor = ratio * RHO_CP_AIR * estimate["volume_m3"]
         if air < floor:
             share = "half" if ratio == 0.5 else f"{ratio:g} times (check.min_air_capacity_ratio)"
             out.append(
-                f"the air node's capacity {air:.4g} J/K is below {share} that of the air in "
+                f"{what} {air:.4g} J/K is below {share} that of the air in "
                 f"{estimate['volume_m3']:g} m³ ({floor:.4g} J/K): a unit mistake (power in kW "
                 "declared W, time in minutes declared seconds?) or the wrong volume"
             )
@@ -882,6 +969,8 @@ def check(
         "reasons": reasons,
         "notes": notes,
         "parameters": fit["parameters"],
+        # combinations the data determine however the capacity splits (C_total = C + C_veh)
+        **({"totals": fit["totals"]} if fit.get("totals") else {}),
         # statistical correlation of the free log parameters (order of ``free``): the
         # aggregate propagates it into ratios such as delta = C_veh / C (eq. 25)
         "free": fit["free"],

@@ -202,6 +202,14 @@ class Structure:
     names the envelope node's capacity (state 1: C_veh of T_veh, C_e of T_e), through which
     solar gain declared on the envelope enters, B[1, j] = a_j / theta[envelope]; empty for a
     one-node structure.
+
+    ``coupled`` names the parameters of the dynamic part (the capacities and the internal
+    conductance between the nodes) that the data determine only together: when one of them
+    is not identified (at a bound of the search, or an interval too wide), none of the group
+    is reported as an estimate. ``totals`` names each combination the data do determine
+    however the capacity splits between the nodes, as {name: the parameters summed}: the
+    total capacity C_total = C + C_veh of eqs. 7-8, the C_bar of eq. 9 (the first-order model
+    lumps both nodes into one).
     """
 
     name: str
@@ -217,6 +225,8 @@ class Structure:
     capacities: tuple[str, ...] = ()
     conductances: tuple[str, ...] = ()
     envelope: str = ""
+    coupled: tuple[str, ...] = ()
+    totals: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
     def _theta(self, theta: Mapping[str, float]) -> dict:
         missing = [p for p in self.parameters if p not in theta]
@@ -281,6 +291,8 @@ STRUCTURES: dict[str, Structure] = {
         capacities=("C", "C_veh"),
         conductances=("kA", "K_veh"),
         envelope="C_veh",
+        coupled=("C", "K_veh", "C_veh"),
+        totals={"C_total": ("C", "C_veh")},
     ),
     "interior_envelope": Structure(
         name="interior_envelope",
@@ -301,6 +313,8 @@ STRUCTURES: dict[str, Structure] = {
         capacities=("C", "C_e"),
         conductances=("K_i", "K_o"),
         envelope="C_e",
+        coupled=("C", "K_i", "C_e", "K_o"),
+        totals={"C_total": ("C", "C_e")},
     ),
 }
 

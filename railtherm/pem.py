@@ -59,11 +59,13 @@ __all__ = [
     "identification",
     "lumped_capacity",
     "parameter_identification",
+    "coupled_identification",
+    "total_capacity",
 ]
 
 Z95 = 1.959963984540054
 WIDE_RATIO = 10.0
-UNBOUNDED_FACTOR = 1e3  # an interval limit this far from the value: the data do not bound it
+UNBOUNDED_FACTOR = 1e3  # an interval wider than this in total (hi / lo): not an estimate
 CORR_MAX = 0.95
 COND_MAX = 1e8
 _LSMR_ABOVE = 300_000  # Jacobian entries above which the trust-region step uses LSMR
@@ -1283,44 +1285,158 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
 
 
 def identification(
-    value: float, ci95: tuple[float, float], at_bound: tuple[str, float] | None = None
+    value: float,
+    ci95: tuple[float, float],
+    at_bound: tuple[str, float] | tuple[str, float, str] | None = None,
 ) -> dict[str, Any]:
     """Whether the data determine a parameter, and what they do say when they do not.
 
-    Not identified: the estimate sits at a bound of the search (the optimum may lie beyond
-    it), or its combined 95 % interval reaches beyond a factor ``UNBOUNDED_FACTOR`` of the
-    value on a side (Table 2 prints such a limit as 0 or ∞). What is left is a one-sided
-    limit: at the lower bound b the data say "at most about b" (``limit: upper``), at the
-    upper bound "at least about b"; an interval unbounded above leaves its lower end as a
-    lower limit, one unbounded below its upper end as an upper limit, one unbounded both ways
-    nothing (``limit: none``). Returns ``{"identified": True}`` or ``{"identified": False,
-    "limit": "upper" | "lower" | "none", "limit_value": float | None, "reason": str}``."""
+    Not identified: the estimate sits at a bound of the search (``at_bound`` = (side, bound)
+    or (side, bound, what the bound is): the optimum may lie beyond it), or its combined
+    95 % interval spans more than a factor ``UNBOUNDED_FACTOR`` in total (hi / lo > 1000, or
+    an end that is 0 or infinite). A search bound is no information from the data, so an
+    estimate at one has no limit (``limit: none``). Only an interval open on one side leaves
+    a one-sided limit the data give: open above, its lower end ("at least", ``limit:
+    lower``); open below, its upper end ("at most", ``limit: upper``). An interval finite on
+    both sides but too wide, or open on both, gives none. Returns ``{"identified": True}`` or
+    ``{"identified": False, "limit": "upper" | "lower" | "none", "limit_value": float | None,
+    "reason": str}``."""
     if at_bound is not None:
-        side, bound = at_bound
+        side, bound = at_bound[0], float(at_bound[1])
+        what = at_bound[2] if len(at_bound) > 2 else ""
+        where = (
+            f"its physical {side} bound ({what} = {bound:.3g})"
+            if what
+            else (f"its {side} search bound {bound:.3g}, not a limit the data give")
+        )
         return {
             "identified": False,
-            "limit": "upper" if side == "lower" else "lower",
-            "limit_value": float(bound),
-            "reason": f"at its {side} bound {bound:.3g}",
+            "limit": "none",
+            "limit_value": None,
+            "at_bound": side,
+            "reason": f"at {where}",
         }
     lo, hi = (float(c) for c in ci95)
     factor = UNBOUNDED_FACTOR
-    open_lo = not (math.isfinite(lo) and lo > value / factor)
-    open_hi = not (math.isfinite(hi) and hi < value * factor)
-    if not (open_lo or open_hi):
+    open_lo = not (math.isfinite(lo) and lo > 0)
+    open_hi = not math.isfinite(hi)
+    if not (open_lo or open_hi) and hi / lo <= factor:
         return {"identified": True}
     if open_lo and open_hi:
-        limit, limit_value, where = "none", None, "both ways"
+        limit, limit_value, why = "none", None, "unbounded both ways"
     elif open_hi:
-        limit, limit_value, where = "lower", lo, "above"
+        limit, limit_value, why = "lower", lo, "unbounded above"
+    elif open_lo:
+        limit, limit_value, why = "upper", hi, "unbounded below"
     else:
-        limit, limit_value, where = "upper", hi, "below"
+        limit, limit_value = "none", None
+        why = f"spans a factor {hi / lo:.4g} ({lo:.3g} to {hi:.3g})"
     return {
         "identified": False,
         "limit": limit,
         "limit_value": limit_value,
-        "reason": f"95 % interval unbounded {where} (beyond a factor {factor:g} of the value)",
+        "reason": f"95 % interval {why}, more than a factor {factor:g} in total",
     }
+
+
+def coupled_identification(judged: Mapping[str, Mapping[str, Any]], coupled) -> dict:
+    """The identification of each parameter of a coupled group (``Structure.coupled``): the
+    capacities and the internal conductance of a structure's dynamic part are determined only
+    together, so when one is not identified (``judged[p]``, :func:`identification`) every
+    other of the group is not reported as an estimate either: ``{"identified": False, "limit":
+    "none", "coupled_to": [...], "reason": "coupled to C, which is not identified"}``.
+    Returns {param: judgement} for the parameters of ``coupled`` present in ``judged``."""
+    present = [p for p in coupled if p in judged]
+    failed = [p for p in present if not judged[p].get("identified", True)]
+    out = {}
+    for p in present:
+        if judged[p].get("identified", True) and failed:
+            which = ", ".join(failed)
+            verb = "is" if len(failed) == 1 else "are"
+            out[p] = {
+                "identified": False,
+                "limit": "none",
+                "limit_value": None,
+                "coupled_to": list(failed),
+                "reason": f"coupled to {which}, which {verb} not identified",
+            }
+        else:
+            out[p] = dict(judged[p])
+    return out
+
+
+def total_capacity(
+    fitted: Mapping[str, Any],
+    parts: Sequence[str],
+    effects_log: Mapping[str, Mapping[str, float]] | None = None,
+) -> dict[str, Any]:
+    """The sum S = sum of ``parts`` (C_total = C + C_veh: the capacity the data determine
+    however it splits between the nodes, the C_bar of eq. 9) with its combined 95 % interval
+    by the delta method on the log scale: d log S = sum_i w_i d log theta_i, w_i = theta_i / S,
+
+        var(log S) = w^T Sigma w + sum_sources (sum_i w_i e_i,source)^2,
+
+    Sigma the fit's statistical covariance of the log parameters (``sd_log`` and
+    ``correlation`` over ``free``), e the signed systematic effects of each source
+    (``effects_log``, railtherm.identify.systematic_budget). A part at a bound of the search
+    (its entry's ``at_bound``, :func:`identification`) is held there: the sum is conditional
+    on it (its variance and effects left out, ``note`` says so); a part at an upper bound, or
+    every part at a bound, leaves the sum not identified, and a part with an unbounded
+    variance not at a bound leaves it unbounded. Judged by :func:`identification` like a
+    parameter."""
+    params = fitted["parameters"]
+    at_bounds = {p: params[p]["at_bound"] for p in parts if params[p].get("at_bound")}
+    values = np.array([float(params[p]["value"]) for p in parts])
+    S = float(values.sum())
+    w = values / S
+    free = list(fitted.get("free", []))
+    corr = np.asarray(fitted.get("correlation", []), dtype=float)
+    effects = effects_log or {}
+    varying = [i for i, p in enumerate(parts) if params[p].get("estimated") and p not in at_bounds]
+    var = 0.0
+    for i in varying:
+        for j in varying:
+            sd_i, sd_j = float(params[parts[i]]["sd_log"]), float(params[parts[j]]["sd_log"])
+            if i == j:
+                rho = 1.0
+            else:
+                rho = corr[free.index(parts[i]), free.index(parts[j])]
+                rho = float(rho) if np.isfinite(rho) else 0.0
+            with np.errstate(invalid="ignore", over="ignore"):
+                term = w[i] * w[j] * rho * sd_i * sd_j
+            var += term if np.isfinite(term) else math.inf
+    sources = sorted({s for i in varying for s in effects.get(parts[i], {})})
+    for source in sources:  # a source shifts every part at once: signed, then squared
+        shift = sum(w[i] * float(effects.get(parts[i], {}).get(source, 0.0)) for i in varying)
+        var += shift**2 if math.isfinite(shift) else math.inf
+    sd = math.sqrt(var) if math.isfinite(var) and var >= 0 else math.inf
+    with np.errstate(over="ignore"):
+        ci = [float(S * np.exp(-Z95 * sd)), float(S * np.exp(Z95 * sd))]
+    if not math.isfinite(sd):
+        ci = [0.0, math.inf]
+    entry: dict[str, Any] = {
+        "value": S,
+        "parts": list(parts),
+        "ci95": ci,
+        "sd_log_total": sd,
+        "method": "delta method on log S: the fit's covariance and the signed systematic effects",
+    }
+    held = [p for p in parts if p in at_bounds]
+    if held:
+        entry["held_at_bound"] = held
+        entry["note"] = (
+            f"{', '.join(held)} held at {'its' if len(held) == 1 else 'their'} bound: the "
+            "interval is conditional on it"
+        )
+    entry.update(identification(S, ci))
+    upper = [p for p in held if at_bounds[p] == "upper"]
+    if upper:  # the sum grows with a part the search stopped: no value the data give
+        reason = f"{', '.join(upper)} at the upper bound of the search"
+        entry.update(identified=False, limit="none", limit_value=None, reason=reason)
+    elif not varying:  # every part held: a sum of bounds, nothing the data give
+        reason = f"every part ({', '.join(parts)}) at a bound of the search"
+        entry.update(identified=False, limit="none", limit_value=None, reason=reason)
+    return entry
 
 
 def parameter_identification(entry: Mapping[str, Any]) -> Mapping[str, Any]:

@@ -722,10 +722,15 @@ def _empty_class_figure(title: str, ylabel: str, message: str) -> Figure:
     return fig
 
 
+BOX_MIN = 3  # a class's box needs this many values the data determine; fewer: points only
+
+
 def _class_figure(
     table3: pd.DataFrame, quantity: str, title: str, ylabel: str, log_if_span: float | None
 ) -> Figure:
-    """Box plot of ``quantity`` per class with each vehicle's point, 95 % interval and name.
+    """Box plot of ``quantity`` per class with each vehicle's point, 95 % interval and name;
+    a class with fewer than :data:`BOX_MIN` values the data determine has its points only
+    (the quartiles of two values are no statistic).
 
     Boxes, axis range and points come from the values the data determine only. A value they
     do not determine (``<q>_status`` "not identified") is drawn apart: an open triangle at the
@@ -772,7 +777,7 @@ def _class_figure(
         sep = 6.5 / (0.55 * 72.0 * fig.get_figheight())
         name_at = transforms.offset_copy(ax.get_xaxis_transform(), fig=fig, x=3.0, units="points")
         classes = aggregate.class_order(table3["class"].tolist())
-        boxes, labels, any_open = [], [], False
+        boxes, labels, open_kinds = [], [], set()
         for pos, cls in enumerate(classes, start=1):
             in_class = (table3["class"].astype(str) == cls).to_numpy()
             part = table3[in_class]
@@ -798,8 +803,8 @@ def _class_figure(
                     doubt = str(row["verdict"]) == IN_DOUBT
                     (point,) = ax.plot([x], [y], ls="none", zorder=5, **_POINT[doubt])
                 else:
-                    any_open = True
                     kind = str(kinds[in_class].iloc[i])
+                    open_kinds.add("limit" if kind in ("upper", "lower") else "none")
                     if kind in ("upper", "lower"):
                         edge = ylim[1] if kind == "lower" else ylim[0]
                         ax.annotate(
@@ -832,18 +837,23 @@ def _class_figure(
                 )
         positions = list(range(1, len(classes) + 1))
         grey = {"color": "0.35", "lw": 0.8}
-        ax.boxplot(
-            boxes,
-            positions=positions,
-            widths=0.62,
-            showfliers=False,
-            manage_ticks=False,
-            boxprops=grey,
-            whiskerprops=grey,
-            capprops=grey,
-            medianprops={"color": "0.1", "lw": 1.2},
-            zorder=1,
-        )
+        # a box of fewer than BOX_MIN values would draw quartiles that are not there
+        boxed = [
+            (pos, box) for pos, box in zip(positions, boxes, strict=True) if box.size >= BOX_MIN
+        ]
+        for pos, box in boxed:  # one call per class: a list of equal-length arrays is 2-D
+            ax.boxplot(
+                [box],
+                positions=[pos],
+                widths=0.62,
+                showfliers=False,
+                manage_ticks=False,
+                boxprops=grey,
+                whiskerprops=grey,
+                capprops=grey,
+                medianprops={"color": "0.1", "lw": 1.2},
+                zorder=1,
+            )
         ax.set_xticks(positions, labels)
         ax.set_xlim(0.45, len(classes) + 0.75)
         ax.set_ylabel(ylabel)
@@ -857,10 +867,12 @@ def _class_figure(
         ]
         bar = {"marker": "|", "ms": 9, "mew": 0.6, "color": COLORS["T_veh"]}
         handles.append(Line2D([], [], ls="none", label="95 % interval", **bar))
-        if any_open:
+        if "limit" in open_kinds:
             handles.append(
                 Line2D([], [], ls="none", label="not identified: limit", **_OPEN["lower"])
             )
+        if "none" in open_kinds:  # no limit the data give: anywhere on the axis
+            handles.append(Line2D([], [], ls="none", label="not identified", **_OPEN["none"]))
         if skipped:  # its own line: the names may be long
             handles.append(Line2D([], [], ls="none", label=f"not shown: {skipped}"))
         _legend_row(fig, grid[1], handles, ncols=1 if skipped else 2, handlelength=1.2)
@@ -873,10 +885,12 @@ def figure5(
     """The paper's Figure 5: (a) c_veh and (b) delta by vehicle class (Table 3).
 
     Box plots per class in the order tram, metro, regional, main-line (then any other class),
-    only classes present; every vehicle's value as a point (evenly spread inside its box,
-    sorted by value), its 95 % interval as a thin bar (left out when a bound is not finite)
-    and its name (nudged up or down where names would overlap). Vehicles whose verdict is
-    "assumptions in doubt" have a hollow square, the others a filled circle. Tick labels give
+    only classes present, a box only for a class with at least 3 values the data determine
+    (:data:`BOX_MIN`; fewer: the points alone); every vehicle's value as a point (evenly
+    spread inside its box, sorted by value), its 95 % interval as a thin bar (left out when
+    a bound is not finite) and its name (nudged up or down where names would overlap).
+    Vehicles whose verdict is "assumptions in doubt" have a hollow square, the others a
+    filled circle. Tick labels give
     the class and, below it, the number of vehicles with a value the data determine and of
     those without ("metro\n(n=4+1)"); the latter are drawn apart, never in a box
     (:func:`_class_figure`). delta gets a log axis when its values span more than a factor 20

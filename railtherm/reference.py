@@ -128,15 +128,17 @@ def simulate_published(
     return out
 
 
-def _row(quantity, label, published, fit_entry, simulated=None) -> dict[str, Any]:
-    """One quantity; a fitted value the data do not determine (railtherm.pem.identification)
-    has no value, no interval and is within nothing: its ``status`` says why."""
+def _row(quantity, label, published, fit_entry, simulated=None, judged=None) -> dict[str, Any]:
+    """One quantity; a fitted value the data do not determine (railtherm.pem.identification),
+    or coupled to one they do not determine (``judged``: the fit's judgement with its
+    structure's coupling, railtherm.aggregate.judged_parameters), has no value, no interval
+    and is within nothing: its ``status`` says why."""
     value = np.nan if fit_entry is None else float(fit_entry["value"])
     lo, hi = (np.nan, np.nan)
     status = "estimated"
     if fit_entry is not None and "ci95" in fit_entry:
         lo, hi = map(float, fit_entry["ci95"])
-        judged = pem.parameter_identification(fit_entry)
+        judged = judged or pem.parameter_identification(fit_entry)
         if not judged["identified"]:
             value, lo, hi = np.nan, np.nan, np.nan
             status = f"not identified: {judged['reason']}"
@@ -175,10 +177,22 @@ def compare(
     printed = reference.get("metrics") or {}
     simulated = simulate_published(reference, tables, vehicle_data) or {}
     fitted = fit["parameters"]
+    from railtherm.aggregate import judged_parameters
+
+    judged = judged_parameters(fit)
     # every published parameter (a quantity railtherm does not estimate stays blank), then kA
-    rows = [_row(q, q, theta[q], fitted.get(q)) for q in theta if q != "kA"]
+    rows = [_row(q, q, theta[q], fitted.get(q), None, judged.get(q)) for q in theta if q != "kA"]
     published_kA = theta.get("kA", printed.get("kA"))
-    rows.append(_row("kA", "kA (overall)", published_kA, fitted.get("kA"), simulated.get("kA")))
+    rows.append(
+        _row(
+            "kA",
+            "kA (overall)",
+            published_kA,
+            fitted.get("kA"),
+            simulated.get("kA"),
+            judged.get("kA"),
+        )
+    )
     overall = fit["measures"]["T"]["overall"]
     for q, label in METRIC_LABELS.items():
         rows.append(_row(q, label, printed.get(q), {"value": overall[q]}, simulated.get(q)))

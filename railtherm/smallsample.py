@@ -4,7 +4,7 @@
   normal data at any n >= 2, honest (wide) at n = 2. A percentile bootstrap of 3 to 5 values
   returns little more than their range and covers far less than 95 %.
 - :func:`two_class_test`: Welch's t-test and the exact two-sided Mann-Whitney U test of two
-  classes, each run only when it can reach significance: Welch needs two values per class;
+  classes, each run only when it can reach significance: Welch needs three values per class;
   the exact Mann-Whitney test cannot give a p below 2 / C(n_a + n_b, n_a)
   (:func:`smallest_mann_whitney_p`: 0.2 at 3 against 2), so with fewer values "no significant
   difference" would be certain before any data.
@@ -23,6 +23,11 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["TwoClassTest", "smallest_mann_whitney_p", "t_interval", "two_class_test"]
+
+# Welch's test needs this many values per class: with two, a class's sd is one difference,
+# its Welch-Satterthwaite degrees of freedom fall towards 1 and "no significant difference"
+# is all but certain whatever the classes are
+WELCH_MIN = 3
 
 
 def t_interval(x: Sequence[float], positive: bool = False) -> tuple[float, float]:
@@ -92,8 +97,11 @@ def two_class_test(a: Sequence[float], b: Sequence[float], alpha: float = 0.05) 
     na, nb = len(a), len(b)
     welch_t = welch_df = welch_p = None
     welch_why = ""
-    if na < 2 or nb < 2:
-        welch_why = f"Welch needs at least 2 vehicles per class (n = {na} and {nb})"
+    if na < WELCH_MIN or nb < WELCH_MIN:
+        welch_why = (
+            f"Welch not testable with fewer than {WELCH_MIN} vehicles in a class "
+            f"(n = {na} and {nb})"
+        )
     elif np.std(a) == 0 and np.std(b) == 0:
         welch_why = "Welch: no variance within either class"
     else:

@@ -234,6 +234,12 @@ def _intervals(df: pd.DataFrame, q: str, kind: str, tex: bool) -> list[str]:
     return out
 
 
+def _total_check(verdict: Any) -> str:
+    """The C_total-against-C_bar column: "overlap", "disjoint" or "–" (not comparable)."""
+    text = str(verdict) if isinstance(verdict, str) else ""
+    return text if text in ("overlap", "disjoint") else "–"
+
+
 def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame:
     """The reader's version of a study table (all cells text): ``name`` one of table1,
     table2, table3, class_summary, class_test."""
@@ -250,6 +256,15 @@ def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame
                 "C (J/K)": _intervals(df, "C", "sci", tex),
                 "K_veh (W/K)": _intervals(df, "K_veh", "int", tex),
                 "C_veh (J/K)": _intervals(df, "C_veh", "sci", tex),
+                **(
+                    {
+                        "C_total = C + C_veh (J/K)": _intervals(df, "C_total", "sci", tex),
+                        "C_bar, eq. 9 (J/K)": _intervals(df, "C_bar", "sci", tex),
+                        "C_total vs C_bar": [esc(_total_check(v)) for v in df["C_total_vs_C_bar"]],
+                    }
+                    if "C_total" in df
+                    else {}
+                ),
                 "R² (1)": [f"{x:.3f}" for x in df["R2"]],
                 "verdict": df["verdict"].map(esc),
                 "k from": df["k_source"].map(esc),
@@ -284,6 +299,14 @@ def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame
             ci = f" [{num(r.quantity, lo)}, {num(r.quantity, hi)}]" if math.isfinite(lo) else ""
             return f"{num(r.quantity, x)}{ci}"
 
+        def spread(r):
+            """c_veh: the sample sd; delta: the geometric sd, a factor about its geometric
+            mean (its spread on the log scale)."""
+            if r.quantity == "c_veh":
+                return num(r.quantity, r.sd)
+            x = getattr(r, "geometric_sd", math.nan)
+            return f"×/÷ {x:.2f}" if math.isfinite(x) else "–"
+
         return pd.DataFrame(
             {
                 "selection": df["selection"].map(esc),
@@ -292,7 +315,7 @@ def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame
                 "n": df["n"].astype(str),
                 "mean or geometric mean [95 % t interval]": [centre(r) for r in df.itertuples()],
                 "median": [num(r.quantity, r.median) for r in df.itertuples()],
-                "sd": [num(r.quantity, r.sd) for r in df.itertuples()],
+                "sd (δ: geometric, ×/÷)": [spread(r) for r in df.itertuples()],
                 "range": [
                     "–" if r.n == 0 else f"{num(r.quantity, r.min)} – {num(r.quantity, r.max)}"
                     for r in df.itertuples()
@@ -374,9 +397,18 @@ CAPTIONS = {
 }
 NOT_IDENTIFIED_NOTE = (
     "not identified: the data do not determine the value - the estimate sits at a bound of the "
-    "search, or its 95 % interval reaches beyond a factor 1000 of it; what the data do say is "
-    "given as a one-sided limit (≤, ≥). Such a value is left out of every class statistic and "
-    "comparison."
+    "search, or its 95 % interval spans more than a factor 1000 in total (hi / lo > 1000), or "
+    "it is coupled to such a parameter (C, K_veh and C_veh are determined only together). A "
+    "bound of the search is no limit the data give: a one-sided limit (≤, ≥) is printed only "
+    "where the interval itself is open on one side. Such a value is left out of every class "
+    "statistic, figure and comparison."
+)
+TOTAL_NOTE = (
+    "C_total = C + C_veh: the total capacity, which the data determine even where they cannot "
+    "split it between the air node and the vehicle body (interval by the delta method on "
+    "log C_total from the fit's covariance and the signed systematic effects; a part at a "
+    "bound of the search is held there). It is the capacity the first-order model lumps into "
+    "C_bar (eq. 9): 'C_total vs C_bar' says whether the two 95 % intervals overlap."
 )
 NOTES = {
     "table1": [
@@ -393,6 +425,7 @@ NOTES = {
         "(HAC) and the systematic (GUM type B) uncertainty, each physical error source once "
         "through both stages. R²: eq. 21 for T.",
         NOT_IDENTIFIED_NOTE,
+        TOTAL_NOTE,
         "Verdict: results/vehicles/<id>/fit_order2.yaml lists the reasons.",
     ],
     "table3": [
@@ -402,8 +435,9 @@ NOTES = {
         NOT_IDENTIFIED_NOTE,
     ],
     "class_summary": [
-        "c_veh: the arithmetic mean (the paper's statistic); δ, a ratio whose values span "
-        "decades: the geometric mean. Their 95 % intervals are t intervals (n - 1 degrees of "
+        "c_veh: the arithmetic mean (the paper's statistic) and the sample sd; δ, a ratio whose "
+        "values span decades: the geometric mean and the geometric sd (×/÷ a factor: the "
+        "spread of log δ). Their 95 % intervals are t intervals (n - 1 degrees of "
         "freedom; for δ on the log scale; a lower end below 0 shown as 0), none for a single "
         "vehicle. With 2 to 5 vehicles a class mean is known only roughly: the intervals say "
         "how roughly.",
@@ -412,8 +446,9 @@ NOTES = {
     ],
     "class_test": [
         "Welch's t-test and the exact two-sided Mann-Whitney U test at the 5 % level, each run "
-        "only when it can reach significance: the exact test's smallest p is "
-        "2 / C(n_a + n_b, n_a) (0.2 at 3 vs 2).",
+        "only when it can reach significance: Welch with at least 3 vehicles per class, the "
+        "exact test whose smallest p is 2 / C(n_a + n_b, n_a) (0.2 at 3 vs 2) below the level; "
+        "otherwise 'not testable', never 'no significant difference'.",
     ],
 }
 # what a quantity not given needs, for the note of a table that has one

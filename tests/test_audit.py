@@ -292,13 +292,15 @@ def test_smallest_attainable_p_decides_whether_a_test_runs():
     )
     t = audit.class_test([1.0, 2.0, 3.0], [10.0, 11.0], ("a", "b"), 0.05)
     assert t.mwu_p is None and t.u is None
-    assert "Mann-Whitney: too few vehicles to test" in t.text
+    assert "Mann-Whitney: not testable" in t.text
     assert "2 / C(5, 3) = 2/10 = 0.2 ≥ α = 0.05" in t.text
-    assert t.welch_p is not None  # Welch needs two per class, no more
-    assert t.verdict == audit.NOT_CONTRADICTED  # a contradiction needs both tests
+    assert t.welch_p is None and "Welch: not testable" in t.text  # 3 vs 2: not 3 per class
+    assert t.verdict == audit.TOO_FEW and "no significant" not in t.text
+    t = audit.class_test([1.0, 2.0, 3.0], [10.0, 11.0, 12.5], ("a", "b"), 0.05)
+    assert t.welch_p is not None and t.verdict == audit.NOT_CONTRADICTED  # both tests needed
     t = audit.class_test([1.0], [10.0, 11.0], ("a", "b"), 0.05)
     assert (t.verdict, t.welch_p, t.mwu_p) == (audit.TOO_FEW, None, None)
-    assert "Welch: too few vehicles to test" in t.text
+    assert "Welch: not testable" in t.text
 
 
 def test_overlapping_classes_do_not_contradict_the_claim():
@@ -342,7 +344,7 @@ def test_the_class_test_with_too_few_vehicles_is_a_note(ranges):
     claim = {"statistic": "not_significant", "classes": ["metro", "regional"]}
     pub = class_sheet(claim, B1=("0.990", "900", "2.0"))
     (f,) = audit.check_class_test(pub, ranges)
-    assert f.severity == "info" and f.message.startswith("too few vehicles to test")
+    assert f.severity == "info" and f.message.startswith("not testable")
     assert "2 / C(3, 2) = 2/3 = 0.667" in f.message  # 2 metros against 1 regional
 
 
@@ -490,6 +492,16 @@ def test_implied_mass_outside_an_assumed_range_is_only_a_note(ranges):
     assert finding.message.endswith("(assumption, not a sourced limit)")
     sourced = with_source(ranges, "published: Table 9 of a hypothetical catalogue")
     assert audit.check_implied_mass(pub, sourced)[0].severity == "warning"
+    sheets = with_source(ranges, "datasheet: vehicle X, 20 t; vehicle Y, 130 t")
+    finding = audit.check_implied_mass(pub, sheets)[0]
+    assert finding.severity == "warning" and "(datasheet source)" in finding.message
+
+
+def test_the_main_line_mass_range_rests_on_named_data_sheets(ranges):
+    entry = ranges["ranges"]["m_veh"]["main-line"]
+    assert audit.source_kind(entry) == "datasheet"
+    assert "Bpmz" in entry["source"] and "ES64U2" in entry["source"]
+    assert entry["range"] == [42000, 86000]
 
 
 def test_total_specific_heat_passes_and_fails(ranges):
@@ -676,9 +688,16 @@ def test_reproduction_agrees_and_differs(ranges):
         ),
         # a status saying not identified wins even over numbers that would agree
         (estimates(2.4, 2.6, k_status="not identified: flat likelihood"), "not identified"),
-        # 2.5 / 1000 = 0.0025 >= 0.001: printed 0 .. ∞, meets everything, determines nothing
-        (estimates(0.001, 3.0, k=2.5), "unbounded"),
-        (estimates(2.4, 2600.0, k=2.5), "unbounded"),
+        # 3.0 / 0.001 = 3000 > 1000 in total: meets everything, determines nothing
+        (estimates(0.001, 3.0, k=2.5), "more than a factor 1000 in total"),
+        (estimates(2.4, 2600.0, k=2.5), "more than a factor 1000 in total"),
+        # each side within 1000 of the value, but a factor 1001 in total
+        (estimates(0.1, 100.1, k=3.0), "more than a factor 1000 in total"),
+        # coupled to a parameter the data do not determine
+        (
+            estimates(2.4, 2.6, k_status="not identified: coupled to C, which is not identified"),
+            "coupled to C",
+        ),
         (estimates(2.4, math.inf, k=2.5), "not finite"),
         (estimates(math.nan, 2.6, k=2.5), "not finite"),
         (estimates(2.4, 2.6, k=math.nan), "no re-estimate"),
@@ -695,6 +714,49 @@ def test_a_value_the_data_do_not_determine_never_agrees(ranges, frame, reason):
 def test_an_estimated_status_with_a_bounded_interval_can_agree(ranges):
     (f,) = audit.check_reproduction(sheet(), ranges, estimates(2.4, 2.6, k_status="estimated"))
     assert f.message.startswith("agrees")
+    # a factor 999 in total is still an estimate; it meets the printed 2.45-2.55
+    (wide,) = audit.check_reproduction(sheet(), ranges, estimates(0.1, 99.9, k=2.5))
+    assert wide.message.startswith("agrees")
+
+
+def test_the_total_capacity_is_compared_where_its_parts_are_not(ranges):
+    """A1: published C + C_veh = 1.0e7 + 1.5e7, [2.4, 2.6]e7 with the rounding. The
+    re-estimate's C and C_veh are coupled to a C at its bound: not comparable; their sum is,
+    and the first-order check of eq. 9 says whether C_total meets C_bar."""
+    coupled = "not identified: coupled to C, which is not identified"
+    frame = estimates(
+        2.4,
+        2.6,
+        C=math.nan,
+        C_lo=math.nan,
+        C_hi=math.nan,
+        C_status="not identified: at its lower search bound 1e+04",
+        C_veh=math.nan,
+        C_veh_lo=math.nan,
+        C_veh_hi=math.nan,
+        C_veh_status=coupled,
+        C_total=2.5e7,
+        C_total_lo=2.2e7,
+        C_total_hi=2.8e7,
+        C_total_status="estimated",
+        C_bar=4.0e7,
+        C_bar_lo=3.5e7,
+        C_bar_hi=4.5e7,
+        C_total_vs_C_bar="disjoint",
+    )
+    findings = {f.subject: f for f in audit.check_reproduction(sheet(), ranges, frame)}
+    assert findings["A1 C"].message.startswith("not comparable")
+    assert findings["A1 C_veh"].message.startswith("not comparable") and "coupled" in (
+        findings["A1 C_veh"].message
+    )
+    total = findings["A1 C + C_veh"]
+    assert total.check == "reestimate_total" and total.message.startswith("agrees")
+    first = findings["A1 C_total vs C_bar"]
+    assert first.check == "total_vs_first_order" and first.message.startswith("differs")
+    assert "eq. 9" in first.message
+    overlap = frame.assign(C_total_vs_C_bar="overlap")
+    findings = {f.subject: f for f in audit.check_reproduction(sheet(), ranges, overlap)}
+    assert findings["A1 C_total vs C_bar"].message.startswith("agrees")
 
 
 def test_read_estimates_with_and_without_status_columns(tmp_path):

@@ -98,12 +98,20 @@ def test_member_not_usable_why():
     }
     m = member_from_fit(Fit(fit_data(metrics.IN_DOUBT, C=bound)), VEHICLE)
     assert not m.usable and m.delta is None
-    assert m.why == "C not identified (at a bound); fit assumptions in doubt"
+    assert m.why == (
+        "C not identified (at a bound); K_veh, C_veh not identified (coupled to a parameter "
+        "not identified); fit assumptions in doubt"
+    )
+    assert m.c_veh is None and m.kappa_veh is None  # C_veh and K_veh are coupled to C
     # an estimate flagged at a bound is never used, even where marked identified
     data = fit_data()
     data["flags"] = [{"code": "at_bound", "parameters": ["K_veh"], "message": "..."}]
     m = member_from_fit(Fit(data), VEHICLE)
-    assert not m.usable and m.why == "K_veh not identified (at a bound)" and m.kappa_veh is None
+    assert not m.usable and m.kappa_veh is None and m.c_veh is None
+    assert m.why == (
+        "K_veh not identified (at a bound); C, C_veh not identified (coupled to a parameter "
+        "not identified)"
+    )
     m = member_from_fit(Fit(fit_data()), {**VEHICLE, "class": "other", "mass_kg": None})
     assert not m.usable and m.why == "no mass_kg" and m.c_veh is None
 
@@ -140,12 +148,20 @@ def test_member_from_row_is_member_from_fit():
         )
     )
     assert m == member_from_fit(fit, VEHICLE)
-    assert not m.usable and m.delta is None and m.c_veh == pytest.approx(500.0)
-    assert m.why == "C not identified (at a bound); fit assumptions in doubt"
+    assert not m.usable and m.delta is None and m.c_veh is None  # C_veh coupled to C
+    assert m.why == (
+        "C not identified (at a bound); K_veh, C_veh not identified (coupled to a parameter "
+        "not identified); fit assumptions in doubt"
+    )
+    assert m.c_veh is None and m.kappa_veh is None  # C_veh and K_veh are coupled to C
     # an unbounded interval; pandas' NaN for an empty cell
     unbounded = "not identified: 95 % interval unbounded above (beyond a factor 100 of the value)"
     m = member_from_row(row_of(K_veh=math.nan, K_veh_status=unbounded), VEHICLE)
-    assert m.why == "K_veh not identified (interval unbounded)" and m.kappa_veh is None
+    assert m.why == (
+        "K_veh not identified (interval unbounded); C, C_veh not identified (coupled to a "
+        "parameter not identified)"
+    )
+    assert m.kappa_veh is None
     fit = Fit(
         fit_data(K_veh={"identified": False, "reason": unbounded.removeprefix("not identified: ")})
     )
@@ -201,8 +217,14 @@ def test_members_of_the_committed_study():
         "regional": ["Regio2", "Regio4"],
         "main-line": [],
     }
-    assert by_id["Metro3"].why == "C, K_veh not identified (at a bound); fit assumptions in doubt"
-    assert by_id["Main1"].why == "C not identified (at a bound); fit assumptions in doubt"
+    assert by_id["Metro3"].why == (
+        "C, K_veh not identified (at a bound); C_veh not identified (coupled to a parameter not "
+        "identified); fit assumptions in doubt"
+    )
+    assert by_id["Main1"].why == (
+        "C not identified (at a bound); K_veh, C_veh not identified (coupled to a parameter not "
+        "identified); fit assumptions in doubt"
+    )
     assert by_id["Metro4"].why == "fit assumptions in doubt"
     assert all(m.synthetic for m in members)
     # the numbers: Table 2's (6 significant digits) and the configs' mass and surface
@@ -398,7 +420,13 @@ def test_a_given_k_overrides_the_class_k():
     assert model.theta["kA"] == pytest.approx(2.5 * SURFACE)
     assert model.generalised["k"].centre == pytest.approx(4.0)  # still there, unused
     params = model.parameters
-    assert params["k"] == {"value": 2.5, "ci95": [2.5, 2.5], "unit": "W/(m2 K)", "given": True}
+    assert params["k"] == {
+        "value": 2.5,
+        "ci95": [2.5, 2.5],
+        "unit": "W/(m2 K)",
+        "given": True,
+        "identified": True,
+    }
     assert params["kA"]["ci95"] == [2.5 * SURFACE] * 2
     assert np.allclose(model.draws(100)["kA"], 2.5 * SURFACE)
     # the other parameters are drawn as without k
@@ -489,3 +517,29 @@ def test_cli_error_is_one_line_and_exit_1(capsys, extra, words):
     assert captured.err.count("\n") == 1
     for word in words:
         assert word in captured.err
+
+
+def test_a_class_parameter_with_an_interval_over_a_factor_1000_is_not_an_estimate():
+    tight = [
+        member("M1", c_veh=400.0, delta=2.0, kappa_veh=2.0, k=2.0),
+        member("M2", c_veh=420.0, delta=2.1, kappa_veh=2.2, k=2.1),
+        member("M3", c_veh=380.0, delta=1.9, kappa_veh=1.8, k=1.9),
+    ]
+    params = build(tight, "metro", MASS, SURFACE).parameters
+    assert all(p["identified"] for p in params.values())
+    # kappa_veh over four decades: K_veh's prediction interval spans far more than 1000
+    wide = [
+        member("M1", c_veh=400.0, delta=2.0, kappa_veh=0.01, k=2.0),
+        member("M2", c_veh=420.0, delta=2.1, kappa_veh=1.0, k=2.1),
+        member("M3", c_veh=380.0, delta=1.9, kappa_veh=100.0, k=1.9),
+    ]
+    model = build(wide, "metro", MASS, SURFACE)
+    params = model.parameters
+    lo, hi = params["K_veh"]["ci95"]
+    assert hi / lo > 1000 and not params["K_veh"]["identified"]
+    for p in ("C", "C_veh"):  # coupled to K_veh
+        assert not params[p]["identified"] and "coupled to K_veh" in params[p]["reason"]
+    assert params["kA"]["identified"] and params["c_veh"]["identified"]
+    summary = model.summary()
+    (line,) = [x for x in summary.splitlines() if x.strip().startswith("K_veh ")]
+    assert "not identified" in line and "[" not in line

@@ -184,7 +184,8 @@ def test_without_surface_sensors_the_fit_uses_T_and_still_cross_validates():
     ("factor", "reasons"),
     [
         (1000.0, ("outside the physical range",)),  # W logged, kW declared: C at its bound
-        (1e-3, ("outside the physical range", "below half that of the air")),  # the reverse
+        # the reverse: the air node pinned at the air's own capacity (volume_m3's bound)
+        (1e-3, ("outside the physical range", "sits at its physical lower bound")),
     ],
 )
 def test_a_unit_mistake_in_the_power_is_never_fit_acceptable(factor, reasons):
@@ -245,3 +246,66 @@ def test_a_fit_says_how_many_rows_it_used_and_refuses_too_few():
     few[name].loc[few[name].index[:3], "T"] = np.nan  # a few missing rows are skipped
     estimate, _ = identify.identify(few, vehicle(), k_result(), 2)
     assert estimate["rows"][name]["used"]["T"] == len(table) - 3
+
+
+@pytest.mark.parametrize("order, air", [(2, "C"), (1, "C_bar")])
+def test_the_air_in_the_volume_is_the_lower_bound_of_the_air_node(order, air):
+    data = vehicle(bounds={})
+    structure = identify.model_structure(order, data)
+    _, _, bounds, _, _ = identify._settings(structure, data, k_result(), TABLES)
+    assert bounds[air] == pytest.approx((identify.RHO_CP_AIR * 120.0, 1e10))
+    without = {k: v for k, v in data.items() if k != "volume_m3"}
+    _, _, bounds, _, _ = identify._settings(structure, without, k_result(), TABLES)
+    assert air not in bounds  # the structure's loose 1e4 J/K stays
+    assert structure.bounds[air][0] == 1e4
+    # a configured lower bound below the air's capacity (1.45e5 J/K) is raised to it ...
+    given = vehicle(bounds={air: [2e4, 1e9]})
+    _, _, bounds, _, _ = identify._settings(structure, given, k_result(), TABLES)
+    assert bounds[air] == pytest.approx((identify.RHO_CP_AIR * 120.0, 1e9))
+    # ... one above it is kept
+    given = vehicle(bounds={air: [1e6, 1e9]})
+    _, _, bounds, _, _ = identify._settings(structure, given, k_result(), TABLES)
+    assert bounds[air] == (1e6, 1e9)
+
+
+def test_a_bad_volume_is_refused_naming_the_key():
+    data = vehicle(bounds={}) | {"volume_m3": -5}
+    with pytest.raises(identify.ConfigError, match="volume_m3"):
+        identify.physical_bounds(models.STRUCTURES["second_order"], data)
+
+
+def test_an_estimate_at_the_physical_bound_says_so_and_takes_its_coupled_parameters_along():
+    floor = identify.RHO_CP_AIR * 120.0
+
+    def entry(value, sd):
+        ci = [value * np.exp(-1.96 * sd), value * np.exp(1.96 * sd)]
+        return {"value": value, "estimated": True, "sd_log": sd, "ci95": ci}
+
+    fitted = {
+        "parameters": {
+            "kA": {"value": 979.2, "estimated": False},
+            "C": entry(floor, 0.5),
+            "K_veh": entry(2e4, 1.0),
+            "C_veh": entry(1.3e7, 0.2),
+        },
+        "free": ["C", "K_veh", "C_veh"],
+        "correlation": np.eye(3).tolist(),
+        "flags": [{"code": "at_bound", "parameters": ["C"], "message": ""}],
+    }
+    bounds = {"C": (floor, 1e10), "K_veh": (1e-2, 1e7), "C_veh": (1e4, 1e10)}
+    identify.judge_identification(
+        fitted,
+        bounds,
+        models.STRUCTURES["second_order"],
+        physical={"C": identify.AIR_CAPACITY},
+        budget={"effects_log": {"C_veh": {"scale_Q_H": 0.05}}},
+    )
+    par = fitted["parameters"]
+    assert par["C"]["reason"].startswith("at its physical lower bound (the air's capacity ρ c_p V")
+    assert par["C"]["limit"] == "none"
+    assert not par["K_veh"]["identified"] and not par["C_veh"]["identified"]
+    assert par["C_veh"]["reason"] == "coupled to C, which is not identified"
+    total = fitted["totals"]["C_total"]
+    assert total["identified"] and total["value"] == pytest.approx(1.3e7 + floor)
+    w = 1.3e7 / (1.3e7 + floor)
+    assert total["sd_log_total"] == pytest.approx(w * np.hypot(0.2, 0.05))

@@ -545,3 +545,26 @@ def test_vehicle_figures_draws_the_k_figure_and_each_fit_from_their_files(tmp_pa
         plots.save_figure(plots.fit_figure(read, fit, title, synthetic=True), direct / key)
         for ext in ("png", "svg"):
             assert (out / f"fit_{key}.{ext}").read_bytes() == (direct / f"{key}.{ext}").read_bytes()
+
+
+def test_figure5_draws_no_box_for_a_class_of_fewer_than_three_values():
+    a, b = plots.figure5(table3())  # c_veh: tram 2, metro 3, regional 2, main-line 2
+    medians = [ln for ln in data_axes(a).lines if ln.get_color() == "0.1"]
+    assert len(medians) == 1 and np.mean(medians[0].get_xdata()) == pytest.approx(2.0)
+    # delta: Metro2 open to infinity leaves the metros two values: no box at all
+    assert not [ln for ln in data_axes(b).lines if ln.get_color() == "0.1"]
+    points = [ln for ln in data_axes(b).lines if (ln.get_gid() or "").startswith("vehicle")]
+    assert len(points) == len(table3())  # every vehicle still drawn
+
+
+def test_figure5_names_a_value_without_a_limit_in_the_legend():
+    t3 = table3()
+    for q in ("c_veh", "delta"):
+        t3[f"{q}_status"], t3[f"{q}_limit"], t3[f"{q}_limit_kind"] = "estimated", np.nan, ""
+    metro3 = t3["vehicle"] == "Metro3"
+    t3.loc[metro3, ["delta", "delta_lo", "delta_hi"]] = np.nan
+    t3.loc[metro3, "delta_status"] = "not identified: C_veh coupled to C, which is not identified"
+    t3.loc[metro3, "delta_limit_kind"] = "none"
+    b = plots.figure5(t3)[1]
+    legend = [t.get_text() for x in b.axes if x.get_legend() for t in x.get_legend().texts]
+    assert "not identified" in legend and "not identified: limit" not in legend

@@ -49,7 +49,11 @@ def test_the_published_table_3_classes_differ():
 def test_a_test_that_cannot_reach_alpha_is_not_run_and_says_why():
     test = smallsample.two_class_test([1.0, 2.0, 3.0], [10.0, 11.0])
     assert test.mwu_p is None and "cannot go below p = 2 / C(5, 3) = 0.2" in test.mwu_why
-    assert test.welch_p is not None
+    # Welch needs 3 per class: with 2 a class's sd is one difference; not testable
+    assert test.welch_p is None and "Welch not testable" in test.welch_why
+    assert test.ran == {}
+    three = smallsample.two_class_test([1.0, 2.0, 3.0], [10.0, 11.0, 12.5])
+    assert three.welch_p is not None
     lonely = smallsample.two_class_test([1.0], [10.0, 11.0])
     assert lonely.ran == {} and len(lonely.not_run) == 2
 

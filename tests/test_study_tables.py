@@ -189,13 +189,15 @@ def test_class_test_runs_a_test_only_when_it_can_reach_significance():
     assert r["conclusion"].startswith("differ: Welch and Mann-Whitney")
     lonely = table3_frame({"metro": [300.0, 310.0], "regional": [600.0]})
     r = aggregate.class_test(lonely).iloc[0]
-    assert r["conclusion"].startswith("too few vehicles to test")
+    assert r["conclusion"].startswith("not testable")
 
 
-def test_a_value_at_a_bound_is_never_printed_averaged_or_tested():
+def test_a_value_at_a_bound_and_those_coupled_to_it_are_never_printed_averaged_or_tested():
     """Metro3-like: C at its lower bound, K_veh at its upper bound. Table 2 has no value for
-    them (their status and limits instead), delta = C_veh / C is not identified but bounded
-    below by C_veh / 1e4, and the class statistics and test leave it out, by name."""
+    them, nor for C_veh, coupled to them (it is the whole capacity C + C_veh in disguise); a
+    search bound is no limit the data give, so none is printed. C_total = C + C_veh is
+    reported with its interval; delta and c_veh are not identified, and the class statistics
+    and test leave the vehicle out, by name."""
     vehicles = {f"M{i}": vehicle("metro", mass=30_000.0) for i in range(3)}
     vehicles |= {f"R{i}": vehicle("regional", mass=50_000.0) for i in range(3)}
     fits = {vid: fit(1e7, 500, 1.2e7 + 1e6 * i) for i, vid in enumerate(vehicles)}
@@ -204,47 +206,130 @@ def test_a_value_at_a_bound_is_never_printed_averaged_or_tested():
     t2, t3 = tables["table2"].set_index("vehicle"), tables["table3"].set_index("vehicle")
     m0 = t2.loc["M0"]
     assert math.isnan(m0["C"]) and math.isnan(m0["C_lo"]) and math.isnan(m0["K_veh"])
-    assert m0["C_status"].startswith("not identified: at its lower bound")
-    assert (m0["C_limit"], m0["C_limit_kind"]) == (1e4, "upper")
-    assert (m0["K_veh_limit"], m0["K_veh_limit_kind"]) == (1e7, "lower")
-    assert m0["C_veh_status"] == aggregate.ESTIMATED and m0["C_veh"] == 1.4e7
+    assert m0["C_status"].startswith("not identified: at its lower search bound")
+    assert math.isnan(m0["C_limit"]) and m0["C_limit_kind"] == "none"
+    assert math.isnan(m0["K_veh_limit"]) and m0["K_veh_limit_kind"] == "none"
+    assert math.isnan(m0["C_veh"]) and m0["C_veh_status"].startswith(
+        "not identified: coupled to C, K_veh"
+    )
+    # the sum the data determine: C held at its bound, C_veh's interval carried over
+    assert m0["C_total"] == pytest.approx(1.4e7 + 1e4)
+    assert m0["C_total_status"] == aggregate.ESTIMATED
+    assert m0["C_total_lo"] < 1.4e7 < m0["C_total_hi"] < 3e7
     d = t3.loc["M0"]
     assert math.isnan(d["delta"]) and d["delta_status"].startswith("not identified")
-    assert (d["delta_limit"], d["delta_limit_kind"]) == (pytest.approx(1.4e3), "lower")
-    assert d["c_veh_status"] == aggregate.ESTIMATED  # C_veh itself is determined
+    assert math.isnan(d["c_veh"]) and d["c_veh_status"].startswith("not identified")
     cs = tables["class_summary"].set_index(["selection", "class", "quantity"])
-    metro_delta = cs.loc[("every identified value", "metro", "delta")]
-    assert metro_delta["n"] == 2 and metro_delta["not_identified"] == "M0"
-    assert metro_delta["max"] < 2.0  # the pinned 1,400 is nowhere
+    for q in ("delta", "c_veh"):
+        metro = cs.loc[("every identified value", "metro", q)]
+        assert metro["n"] == 2 and metro["not_identified"] == "M0"
+    test = tables["class_test"].iloc[0]
+    assert test["n_a"] == 2  # M0 is not in the test either
     md = tableformat.to_markdown("table2", tables["table2"], "T2.", "synthetic", [])
-    assert "not identified (≤ 1.0×10⁴)" in md and "not identified (≥ 10,000,000)" in md
+    assert "≤" not in md and "≥" not in md and "1.0×10⁴" not in md and "10,000,000" not in md
+    assert "1.4×10⁷" in md  # C_total, not C_veh
     md3 = tableformat.to_markdown("table3", t3.reset_index(), "T3.", "s", [])
-    assert "not identified (≥ 1,400)" in md3 and "1,400 [" not in md3  # a limit, no estimate
+    (m0_line,) = [line for line in md3.splitlines() if line.startswith("| M0 ")]
+    assert m0_line.count("not identified") == 2  # neither c_veh nor delta of M0
 
 
-def test_an_unbounded_interval_makes_a_value_not_identified():
-    f = fit(1e7, 500, 2e7, sd=(0.1, 4.0, 0.1))  # K_veh: exp(1.96 * 4) > 1000 either way
+def test_a_hand_built_fit_at_a_bound_is_judged_with_its_coupling():
+    f = fit(1e4, 18_466, 5.7e6, sd=(0.1, 1.5, 0.3), pinned={"C": ("lower", 1e4)})
+    judged = aggregate.judged_parameters(f)
+    assert not judged["C"]["identified"] and judged["C"]["limit"] == "none"
+    for p in ("K_veh", "C_veh"):
+        assert not judged[p]["identified"] and judged[p]["coupled_to"] == ["C"]
+    assert judged["kA"]["identified"]  # fixed from the static test, not coupled
+    total = aggregate.fit_totals(f)["C_total"]
+    assert total["identified"] and total["held_at_bound"] == ["C"]
+    # C held at its bound: the sum's spread is C_veh's, weighted by its share of the sum
+    w = 5.7e6 / (5.7e6 + 1e4)
+    assert total["sd_log_total"] == pytest.approx(w * 0.3)
+    # every part at a bound: a sum of bounds is nothing the data give
+    both = fit(1e4, 500, 1e4, pinned={"C": ("lower", 1e4), "C_veh": ("lower", 1e4)})
+    assert not aggregate.fit_totals(both)["C_total"]["identified"]
+    upper = fit(1e7, 500, 1e10, pinned={"C_veh": ("upper", 1e10)})
+    assert not aggregate.fit_totals(upper)["C_total"]["identified"]
+
+
+def test_the_total_capacity_follows_the_covariance_and_the_systematic_effects():
+    independent = fit(1e7, 500, 1e7, sd=(0.2, 0.1, 0.2), corr=0.0)
+    anti = fit(1e7, 500, 1e7, sd=(0.2, 0.1, 0.2), corr=-0.9)
+    sd0 = aggregate.fit_totals(independent)["C_total"]["sd_log_total"]
+    sd1 = aggregate.fit_totals(anti)["C_total"]["sd_log_total"]
+    assert sd0 == pytest.approx(math.sqrt(0.25 * 0.04 * 2))
+    assert sd1 == pytest.approx(math.sqrt(0.25 * 0.04 * 2 * (1 - 0.9)))  # C + C_veh is firmer
+    moved = fit(
+        1e7,
+        500,
+        1e7,
+        sd=(0.2, 0.1, 0.2),
+        corr=0.0,
+        effects={"C": {"scale_Q_H": 0.1}, "C_veh": {"scale_Q_H": 0.3}},
+    )
+    sd2 = aggregate.fit_totals(moved)["C_total"]["sd_log_total"]
+    assert sd2 == pytest.approx(math.sqrt(sd0**2 + (0.5 * 0.1 + 0.5 * 0.3) ** 2))
+
+
+def test_the_total_capacity_is_checked_against_the_first_order_C_bar():
+    vehicles = {"A": vehicle("metro"), "B": vehicle("metro")}
+    fits = {"A": fit(1e7, 500, 2e7), "B": fit(1e7, 500, 2e7)}
+
+    def order1(C_bar):
+        ci = [C_bar * math.exp(-0.2), C_bar * math.exp(0.2)]
+        return {"parameters": {"C_bar": {"value": C_bar, "estimated": True, "ci95": ci}}}
+
+    first = {"A": order1(3.1e7), "B": order1(9e7)}
+    t2 = aggregate.table2(fits, {v: kv(2.0) for v in vehicles}, vehicles, first).set_index(
+        "vehicle"
+    )
+    assert t2.loc["A", "C_total_vs_C_bar"] == "overlap"
+    assert t2.loc["B", "C_total_vs_C_bar"] == "disjoint"
+    assert t2.loc["A", "C_bar"] == 3.1e7
+    md = tableformat.to_markdown("table2", t2.reset_index(), "T2.", "s", [])
+    assert "C_total = C + C_veh" in md and "disjoint" in md
+
+
+def test_an_interval_spanning_more_than_a_factor_1000_in_total_is_not_an_estimate():
+    assert pem.identification(1.0, (0.1, 99.9))["identified"]  # 999
+    wide = pem.identification(1.0, (0.1, 100.1))  # 1001
+    assert not wide["identified"] and wide["limit"] == "none"
+    assert "1001" in wide["reason"]
+    # judged on the total, not per side: a factor 1424 with each side within 1000 of the value
+    assert not pem.identification(18_466.0, (489.0, 696_797.0))["identified"]
+    f = fit(1e7, 500, 2e7, sd=(0.1, 4.0, 0.1))  # K_veh: exp(2 * 1.96 * 4) > 1000
     assert f["parameters"]["K_veh"]["identified"] is False
-    assert f["parameters"]["K_veh"]["limit"] == "none"
     t2 = aggregate.table2({"A": f}, {"A": kv(2.0)}, {"A": vehicle("metro")})
     assert math.isnan(t2.iloc[0]["K_veh"]) and t2.iloc[0]["K_veh_status"].startswith(
-        "not identified: 95 % interval unbounded both ways"
+        "not identified: 95 % interval spans a factor"
     )
-    one_sided = pem.identification(10.0, (5.0, 1e6))
+    assert math.isnan(t2.iloc[0]["C"])  # coupled to K_veh
+    one_sided = pem.identification(10.0, (5.0, math.inf))
     assert one_sided["limit"] == "lower" and one_sided["limit_value"] == 5.0
+    at_bound = pem.identification(1e4, (1e3, 1e5), ("lower", 1e4))
+    assert at_bound["limit"] == "none" and at_bound["limit_value"] is None
+    physical = pem.identification(2e5, (1e5, 4e5), ("lower", 2e5, "the air's capacity ρ c_p V"))
+    assert "physical lower bound (the air's capacity ρ c_p V = 2e+05)" in physical["reason"]
 
 
-def test_recovery_needs_an_identified_estimate():
+def test_truth_comparison_splits_inside_the_interval_from_within_tolerance():
     truth = pd.DataFrame(
         {"vehicle": ["x"], "C": [1e7], "K_veh": [500.0], "C_veh": [2e7], "deviations": [""]}
     )
-    good = fit(1e7, 500, 2e7) | {"nrmse_fit": 0.9, "flags": []}
+    good = fit(1.08e7, 500, 2e7, sd=(0.1, 0.2, 0.01)) | {"nrmse_fit": 0.9, "flags": []}
     row = aggregate.fit_table([good], truth).iloc[0]
+    assert row["C_inside"] and not row["C_within_tolerance"]  # 8 % off, inside +-20 %
+    assert row["C_veh_inside"] and row["C_veh_within_tolerance"]
+    assert row["C_total_truth"] == 3e7 and row["C_total_inside"]
     assert row["C_recovered"] and row["K_veh_recovered"] and row["C_veh_recovered"]
     wide = fit(1e7, 5e4, 2e7, sd=(0.1, 5.0, 0.1)) | {"nrmse_fit": 0.9, "flags": []}
     row = aggregate.fit_table([wide], truth).iloc[0]
-    assert row["C_recovered"] and not row["K_veh_recovered"]  # [0, inf] holds 500: no matter
-    assert math.isnan(row["K_veh"]) and row["K_veh_status"].startswith("not identified")
+    # K_veh not identified, C and C_veh coupled to it: none compared with the truth
+    for p in ("C", "K_veh", "C_veh"):
+        assert not row[f"{p}_inside"] and not row[f"{p}_within_tolerance"]
+        assert not row[f"{p}_recovered"] and math.isnan(row[p])
+    assert row["K_veh_status"].startswith("not identified")
+    assert row["C_total_inside"] and row["C_total_within_tolerance"]  # the sum is determined
 
 
 @pytest.mark.parametrize(
@@ -286,3 +371,23 @@ def test_study_tables_are_written_with_their_source(tmp_path):
     measured = {vid: {**v, "synthetic": False} for vid, v in vehicles.items()}
     assert aggregate.data_source(measured) == aggregate.MEASURED_SOURCE
     assert "mixed" in aggregate.data_source({**measured, "X": vehicle("tram")})
+
+
+def test_welch_with_fewer_than_three_vehicles_in_a_class_is_not_testable():
+    three_two = table3_frame({"metro": [300.0, 310.0, 305.0], "regional": [600.0, 640.0]})
+    r = aggregate.class_test(three_two).iloc[0]
+    assert math.isnan(r["welch_p"]) and math.isnan(r["mannwhitney_p"])
+    assert r["conclusion"].startswith("not testable")
+    assert "no significant difference" not in r["conclusion"]
+    md = tableformat.to_markdown("class_test", aggregate.class_test(three_two), "T.", "s", [])
+    assert "not testable" in md
+
+
+def test_the_spread_of_delta_is_its_geometric_sd():
+    t3 = table3_frame({"metro": [300.0, 350.0, 400.0, 700.0]})
+    cs = aggregate.class_summary(t3)
+    delta = cs[cs["selection"] == "every identified value"].set_index("quantity").loc["delta"]
+    logs = np.log([3.0, 3.5, 4.0, 7.0])
+    assert delta["geometric_sd"] == pytest.approx(math.exp(logs.std(ddof=1)))
+    md = tableformat.to_markdown("class_summary", cs, "S.", "s", [])
+    assert f"×/÷ {math.exp(logs.std(ddof=1)):.2f}" in md

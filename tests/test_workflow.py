@@ -126,10 +126,11 @@ def test_run_writes_raw_files_and_truth_deterministically(small_run, tmp_path):
     for vid in SMALL:
         for n in (1, 2):
             assert f"results/vehicles/{vid}/fit_order{n}.png" in written
-    # predictions: Tram2 simulated, Metro3 (C, K_veh not identified) said so; a class model
-    # needs two other vehicles with an acceptable fit, which this study does not have
+    # predictions: Tram2 simulated, Metro3 (C, K_veh and C_veh, coupled to them, not identified)
+    # said so; a class model needs two other vehicles with an acceptable fit, which this study
+    # does not have
     scenarios = written["results/tables/scenarios.md"].decode()
-    assert "| Metro3 | metro | not simulated: C, K_veh not identified" in scenarios
+    assert "| Metro3 | metro | not simulated: C, K_veh, C_veh not identified" in scenarios
     assert re.search(r"\| Tram2 \| tram \| \d", scenarios)
     loo = written["results/tables/reference_validation.md"].decode()
     assert "| Tram2 | tram | class | class | 0 | too few vehicles" in loo

@@ -97,6 +97,12 @@ rule aggregate:
             for vid in second_order_vehicles()
             if vid in kvalue_vehicles()
         ],
+        # C_bar (eq. 9) beside C_total = C + C_veh in Table 2
+        first_order=[
+            f"results/vehicles/{vid}/fit_order1{TABLE_KEY_SUFFIX}.yaml"
+            for vid in second_order_vehicles()
+            if has_fit(vid, 1)
+        ],
     output:
         **{
             f"{name}_csv": report(
@@ -115,6 +121,7 @@ rule aggregate:
     params:
         vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
         with_kvalue=[vid for vid in second_order_vehicles() if vid in kvalue_vehicles()],
+        with_first_order=[vid for vid in second_order_vehicles() if has_fit(vid, 1)],
         class_test=config["study"]["class_test"],
         code=script_code("aggregate.py"),
     log:

@@ -16,7 +16,13 @@ kvalues = {vid: None for vid in vehicles} | {
     vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
     for vid, path in zip(snakemake.params.with_kvalue, snakemake.input.kvalues, strict=True)
 }
-tables = aggregate.study_tables(fits, kvalues, vehicles, snakemake.params.class_test)
+first_order = {
+    vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    for vid, path in zip(
+        snakemake.params.with_first_order, snakemake.input.first_order, strict=True
+    )
+}
+tables = aggregate.study_tables(fits, kvalues, vehicles, snakemake.params.class_test, first_order)
 source = aggregate.data_source(vehicles)
 if any(fit.get("estimator") == "kalman" for fit in fits.values()):
     source += "; heat capacities by the Kalman-filter estimator (study.estimator: kalman)"
