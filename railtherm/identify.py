@@ -339,7 +339,7 @@ def identify(
         "estimator": estimator,
         "structure": structure.name,
         "k_source": k_source,
-        **k_stage_fields(fixed.get("kA"), kvalue, storage if applied else None, vehicle_data),
+        **k_stage_fields(fixed.get("kA"), kvalue, storage if "kA" in fixed else None, vehicle_data),
         "A": surface(vehicle_data),
         "mass_kg": float(vehicle_data["mass_kg"]) if "mass_kg" in vehicle_data else None,
         "volume_m3": float(vehicle_data["volume_m3"]) if "volume_m3" in vehicle_data else None,
@@ -450,6 +450,8 @@ def storage_corrected_k(
             kA_new = correction.kA
             if not (math.isfinite(kA_new) and kA_new > 0):
                 raise ValueError(f"the k window's balance gives kA = {kA_new:.4g} W/K")
+            if not math.isfinite(u_storage):
+                raise ValueError("the second-order fit does not determine C, K_veh and C_veh")
             other = (
                 sum((r * kA_new) ** 2 for r in relative.values()) + (budget["scatter"] * per) ** 2
             )
@@ -536,7 +538,8 @@ def k_stage_fields(
     """The k stage as a fit file gives it: ``kA_fixed`` (the kA held in stage two, None where
     it is estimated), ``k_eq10``/``u_k_eq10`` (the standard's eq. 10, as kvalue.yaml has it),
     ``k_corrected``/``u_k_corrected`` (storage-corrected, None where not applied) and the
-    correction's record ``storage_correction`` (:func:`storage_corrected_k`); k in W/(m^2 K),
+    correction's record ``storage_correction`` (:func:`storage_corrected_k`, with ``applied``
+    false and its ``reason`` where it was not made); k in W/(m^2 K),
     or kA in W/K where no surface is given (then the k_ fields hold kA)."""
     A = surface(vehicle_data)
     per = 1.0 if A is None else A
@@ -552,7 +555,7 @@ def k_stage_fields(
         out["k_eq10"] = float(kA / per)
         if kvalue.get("u_k_rel") is not None:
             out["u_k_eq10"] = float(kvalue["u_k_rel"]) * kA / per
-    if storage:
+    if storage and storage.get("applied"):
         out["k_corrected"] = float(storage["kA_corrected"]) / per
         out["u_k_corrected"] = float(storage["u_kA_corrected"]) / per
     out["storage_correction"] = dict(storage) if storage else None

@@ -190,3 +190,15 @@ def test_exact_balance_without_noise():
     result = kvalue.storage_corrected_kA(window, TRUTH["C"], TRUTH["K_veh"], TRUTH["C_veh"])
     assert result.kA == pytest.approx(TRUTH["kA"], rel=1e-6)
     assert result.D0 == pytest.approx(0.3, rel=1e-4)
+
+
+def test_undetermined_capacities_leave_eq10_and_say_why(monkeypatch):
+    """Where the second-order fit does not determine the capacities (statistical sd infinite),
+    the correction is not made: eq. 10's kA is held, and the record says why."""
+    monkeypatch.setattr(identify, "_storage_model_u", lambda *args: float("inf"))
+    k, storage, estimate = two_stages(k_window(0.3))
+    assert storage["applied"] is False and "does not determine" in storage["reason"]
+    assert estimate["k_source"] == "static test (eq. 10)"
+    assert estimate["kA_fixed"] == pytest.approx(k["kA"])
+    assert estimate["k_corrected"] is None
+    assert estimate["storage_correction"]["reason"] == storage["reason"]
