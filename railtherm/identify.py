@@ -396,7 +396,8 @@ def storage_corrected_k(
     None where there is nothing to correct: no k window or no usable static k, ``model.mode``
     joint, or ``kvalue.storage_correction: false``. Otherwise a dict for the fit files; with
     ``applied`` false and a ``reason`` where the correction cannot be made (solar gains in the
-    k window, a fit that fails, a kA that is not positive) - eq. 10's kA is fixed then.
+    k window, a fit that fails or leaves C, K_veh, C_veh undetermined, a kA that is not
+    positive) - eq. 10's kA is fixed then.
     """
     from railtherm import kvalue as k_stage
 
@@ -420,7 +421,7 @@ def storage_corrected_k(
         "applied": False,
         "method": STORAGE_METHOD,
         "kA_eq10": kA_eq10,
-        "u_kA_eq10": float(kvalue.get("u_k_rel", 0.0)) * kA_eq10,
+        "u_kA_eq10": float(kvalue.get("u_k_rel") or 0.0) * kA_eq10,
     }
     solar = [
         n
