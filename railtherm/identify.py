@@ -301,14 +301,38 @@ def physical_bounds(
     return {structure.air: (RHO_CP_AIR * V, AIR_CAPACITY)}
 
 
+def stage_two_options(structure, vehicle_data, kvalue, tables) -> tuple[dict, str, list]:
+    """The options of the stage-two fit (:func:`estimate_parameters`: fixed, initial, bounds,
+    outputs, x0, covariance, start) from the config and the k stage, with the provenance of
+    kA and the notes of :func:`_settings`. ``tables``: the windows as the fit sees them."""
+    fixed, initial, bounds, k_source, notes = _settings(structure, vehicle_data, kvalue, tables)
+    model = vehicle_data["model"]
+    options = {
+        "fixed": fixed,
+        "initial": initial,
+        "bounds": bounds,
+        "outputs": _outputs(structure, vehicle_data, tables),
+        "x0": model.get("x0", "measured"),
+        "covariance": model.get("covariance", "hac"),
+        "start": model.get("start", "auto"),
+    }
+    return options, k_source, notes
+
+
 def identify(
     tables: Mapping[str, pd.DataFrame],
     vehicle_data: Mapping[str, Any],
     kvalue: Mapping[str, Any] | None,
     order: int,
+    storage: Mapping[str, Any] | None = None,
 ) -> tuple[dict[str, Any], pd.DataFrame]:
     """Fit the model of ``order`` to all identification windows jointly (one parameter set,
     own initial states); cross-validate when there are two or more windows.
+
+    ``storage``: the storage-corrected k of the vehicle (:func:`storage_corrected_k`); where
+    it is applied, its kA is the one held fixed (first- and second-order fits alike) and its
+    uncertainty replaces the k stage's storage bound in the type-B budget. Without it (or not
+    applied) kA is that of eq. 10.
 
     Returns the estimate (a plain dict for YAML) and the series table (per window: time,
     measured and simulated states, residuals and inputs).
@@ -316,17 +340,12 @@ def identify(
     structure = model_structure(order, vehicle_data)
     tables = envelope_tables(structure, vehicle_data, tables)
     outputs = _outputs(structure, vehicle_data, tables)
-    fixed, initial, bounds, k_source, notes = _settings(structure, vehicle_data, kvalue, tables)
-    model = vehicle_data["model"]
-    options = {
-        "fixed": fixed,
-        "initial": initial,
-        "bounds": bounds,
-        "outputs": outputs,
-        "x0": model.get("x0", "measured"),
-        "covariance": model.get("covariance", "hac"),
-        "start": model.get("start", "auto"),
-    }
+    options, k_source, notes = stage_two_options(structure, vehicle_data, kvalue, tables)
+    fixed = options["fixed"]
+    applied = bool(storage and storage.get("applied")) and "kA" in fixed
+    if applied:
+        fixed["kA"] = float(storage["kA_corrected"])
+        k_source += ", storage-corrected"
     estimator = split_key(order)[1]
     if estimator == "kalman":
         options["estimator"] = "kalman"
@@ -334,7 +353,9 @@ def identify(
     exps = experiments(structure, tables)
     result = estimate_parameters(structure, exps, options)
     fitted = result.to_dict()
-    budget = systematic_budget(structure, exps, options, result, vehicle_data, kvalue)
+    budget = systematic_budget(
+        structure, exps, options, result, vehicle_data, kvalue, storage if applied else None
+    )
     combine_uncertainty(fitted["parameters"], budget)
     if "kA" not in fitted["parameters"]:
         fitted["parameters"]["kA"] = derived_kA(fitted)
@@ -357,6 +378,7 @@ def identify(
         "estimator": estimator,
         "structure": structure.name,
         "k_source": k_source,
+        **k_stage_fields(fixed.get("kA"), kvalue, storage if "kA" in fixed else None, vehicle_data),
         "A": surface(vehicle_data),
         "mass_kg": float(vehicle_data["mass_kg"]) if "mass_kg" in vehicle_data else None,
         "volume_m3": float(vehicle_data["volume_m3"]) if "volume_m3" in vehicle_data else None,
@@ -376,6 +398,208 @@ def identify(
         estimate["fit"]["loglik"] = float(result.loglik)
         estimate["fit"]["n_params"] = int(result.n_params)
     return estimate, series
+
+
+# the storage correction's iteration kA <-> stage two: stop when kA moves less than this share
+# of u(kA), or after this many stage-two fits
+STORAGE_TOLERANCE = 0.1
+MAX_STORAGE_ITERATIONS = 10
+STORAGE_METHOD = (
+    "kA of the k window's energy balance under eqs. 7-8 (heat stored by C and C_veh of the "
+    "second-order fit), iterated with the stage-two fit"
+)
+
+
+def storage_corrected_k(
+    tables: Mapping[str, pd.DataFrame],
+    k_window: pd.DataFrame | None,
+    vehicle_data: Mapping[str, Any],
+    kvalue: Mapping[str, Any] | None,
+) -> dict[str, Any] | None:
+    """The storage-corrected k of a vehicle: kA with the heat the structure takes up during the
+    k window, estimated from the identified second-order model, and the count of iterations.
+
+    Eq. 10 books every watt that goes into storage as loss: where the air is held steady but
+    the car body still lags behind it, K_veh (T - T_veh) > 0 and eq. 10's kA is too high by
+    K_veh mean(T - T_veh) / mean(T - T_o). Starting from eq. 10's kA, the second-order model
+    (eqs. 7-8) is fitted with kA fixed (stage two, warm-started), the k window's energy
+    balance under that model gives a new kA (:func:`railtherm.kvalue.storage_corrected_kA`),
+    and the two steps alternate until kA moves by less than ``STORAGE_TOLERANCE`` u(kA)
+    (at most ``MAX_STORAGE_ITERATIONS`` fits). u(kA) is eq. 10's budget with its storage bound
+    replaced by the correction's own standard uncertainty: the regression's (T_veh's start D0
+    and its correlation with kA included) and that of the capacities' statistical errors
+    carried through the balance (finite differences in log theta with the fit's covariance),
+    in quadrature. The power, temperature, surface and scatter components stay as eq. 10 has
+    them (relative to k).
+
+    None where there is nothing to correct: no k window or no usable static k, ``model.mode``
+    joint, or ``kvalue.storage_correction: false``. Otherwise a dict for the fit files; with
+    ``applied`` false and a ``reason`` where the correction cannot be made (solar gains in the
+    k window, a fit that fails or leaves C, K_veh, C_veh undetermined, a kA that is not
+    positive) - eq. 10's kA is fixed then.
+    """
+    from railtherm import kvalue as k_stage
+
+    if k_window is None or not kvalue or not kvalue.get("usable"):
+        return None
+    if not (vehicle_data.get("kvalue") or {}).get("storage_correction", True):
+        return None
+    structure = model_structure("order2", vehicle_data)
+    tables = envelope_tables(structure, vehicle_data, tables)
+    options, _, _ = stage_two_options(structure, vehicle_data, kvalue, tables)
+    if "kA" not in options["fixed"]:
+        return None
+    A = surface(vehicle_data)
+    per = 1.0 if A is None else A
+    kA_eq10 = float(options["fixed"]["kA"])
+    k_eq10 = kA_eq10 / per
+    budget = {c: float(kvalue["budget"].get(c, 0.0)) for c in k_stage.COMPONENTS}
+    # the components that stay: relative to k (power, temperature, surface), or absolute
+    relative = {c: budget[c] / k_eq10 for c in ("power", "temperature", "surface")}
+    record: dict[str, Any] = {
+        "applied": False,
+        "method": STORAGE_METHOD,
+        "kA_eq10": kA_eq10,
+        "u_kA_eq10": float(kvalue.get("u_k_rel") or 0.0) * kA_eq10,
+    }
+    solar = [
+        n
+        for n in ingest.irradiance_names(vehicle_data)
+        if n in k_window.columns and np.any(np.abs(k_window[n].to_numpy(float)) > 0)
+    ]
+    if solar:
+        record["reason"] = (
+            f"the k window has solar gains ({', '.join(solar)}): its energy balance would need "
+            "the apertures; eq. 10's kA is fixed"
+        )
+        return record
+    exps = experiments(structure, tables)
+    fit_options = {**options, "fixed": dict(options["fixed"])}
+    kA, history = kA_eq10, []
+    converged = False
+    correction = u_storage = u_model = u_kA = None
+    theta: dict[str, float] = {}
+    try:
+        for _ in range(MAX_STORAGE_ITERATIONS):
+            fit_options["fixed"]["kA"] = kA
+            result = pem.fit(structure, exps, **fit_options)
+            theta = {p: float(result.theta[p]) for p in ("C", "K_veh", "C_veh")}
+            correction = k_stage.storage_corrected_kA(k_window, **theta)
+            u_model = _storage_model_u(k_window, theta, result)
+            u_storage = math.hypot(correction.u_kA, u_model)
+            kA_new = correction.kA
+            if not (math.isfinite(kA_new) and kA_new > 0):
+                raise ValueError(f"the k window's balance gives kA = {kA_new:.4g} W/K")
+            if not math.isfinite(u_storage):
+                raise ValueError("the second-order fit does not determine C, K_veh and C_veh")
+            other = (
+                sum((r * kA_new) ** 2 for r in relative.values()) + (budget["scatter"] * per) ** 2
+            )
+            u_kA = math.sqrt(other + u_storage**2)
+            history.append(kA_new)
+            converged = abs(kA_new - kA) < STORAGE_TOLERANCE * u_kA
+            kA = kA_new
+            # warm start: the next fit from this one's estimate
+            fit_options["initial"] = {p: float(result.theta[p]) for p in result.free}
+            fit_options["start"] = "initial"
+            if converged:
+                break
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:
+        record["reason"] = f"the correction failed ({err}); eq. 10's kA is fixed"
+        return record
+    corrected = {
+        "power": relative["power"] * kA / per,
+        "temperature": relative["temperature"] * kA / per,
+        "surface": relative["surface"] * kA / per,
+        "scatter": budget["scatter"],
+        "storage": u_storage / per,
+    }
+    record.update(
+        applied=True,
+        kA_corrected=float(kA),
+        u_kA_corrected=float(u_kA),
+        u_storage_kA=float(u_storage),
+        u_storage_regression_kA=float(correction.u_kA),
+        u_storage_model_kA=float(u_model),
+        budget=corrected,
+        budget_unit="W/(m2 K)" if A is not None else "W/K",
+        window=correction.to_dict(),
+        theta=theta,
+        iterations=len(history),
+        converged=bool(converged),
+        history_kA=[float(v) for v in history],
+    )
+    return record
+
+
+def _storage_model_u(k_window: pd.DataFrame, theta: Mapping[str, float], result) -> float:
+    """Standard uncertainty (W/K) of the storage-corrected kA from the statistical errors of
+    C, K_veh, C_veh: the sensitivities d kA / d log theta by central differences, with the
+    fit's covariance of log theta (sd_log and correlation over its free parameters)."""
+    from railtherm.kvalue import storage_corrected_kA
+
+    free = list(result.free)
+    names = [p for p in ("C", "K_veh", "C_veh") if p in free]
+    if not names:
+        return 0.0
+    sd = np.array([float(result.sd_log[p]) for p in names])
+    if not np.all(np.isfinite(sd)):
+        return math.inf
+    h = 1.0e-4
+    gradient = []
+    for p in names:
+        shifted = [
+            storage_corrected_kA(k_window, **{**theta, p: theta[p] * math.exp(sign * h)}).kA
+            for sign in (1.0, -1.0)
+        ]
+        gradient.append((shifted[0] - shifted[1]) / (2.0 * h))
+    index = [free.index(p) for p in names]
+    correlation = np.asarray(result.correlation, dtype=float)[np.ix_(index, index)]
+    g = np.asarray(gradient) * sd
+    return float(math.sqrt(max(float(g @ correlation @ g), 0.0)))
+
+
+K_STAGE_FIELDS = (
+    "kA_fixed",
+    "k_eq10",
+    "u_k_eq10",
+    "k_corrected",
+    "u_k_corrected",
+    "storage_correction",
+)
+
+
+def k_stage_fields(
+    kA_fixed: float | None,
+    kvalue: Mapping[str, Any] | None,
+    storage: Mapping[str, Any] | None,
+    vehicle_data: Mapping[str, Any],
+) -> dict[str, Any]:
+    """The k stage as a fit file gives it: ``kA_fixed`` (the kA held in stage two, None where
+    it is estimated), ``k_eq10``/``u_k_eq10`` (the standard's eq. 10, as kvalue.yaml has it),
+    ``k_corrected``/``u_k_corrected`` (storage-corrected, None where not applied) and the
+    correction's record ``storage_correction`` (:func:`storage_corrected_k`, with ``applied``
+    false and its ``reason`` where it was not made); k in W/(m^2 K),
+    or kA in W/K where no surface is given (then the k_ fields hold kA)."""
+    A = surface(vehicle_data)
+    per = 1.0 if A is None else A
+    out: dict[str, Any] = {
+        "kA_fixed": None if kA_fixed is None else float(kA_fixed),
+        "k_eq10": None,
+        "u_k_eq10": None,
+        "k_corrected": None,
+        "u_k_corrected": None,
+    }
+    if kvalue and kvalue.get("kA") is not None:
+        kA = float(kvalue["kA"]) if A is None or kvalue.get("k") is None else kvalue["k"] * A
+        out["k_eq10"] = float(kA / per)
+        if kvalue.get("u_k_rel") is not None:
+            out["u_k_eq10"] = float(kvalue["u_k_rel"]) * kA / per
+    if storage and storage.get("applied"):
+        out["k_corrected"] = float(storage["kA_corrected"]) / per
+        out["u_k_corrected"] = float(storage["u_kA_corrected"]) / per
+    out["storage_correction"] = dict(storage) if storage else None
+    return out
 
 
 def _innovation_series(structure, series: pd.DataFrame, result) -> pd.DataFrame:
@@ -498,7 +722,7 @@ class ErrorSource:
     meaning: str
 
 
-def error_sources(structure, options, vehicle_data, kvalue) -> list[ErrorSource]:
+def error_sources(structure, options, vehicle_data, kvalue, storage=None) -> list[ErrorSource]:
     """The physical error sources of a fit, each once, with what each does to both stages.
 
     With kA fixed from the static test, kA = mean(Q_H) / (mean(T) - mean(T_o)) over the k
@@ -509,7 +733,15 @@ def error_sources(structure, options, vehicle_data, kvalue) -> list[ErrorSource]
     on top: its power and temperature components are these very sources). The k window's
     own random error (the scatter of its means) and the heat still going into storage reach
     the capacities through kA only. The surface A does not reach them at all: eq. 10
-    measures kA and eqs. 7-8 use kA, so an error of A moves k alone."""
+    measures kA and eqs. 7-8 use kA, so an error of A moves k alone.
+
+    ``storage``: the applied storage-corrected k (:func:`storage_corrected_k`), whose kA is
+    the one fixed. A scale error of Q_H scales it as it scales eq. 10's kA (every term of the
+    window's energy balance scales with Q_H), and an offset u of T or T_o changes the integral
+    of T - T_o alone, by u times the duration, so kA moves by the factor dT / (dT +- u) as
+    eq. 10's does (dT the window's mean T - T_o); an offset of the surface sensors cancels
+    in the change of T_veh. The storage term is then the correction's own uncertainty
+    instead of the k stage's bound."""
     instruments = vehicle_data["instruments"]
     counts = sensor_counts(vehicle_data["channels"])
     u_power = float(instruments["power_u_rel"])
@@ -517,7 +749,7 @@ def error_sources(structure, options, vehicle_data, kvalue) -> list[ErrorSource]
     u_out = sensor_u_K(instruments, "outdoor") / math.sqrt(counts["outdoor"])
     static = "kA" in options["fixed"] and kvalue is not None
     kA = float(options["fixed"]["kA"]) if static else math.nan
-    Q, dT = (float(kvalue["Q_H_mean"]), float(kvalue["delta_T"])) if static else (0.0, 0.0)
+    dT = float(kvalue["delta_T"]) if static else math.nan
 
     def k_stage(value: float) -> float | None:
         return float(value) if static else None
@@ -534,14 +766,14 @@ def error_sources(structure, options, vehicle_data, kvalue) -> list[ErrorSource]
             "offset_T",
             u_in,
             structure.states.index("T"),
-            k_stage(Q / (dT + u_in) if static else math.nan),
+            k_stage(kA * dT / (dT + u_in)),
             "calibration offset of the mean indoor temperature (u_K / sqrt(n_eff))",
         ),
         ErrorSource(
             "offset_T_o",
             u_out,
             "T_o",
-            k_stage(Q / (dT - u_out) if static else math.nan),
+            k_stage(kA * dT / (dT - u_out)),
             "calibration offset of the mean outdoor temperature (u_K / sqrt(n_eff))",
         ),
     ]
@@ -561,7 +793,15 @@ def error_sources(structure, options, vehicle_data, kvalue) -> list[ErrorSource]
         budget = kvalue["budget"]
         k = float(kvalue["kA"]) if kvalue.get("k") is None else float(kvalue["k"])
         u_scatter = float(budget["scatter"]) / k
-        u_storage = float(budget["storage"]) / k
+        if storage is None:
+            u_storage = float(budget["storage"]) / k
+            storage_meaning = "heat still going into storage during the k window (relative to kA)"
+        else:
+            u_storage = float(storage["u_storage_kA"]) / float(storage["kA_corrected"])
+            storage_meaning = (
+                "uncertainty of the storage correction of the k window (its energy-balance "
+                "regression on eqs. 7-8 and the capacities' statistical error, relative to kA)"
+            )
         sources += [
             ErrorSource(
                 "k_scatter",
@@ -575,13 +815,15 @@ def error_sources(structure, options, vehicle_data, kvalue) -> list[ErrorSource]
                 u_storage,
                 None,
                 kA * (1.0 + u_storage),
-                "heat still going into storage during the k window (relative to kA)",
+                storage_meaning,
             ),
         ]
     return sources
 
 
-def systematic_budget(structure, exps, options, result, vehicle_data, kvalue) -> dict[str, Any]:
+def systematic_budget(
+    structure, exps, options, result, vehicle_data, kvalue, storage=None
+) -> dict[str, Any]:
     """Type-B uncertainty of the estimates (GUM): every physical error source
     (:func:`error_sources`) is applied once, at one standard uncertainty, to every record it
     touches - the static k window and the identification windows together - and the
@@ -595,7 +837,7 @@ def systematic_budget(structure, exps, options, result, vehicle_data, kvalue) ->
     # the same sources' effect on kA where the static test fixes it (eq. 10): with the free
     # parameters' effects, the joint distribution a prediction samples (railtherm.simulate)
     fixed_effects: dict[str, dict[str, float]] = {}
-    sources = error_sources(structure, options, vehicle_data, kvalue)
+    sources = error_sources(structure, options, vehicle_data, kvalue, storage)
     for source in sources:
         if not source.u > 0:
             continue
@@ -965,6 +1207,7 @@ def check(
         "estimator": estimate.get("estimator", "output_error"),
         "structure": estimate["structure"],
         "k_source": estimate["k_source"],
+        **{key: estimate.get(key) for key in K_STAGE_FIELDS},
         "verdict": metrics.IN_DOUBT if reasons else metrics.ACCEPTABLE,
         "reasons": reasons,
         "notes": notes,

@@ -78,11 +78,13 @@ from railtherm.errors import DataError
 __all__ = [
     "Budget",
     "KValue",
+    "StorageCorrection",
     "autocorrelation_time",
     "effective_count",
     "sensor_counts",
     "sensor_u_K",
     "static_k",
+    "storage_corrected_kA",
 ]
 
 SQRT3 = math.sqrt(3.0)
@@ -530,4 +532,124 @@ def for_vehicle(window: pd.DataFrame, vehicle_data: Mapping[str, Any], source: s
         instruments=vehicle_data["instruments"],
         n_sensors=sensor_counts(vehicle_data["channels"]),
         source=source,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# The storage-corrected k (eqs. 7-8 over the k window)
+
+
+@dataclass(frozen=True)
+class StorageCorrection:
+    """kA of the k window's energy balance under the second-order model (eqs. 7-8), given the
+    capacities: see :func:`storage_corrected_kA`. SI units; ``D0`` (K) is the body's lag
+    T(t_0) - T_veh(t_0) at the window's start (None where T_veh is measured), ``u_kA`` the
+    standard uncertainty of kA from the regression, ``corr_kA_D0`` the correlation of the two
+    estimates (0 without D0), ``storage_W`` the mean heat taken up by the structure over the
+    window (Q_H - kA (T - T_o), averaged), ``tau_veh_h`` = C_veh / K_veh in hours."""
+
+    kA: float
+    u_kA: float
+    D0: float | None
+    u_D0: float | None
+    corr_kA_D0: float
+    storage_W: float
+    T_veh_from: str
+    tau_veh_h: float
+    duration_h: float
+    n_eff: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+
+def storage_corrected_kA(
+    window: pd.DataFrame,
+    C: float,
+    K_veh: float,
+    C_veh: float,
+    *,
+    source: str = "k window",
+) -> StorageCorrection:
+    """kA from the k window's energy balance with the heat stored by the second-order model.
+
+    Adding eq. 7 and eq. 8 and integrating from the window's start t_0 gives, at every grid
+    point t_n::
+
+        E(t_n) = integral of Q_H = kA integral (T - T_o) dt + C (T(t_n) - T(t_0))
+                                 + C_veh (T_veh(t_n) - T_veh(t_0))
+
+    (Q_H held over each step, the integral of T - T_o by the trapezoidal rule). Where the
+    window measures T_veh (surface sensors, every row finite) its change is taken as measured
+    and kA is the one unknown. Otherwise T_veh follows eq. 8, C_veh dT_veh/dt = K_veh (T -
+    T_veh), driven by the measured T (linear between grid points) from an unknown start
+    T_veh(t_0) = T(t_0) - D0: T_veh = T_veh^0 - D0 exp(-(t - t_0) / tau_veh), tau_veh = C_veh /
+    K_veh, with T_veh^0 the response from T_veh^0(t_0) = T(t_0). Both ways the balance is
+    linear in the unknowns::
+
+        E - C (T - T(t_0)) - C_veh (T_veh^0 - T(t_0)) = kA integral (T - T_o) dt
+                                                       + D0 C_veh (1 - exp(-(t - t_0) / tau_veh))
+                                                       + c
+
+    solved by least squares over t_0..t_N. The constant c is the stored energy's error at the
+    anchor: the measured T(t_0) (and T_veh(t_0)) carries the sensor noise of one sample, which
+    would otherwise shift every row alike (C times it); with c the noise of each row enters
+    once, not through the first. Its covariance is the residuals' variance times
+    (X^T X)^-1, widened by their integrated autocorrelation time (the residuals of an
+    integrated balance are strongly correlated): when tau_veh is long against the window the
+    D0 column approaches the kA column (both grow about linearly in t), the two are confounded
+    and u(kA) grows accordingly. With a steady body (D0 = 0, T constant) the balance is eq. 10.
+    """
+    if not (C > 0 and K_veh > 0 and C_veh > 0):
+        raise ValueError(f"C, K_veh and C_veh must be > 0, got {C}, {K_veh}, {C_veh}")
+    from scipy import integrate, signal
+
+    t = _column(window, "time", source)
+    T = _column(window, "T", source)
+    T_o = _column(window, "T_o", source)
+    Q_H = _column(window, "Q_H", source)
+    T_veh = _column(window, "T_veh", source, required=False)
+    s = t - t[0]
+    E = np.concatenate([[0.0], np.cumsum(Q_H[:-1] * np.diff(t))])
+    integral = integrate.cumulative_trapezoid(T - T_o, t, initial=0.0)
+    tau_veh = C_veh / K_veh
+    y = E - C * (T - T[0])
+    if np.all(np.isfinite(T_veh)):
+        T_veh_from = "T_veh"
+        y -= C_veh * (T_veh - T_veh[0])
+        X = np.column_stack([integral, np.ones_like(s)])
+    else:
+        T_veh_from = "model (eq. 8)"
+        lag = signal.StateSpace([[-1.0 / tau_veh]], [[1.0 / tau_veh]], [[1.0]], [[0.0]])
+        _, T_veh_0, _ = signal.lsim(lag, T, s, X0=[T[0]], interp=True)
+        y -= C_veh * (np.asarray(T_veh_0, dtype=float) - T[0])
+        X = np.column_stack([integral, C_veh * -np.expm1(-s / tau_veh), np.ones_like(s)])
+    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    residuals = y - X @ beta
+    n, p = X.shape
+    tau_int = autocorrelation_time(residuals)
+    variance = float(residuals @ residuals) / max(n - p, 1) * tau_int
+    cov = variance * np.linalg.pinv(X.T @ X)
+    kA = float(beta[0])
+    u_kA = math.sqrt(max(float(cov[0, 0]), 0.0))
+    if p == 3:
+        D0, u_D0 = float(beta[1]), math.sqrt(max(float(cov[1, 1]), 0.0))
+        denominator = u_kA * u_D0
+        corr = float(cov[0, 1]) / denominator if denominator > 0 else 0.0
+    else:
+        D0 = u_D0 = None
+        corr = 0.0
+    duration = float(s[-1])
+    storage_W = (E[-1] - kA * integral[-1]) / duration
+    return StorageCorrection(
+        kA=kA,
+        u_kA=u_kA,
+        D0=D0,
+        u_D0=u_D0,
+        corr_kA_D0=corr,
+        storage_W=float(storage_W),
+        T_veh_from=T_veh_from,
+        tau_veh_h=tau_veh / 3600.0,
+        duration_h=duration / 3600.0,
+        n_eff=n / tau_int,
     )

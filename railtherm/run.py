@@ -2,9 +2,11 @@
 
 :func:`fit_vehicle` does for one validated :class:`~railtherm.config.Vehicle` what the rules
 ``clean`` -> ``kvalue`` -> ``identify`` -> ``check`` do: tidy tables of its windows, the
-static k (eq. 10) when it has a k window, then each model fitted by simulation-error PEM
-(eqs. 15-20) with k fixed from stage one, and the verdict. With ``out`` it writes the same
-files under ``out/vehicles/<id>/`` as the workflow does under ``results/vehicles/<id>/``.
+static k (eq. 10) when it has a k window, its storage correction (the k window's energy
+balance under the second-order model, iterated with stage two), then each model fitted by
+simulation-error PEM (eqs. 15-20) with the corrected kA fixed, and the verdict. With ``out``
+it writes the same files under ``out/vehicles/<id>/`` as the workflow does under
+``results/vehicles/<id>/``.
 """
 
 from __future__ import annotations
@@ -71,11 +73,11 @@ def fit_vehicle(
             write_yaml(k.to_dict(), os.path.join(base, "kvalue.yaml"))
     windows = {w["name"]: tables[w["name"]] for w in vehicle.windows["identification"]}
     result = VehicleResult(vehicle=vehicle, tables=tables, kvalue=k)
+    k_stage = None if k is None else k.to_dict()
+    storage = identify.storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k_stage)
     for key in keys:
         model = identify.model_key(key)
-        estimate, series = identify.identify(
-            windows, vehicle.data, None if k is None else k.to_dict(), model
-        )
+        estimate, series = identify.identify(windows, vehicle.data, k_stage, model, storage)
         checked = identify.check(estimate, series, vehicle.data["check"])
         fit = Fit(checked, series)
         if base is not None:

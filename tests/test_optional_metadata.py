@@ -407,7 +407,9 @@ def test_snakemake_study_with_objects_without_metadata(tmp_path):
     for png in ("vehicles/Tram2/kvalue.png", "figures/figure5a.png", "figures/figure3.png"):
         assert (study / "results" / png).is_file(), png
     fit2 = read_fit(study / "results" / "vehicles" / "Tram2" / "fit_order2.yaml")
-    assert fit2.k_source == "static test (eq. 10)"  # kA from the k window, no surface needed
+    # kA from the k window (storage-corrected), no surface needed
+    assert fit2.k_source == "static test (eq. 10), storage-corrected"
+    assert fit2.data["k_eq10"] is not None and fit2.data["kA_fixed"] == fit2.theta["kA"]
 
 
 def test_railtherm_fit_prints_kA_for_an_object_without_surface_with_a_k_window(tmp_path, capsys):

@@ -219,6 +219,14 @@ def kvalue_input(wildcards):
 
 
 @per_job
+def kvalue_window_input(wildcards):
+    """The tidy k window, for the storage correction of the static k (none without one)."""
+    if has_kvalue(wildcards.vehicle):
+        return f"results/vehicles/{wildcards.vehicle}/clean/kvalue.csv"
+    return []
+
+
+@per_job
 def vehicle_data(wildcards):
     """A vehicle's validated config (params of its jobs)."""
     return STUDY.vehicles[wildcards.vehicle].data

@@ -12,6 +12,7 @@ for _rule, _keys, _constraint in rule_groups("identify", model_keys):
         input:
             windows=identification_tables,
             kvalue=kvalue_input,
+            k_window=kvalue_window_input,
         output:
             **identify_files(_keys),
         wildcard_constraints:

@@ -10,12 +10,23 @@ tables = {
     name: ingest.read_tidy(path)
     for name, path in zip(snakemake.params.windows, snakemake.input.windows, strict=True)
 }
-kvalue = None
+kvalue = k_window = None
 if snakemake.input.kvalue:
     with open(snakemake.input.kvalue, encoding="utf-8") as stream:
         kvalue = yaml.safe_load(stream)
+    k_window = ingest.read_tidy(snakemake.input.k_window)
+# the storage-corrected kA (eqs. 7-8 over the k window), once for every model of the vehicle
+storage = identify.storage_corrected_k(tables, k_window, snakemake.params.vehicle, kvalue)
+if storage and storage["applied"]:
+    log.info(
+        "kA %.6g W/K (eq. 10) -> %.6g +- %.2g W/K storage-corrected, %d iterations",
+        storage["kA_eq10"],
+        storage["kA_corrected"],
+        storage["u_kA_corrected"],
+        storage["iterations"],
+    )
 for model in snakemake.params.models:
-    estimate, series = identify.identify(tables, snakemake.params.vehicle, kvalue, model)
+    estimate, series = identify.identify(tables, snakemake.params.vehicle, kvalue, model, storage)
     write_yaml(estimate, snakemake.output[f"estimate_{model}"])
     ingest.write_tidy(series, snakemake.output[f"series_{model}"])
     fit = estimate["fit"]

@@ -1,0 +1,204 @@
+"""The storage-corrected k: eq. 10 books the heat a lagging car body takes up as loss; the k
+window's energy balance under the identified second-order model (eqs. 7-8) does not."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from railtherm import identify, kvalue, models
+from railtherm.config import section_defaults
+
+TRUTH = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
+A = 306.0
+STEP = 120.0
+T_O = -10.0
+NOISE_K = 0.01  # white noise of the measured temperatures
+
+
+def record(x0, hours, Q=None, T_set=None, seed=0) -> pd.DataFrame:
+    """A tidy window of eqs. 7-8 (exact ZOH) from the state x0 = (T, T_veh): the heating
+    power Q(t) given, or set at each step so that T stays at ``T_set`` (a controller that
+    holds the air). Temperatures measured with white noise NOISE_K (seeded)."""
+    n = int(hours * 3600 / STEP) + 1
+    Ad, Bd = models.discretize_zoh(*models.second_order(**TRUTH), STEP)
+    x = np.empty((n, 2))
+    Q_H = np.empty(n)
+    x[0] = x0
+    for i in range(n):
+        if T_set is None:
+            Q_H[i] = Q(i * STEP)
+        else:  # T[i + 1] = T_set: Ad[0] x + Bd[0, 0] T_o + Bd[0, 1] Q_H = T_set
+            Q_H[i] = (T_set - Ad[0] @ x[i] - Bd[0, 0] * T_O) / Bd[0, 1]
+        if i + 1 < n:
+            x[i + 1] = Ad @ x[i] + Bd @ np.array([T_O, Q_H[i]])
+    rng = np.random.default_rng(seed)
+    noisy = x + rng.normal(0.0, NOISE_K, x.shape)
+    t = np.arange(n) * STEP
+    return pd.DataFrame({"time": t, "T": noisy[:, 0], "T_veh": noisy[:, 1], "T_o": T_O, "Q_H": Q_H})
+
+
+def steady(Q0: float) -> np.ndarray:
+    Ac, Bc = models.second_order(**TRUTH)
+    return models.steady_state(Ac, Bc, np.array([T_O, Q0]))
+
+
+def step_window(Q0: float, Q1: float, seed: int) -> pd.DataFrame:
+    return record(steady(Q0), 30, Q=lambda t: Q0 if t < 7200 else Q1, seed=seed)
+
+
+IDENTIFICATION = {"up": step_window(20_000, 29_000, 1), "down": step_window(29_000, 20_000, 2)}
+
+
+def k_window(lag_K: float, surface_sensors: bool = False) -> pd.DataFrame:
+    """8 h with T held at 20 degC and the body lag_K below it at the start; T_veh not measured
+    (no surface sensors in the k window) unless ``surface_sensors``."""
+    w = record(np.array([20.0, 20.0 - lag_K]), 8, T_set=20.0, seed=3)
+    return w if surface_sensors else w.assign(T_veh=np.nan)
+
+
+def vehicle() -> dict:
+    return {
+        "id": "V",
+        "synthetic": True,
+        "surface_m2": A,
+        "mass_kg": 30_030.0,
+        "volume_m3": 120.0,
+        "channels": {
+            "indoor_air": [{"column": "a"}] * 4,
+            "surface": [{"column": "s"}] * 4,
+            "outdoor_air": [{"column": "o"}] * 2,
+            "heater_power": [{"column": "p", "unit": "W"}],
+        },
+        "instruments": {"temperature_u_K": 0.0, "power_u_rel": 0.0, "surface_u_rel": 0.0},
+        "kvalue": section_defaults("kvalue"),
+        "model": {
+            "orders": [2],
+            "mode": "static",
+            # the initial states estimated: "measured" takes the first row's noise as exact
+            # and biases C by about +0.2 % here, beyond its interval - a question of x0, not of
+            # the k stage (the capacities' errors with eq. 10's k are ten times larger)
+            "x0": "estimated",
+            "covariance": "iid",
+            "start": "auto",
+            "initial": {"C": 120480, "C_veh": 500000, "K_veh": 20, "C_bar": 620480},
+            "bounds": {"C": [1e4, 1e10], "K_veh": [1e-2, 1e7], "C_veh": [1e4, 1e10]},
+        },
+    }
+
+
+def k_stage(window: pd.DataFrame, data: dict) -> dict:
+    return kvalue.for_vehicle(window, data, source="k window").to_dict()
+
+
+def two_stages(window: pd.DataFrame, data: dict | None = None):
+    data = data or vehicle()
+    k = k_stage(window, data)
+    storage = identify.storage_corrected_k(IDENTIFICATION, window, data, k)
+    estimate, _ = identify.identify(IDENTIFICATION, data, k, 2, storage)
+    return k, storage, estimate
+
+
+@pytest.fixture(scope="module")
+def lagging():
+    return two_stages(k_window(0.3))
+
+
+def test_eq10_books_the_lagging_body_as_loss(lagging):
+    """The bias of eq. 10 is K_veh mean(T - T_veh) / (A mean(T - T_o)), several u(k)."""
+    k, _, _ = lagging
+    tau = TRUTH["C_veh"] / TRUTH["K_veh"]
+    duration = 8 * 3600.0
+    mean_lag = 0.3 * tau / duration * -np.expm1(-duration / tau)
+    expected = TRUTH["K_veh"] * mean_lag / (A * 30.0)
+    bias = k["k"] - TRUTH["kA"] / A
+    assert k["usable"] and k["steady"]
+    assert bias == pytest.approx(expected, rel=0.1)
+    assert bias > 3 * k["u_k"]
+
+
+def test_corrected_k_recovers_the_truth_and_feeds_stage_two(lagging):
+    k, storage, estimate = lagging
+    k_true = TRUTH["kA"] / A
+    assert storage["applied"] and storage["converged"]
+    assert 1 <= storage["iterations"] <= 4
+    assert storage["window"]["T_veh_from"] == "model (eq. 8)"
+    assert storage["window"]["D0"] == pytest.approx(0.3, abs=0.05)
+    assert estimate["k_eq10"] == pytest.approx(k["k"])
+    assert abs(estimate["k_corrected"] - k_true) < estimate["u_k_corrected"]
+    assert abs(estimate["k_corrected"] - k_true) < 0.2 * abs(k["k"] - k_true)
+    assert estimate["kA_fixed"] == pytest.approx(storage["kA_corrected"])
+    assert estimate["fit"]["parameters"]["kA"]["value"] == pytest.approx(storage["kA_corrected"])
+    assert estimate["k_source"] == "static test (eq. 10), storage-corrected"
+    # the storage term of the budget is the correction's, not eq. 10's bound
+    systematic = estimate["systematic"]
+    assert systematic["sources"]["k_storage"] == pytest.approx(
+        storage["u_storage_kA"] / storage["kA_corrected"]
+    )
+    for p in ("C", "K_veh", "C_veh"):
+        lo, hi = estimate["fit"]["parameters"][p]["ci95"]
+        assert lo <= TRUTH[p] <= hi, p
+
+
+def test_eq10_biases_the_capacities_the_correction_does_not(lagging):
+    _, _, corrected = lagging
+    data = vehicle()
+    data["kvalue"] = {**data["kvalue"], "storage_correction": False}
+    k, storage, eq10 = two_stages(k_window(0.3), data)
+    assert storage is None and eq10["storage_correction"] is None
+    assert eq10["k_source"] == "static test (eq. 10)"
+    assert eq10["kA_fixed"] == pytest.approx(k["kA"])
+
+    def error(estimate, p):
+        return abs(estimate["fit"]["parameters"][p]["value"] / TRUTH[p] - 1.0)
+
+    assert error(eq10, "C_veh") > 0.01
+    assert error(corrected, "C_veh") < 0.25 * error(eq10, "C_veh")
+
+
+def test_measured_body_temperature_is_used_where_the_window_has_it():
+    window = k_window(0.3, surface_sensors=True)
+    k, storage, estimate = two_stages(window)
+    assert storage["window"]["T_veh_from"] == "T_veh"
+    assert storage["window"]["D0"] is None
+    assert abs(estimate["k_corrected"] - TRUTH["kA"] / A) < estimate["u_k_corrected"]
+
+
+def test_steady_body_leaves_eq10_as_it_is():
+    k, storage, estimate = two_stages(k_window(0.0))
+    assert storage["iterations"] <= 2
+    assert abs(estimate["k_corrected"] - k["k"]) < 0.5 * estimate["u_k_corrected"]
+    assert abs(k["k"] - TRUTH["kA"] / A) < 2 * k["u_k"]
+
+
+def test_regression_uncertainty_grows_when_the_body_is_slow_against_the_window():
+    """tau_veh long against the window: D0's column approaches kA's, the two are confounded."""
+    window = k_window(0.3)
+    fast = kvalue.storage_corrected_kA(window, TRUTH["C"], TRUTH["K_veh"], TRUTH["C_veh"])
+    slow = kvalue.storage_corrected_kA(window, TRUTH["C"], TRUTH["K_veh"] / 20, TRUTH["C_veh"])
+    assert abs(slow.corr_kA_D0) > abs(fast.corr_kA_D0)
+    assert slow.u_kA > 3 * fast.u_kA
+
+
+def test_exact_balance_without_noise():
+    """Noise-free: the regression returns kA and D0 of the simulation to solver precision."""
+    global NOISE_K
+    saved, NOISE_K = NOISE_K, 0.0
+    try:
+        window = k_window(0.3)
+    finally:
+        NOISE_K = saved
+    result = kvalue.storage_corrected_kA(window, TRUTH["C"], TRUTH["K_veh"], TRUTH["C_veh"])
+    assert result.kA == pytest.approx(TRUTH["kA"], rel=1e-6)
+    assert result.D0 == pytest.approx(0.3, rel=1e-4)
+
+
+def test_undetermined_capacities_leave_eq10_and_say_why(monkeypatch):
+    """Where the second-order fit does not determine the capacities (statistical sd infinite),
+    the correction is not made: eq. 10's kA is held, and the record says why."""
+    monkeypatch.setattr(identify, "_storage_model_u", lambda *args: float("inf"))
+    k, storage, estimate = two_stages(k_window(0.3))
+    assert storage["applied"] is False and "does not determine" in storage["reason"]
+    assert estimate["k_source"] == "static test (eq. 10)"
+    assert estimate["kA_fixed"] == pytest.approx(k["kA"])
+    assert estimate["k_corrected"] is None
+    assert estimate["storage_correction"]["reason"] == storage["reason"]
