@@ -5,6 +5,7 @@ independent generator.
         [--settings output_error/static/without,output_error/joint/with,...]
         [--x0 measured|estimated] [--no-offsets] [--no-meter-error] [--steady-start]
         [--out fits.csv]
+    python benchmarks/calibration.py --from-csv fits-*.csv   # the tables of saved runs
 
 The generator here shares no code with the campaign generator of the package: it simulates
 the second-order model (eqs. 7-8)
@@ -430,15 +431,26 @@ def fit_rows(truth: Truth, yaml_path: Path, setting: str) -> list[dict]:
     return rows
 
 
+def describe(generator: Generator) -> str:
+    """The generator's error sources that are switched off, or that all are on."""
+    off = [
+        name.replace("_", "-")
+        for name, on in asdict(generator).items()
+        if (on if name == "steady_start" else not on)
+    ]
+    return ", ".join(f"--{'' if n == 'steady-start' else 'no-'}{n}" for n in off) or "all on"
+
+
 def one_vehicle(job: tuple) -> list[dict]:
     seed, i, settings, x0, generator = job
+    run = {"seed": seed, "x0": x0, "generator": describe(generator)}
     with tempfile.TemporaryDirectory() as tmp:
         truth, errors, csv = write_vehicle(seed, i, Path(tmp), generator)
         rows = []
         for setting in settings:
             path = write_yaml_file(truth, csv, setting, x0)
             rows += [
-                {**r, **{f"true_{k}": v for k, v in errors.items()}}
+                {**run, **r, **{f"true_{k}": v for k, v in errors.items()}}
                 for r in fit_rows(truth, path, setting)
             ]
     return rows
@@ -502,6 +514,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--no-meter-error", action="store_true")
     parser.add_argument("--steady-start", action="store_true")
     parser.add_argument("--out", type=Path, default=None, help="per-fit CSV")
+    parser.add_argument(
+        "--from-csv",
+        type=Path,
+        nargs="+",
+        default=None,
+        help="print the tables of per-fit CSV files written with --out (e.g. runs in chunks)",
+    )
     args = parser.parse_args(argv)
     settings = ALL_SETTINGS if args.settings == "all" else tuple(args.settings.split(","))
     unknown = [s for s in settings if s not in ALL_SETTINGS]
@@ -512,25 +531,35 @@ def main(argv: list[str] | None = None) -> None:
         meter_error=not args.no_meter_error,
         steady_start=args.steady_start,
     )
-    jobs = [
-        (args.seed, i, settings, args.x0, generator)
-        for i in range(args.first, args.first + args.count)
-    ]
-    rows: list[dict] = []
-    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for done, part in enumerate(pool.map(one_vehicle, jobs), start=1):
-            rows += part
-            print(f"vehicle {done}/{args.count} done", file=sys.stderr, flush=True)
-    df = pd.DataFrame(rows)
+    if args.from_csv:
+        df = pd.concat([pd.read_csv(f) for f in args.from_csv], ignore_index=True)
+        df = df.drop_duplicates(["seed", "x0", "generator", "setting", "vehicle", "parameter"])
+    else:
+        jobs = [
+            (args.seed, i, settings, args.x0, generator)
+            for i in range(args.first, args.first + args.count)
+        ]
+        rows: list[dict] = []
+        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+            for done, part in enumerate(pool.map(one_vehicle, jobs), start=1):
+                rows += part
+                print(f"vehicle {done}/{args.count} done", file=sys.stderr, flush=True)
+        df = pd.DataFrame(rows)
     if args.out:
         df.to_csv(args.out, index=False, float_format="%.6g")
-    off = [
-        name for name, on in asdict(generator).items() if (on if name == "steady_start" else not on)
-    ]
+    report(df)
+
+
+def report(df: pd.DataFrame) -> None:
+    """Print the run's description, the summary per setting and parameter, and the timings."""
+    numbers = sorted(int(v[1:]) for v in df["vehicle"].unique())
+    runs = df[["seed", "x0", "generator"]].drop_duplicates().astype(str)
     print(
-        f"seed {args.seed}, vehicles {args.first}-{args.first + args.count - 1} "
-        f"({args.count}), x0 {args.x0}, generator: "
-        + (", ".join(off) if off else "all error sources on")
+        "; ".join(
+            f"seed {r.seed}, x0 {r.x0}, generator error sources: {r.generator}"
+            for r in runs.itertuples()
+        )
+        + f"; {len(numbers)} vehicles (V{numbers[0]:03d}-V{numbers[-1]:03d})"
     )
     print()
     fmt = {c: "{:.3f}".format for c in ("coverage", "wilson_lo", "wilson_hi")}
