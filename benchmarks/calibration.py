@@ -3,7 +3,8 @@ independent generator.
 
     python benchmarks/calibration.py [--count 50] [--seed 20260] [--jobs 2]
         [--settings output_error/static/without,output_error/joint/with,...]
-        [--x0 measured|estimated] [--no-offsets] [--no-meter-error] [--steady-start]
+        [--x0 measured|estimated] [--no-offsets] [--no-meter-error] [--no-power-noise]
+        [--steady-start]
         [--out fits.csv]
     python benchmarks/calibration.py --from-csv fits-*.csv   # the tables of saved runs
 
@@ -48,8 +49,10 @@ parameter: n, the coverage with its 95 % Wilson interval, mean z (bias in units 
 claimed sd), rms z (1 for honest intervals; above 1 too narrow, below 1 too wide) and the
 number not identified; then the seconds per fit per setting.
 
-``--no-offsets``, ``--no-meter-error`` and ``--steady-start`` (no body lag: T_veh = T at the
-start) switch error sources off in the generator, to find which one an interval misses.
+``--no-offsets``, ``--no-meter-error`` (the meters' common scale error), ``--no-power-noise``
+(their white noise) and ``--steady-start`` (no body lag: T_veh = T at the start) switch error
+sources off in the generator, to find which one an interval misses; each vehicle keeps its
+truth and its true states (drawn first).
 """
 
 from __future__ import annotations
@@ -104,6 +107,7 @@ class Generator:
 
     offsets: bool = True
     meter_error: bool = True
+    power_noise: bool = True
     steady_start: bool = False
 
 
@@ -277,7 +281,8 @@ def logger_file(
     share = rng.dirichlet(np.full(N_HEATER, 20.0))
     for j in range(N_HEATER):
         q = states["Q_H"].to_numpy() * share[j] * scale
-        q = q * (1.0 + rng.normal(0.0, NOISE_POWER_REL, n))
+        noise = rng.normal(0.0, NOISE_POWER_REL, n)  # drawn either way: the same later draws
+        q = q * (1.0 + (noise if generator.power_noise else 0.0))
         raw[f"heater_{j + 1}"] = np.round(q / 1000.0, 4)
     return pd.DataFrame(raw), errors
 
@@ -512,6 +517,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--x0", choices=("measured", "estimated"), default="measured")
     parser.add_argument("--no-offsets", action="store_true")
     parser.add_argument("--no-meter-error", action="store_true")
+    parser.add_argument("--no-power-noise", action="store_true")
     parser.add_argument("--steady-start", action="store_true")
     parser.add_argument("--out", type=Path, default=None, help="per-fit CSV")
     parser.add_argument(
@@ -529,6 +535,7 @@ def main(argv: list[str] | None = None) -> None:
     generator = Generator(
         offsets=not args.no_offsets,
         meter_error=not args.no_meter_error,
+        power_noise=not args.no_power_noise,
         steady_start=args.steady_start,
     )
     if args.from_csv:
