@@ -557,6 +557,12 @@ def main(argv: list[str] | None = None) -> None:
     report(df)
 
 
+def vehicle_ranges(numbers: list[int]) -> str:
+    """Sorted vehicle numbers as runs: [0, 1, 2, 25] -> "V000-V002, V025"."""
+    runs = np.split(np.asarray(numbers), np.flatnonzero(np.diff(numbers) != 1) + 1)
+    return ", ".join(f"V{r[0]:03d}" if len(r) == 1 else f"V{r[0]:03d}-V{r[-1]:03d}" for r in runs)
+
+
 def report(df: pd.DataFrame) -> None:
     """Print the run's description, the summary per setting and parameter, and the timings."""
     numbers = sorted(int(v[1:]) for v in df["vehicle"].unique())
@@ -566,7 +572,7 @@ def report(df: pd.DataFrame) -> None:
             f"seed {r.seed}, x0 {r.x0}, generator error sources: {r.generator}"
             for r in runs.itertuples()
         )
-        + f"; {len(numbers)} vehicles (V{numbers[0]:03d}-V{numbers[-1]:03d})"
+        + f"; {len(numbers)} vehicles ({vehicle_ranges(numbers)})"
     )
     print()
     fmt = {c: "{:.3f}".format for c in ("coverage", "wilson_lo", "wilson_hi")}
