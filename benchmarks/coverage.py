@@ -13,9 +13,10 @@ covered, so inflating an interval to infinity cannot pass.
 
 Printed: coverage per parameter and per vehicle, with a 95 % Wilson interval of the coverage
 itself; the static k's error against the truth beside its u(k), for eq. 10 and for the
-storage-corrected k that stage two holds; and the spread of
-z = log(estimate / truth) / sd_log_total (close to 1 for honest intervals; well below 1 means
-inflated intervals, well above 1 too narrow ones).
+storage-corrected k that stage two holds; and the mean and the rms of
+z = log(estimate / truth) / sd_log_total: the mean is the bias in units of the claimed sd
+(near 0 for an unbiased estimator), the rms the spread (close to 1 for honest intervals; well
+below 1 means inflated intervals, well above 1 too narrow ones).
 """
 
 from __future__ import annotations
@@ -152,6 +153,7 @@ def summary(df: pd.DataFrame, by: str) -> pd.DataFrame:
                 "coverage_lo": lo,
                 "coverage_hi": hi,
                 "unbounded": int((~part["bounded"]).sum()),
+                "mean_z": float(np.mean(z)) if z.size else math.nan,
                 "rms_z": float(np.sqrt(np.mean(z**2))) if z.size else math.nan,
             }
         )
@@ -175,7 +177,7 @@ def main() -> None:
     if args.out:
         df.to_csv(args.out, index=False, float_format="%.6g")
     fmt = {"coverage": "{:.3f}".format, "coverage_lo": "{:.3f}".format}
-    fmt |= {"coverage_hi": "{:.3f}".format, "rms_z": "{:.2f}".format}
+    fmt |= {"coverage_hi": "{:.3f}".format, "mean_z": "{:+.2f}".format, "rms_z": "{:.2f}".format}
     print(f"seeds {seeds.start}-{seeds.stop - 1}, vehicles: {', '.join(df['vehicle'].unique())}")
     for by in ("parameter", "vehicle"):
         print()
