@@ -399,7 +399,8 @@ def fit_rows(truth: Truth, yaml_path: Path, setting: str) -> list[dict]:
     windows = {w["name"]: tables[w["name"]] for w in vehicle.windows["identification"]}
     estimator = setting.split("/")[0]
     model = "order2" if estimator == "output_error" else f"order2{identify.KALMAN_SUFFIX}"
-    estimate, _ = identify.identify(windows, vehicle.data, k, model)
+    storage = identify.storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k)
+    estimate, _ = identify.identify(windows, vehicle.data, k, model, storage)
     seconds = time.process_time() - started
     parameters = estimate["fit"]["parameters"]
     common = {
@@ -411,12 +412,23 @@ def fit_rows(truth: Truth, yaml_path: Path, setting: str) -> list[dict]:
         "lag": truth.lag,
     }
     rows = []
-    if estimate["k_source"].startswith("static test"):
-        U = K_COVERAGE_FACTOR * k["u_k"]
-        row = _interval_row(k["k"], k["k"] - U, k["k"] + U, truth.k, True)
-        row["sd_log"] = k["u_k_rel"]  # the claimed sd of k (its interval is k +- 2 u(k))
-        row["z"] = math.log(k["k"] / truth.k) / k["u_k_rel"]
+
+    def static_row(value: float, u: float) -> dict:
+        U = K_COVERAGE_FACTOR * u
+        row = _interval_row(value, value - U, value + U, truth.k, True)
+        row["sd_log"] = u / value  # the claimed sd of k (its interval is k +- 2 u(k))
+        row["z"] = math.log(value / truth.k) / row["sd_log"]
         row["sd_log_statistical"] = math.nan
+        return row
+
+    if estimate["k_source"].startswith("static test"):
+        # eq. 10 as the standard gives it, and the k that stage two holds (storage-corrected
+        # where the correction is made, else eq. 10's)
+        rows.append({**common, "parameter": "k_eq10", **static_row(k["k"], k["u_k"])})
+        if estimate.get("k_corrected") is not None:
+            row = static_row(estimate["k_corrected"], estimate["u_k_corrected"])
+        else:
+            row = static_row(k["k"], k["u_k"])
     else:
         entry = parameters["kA"]
         lo, hi = (c / truth.A for c in entry["ci95"])

@@ -152,6 +152,11 @@ def experiments(structure: models.Structure, tables: Mapping[str, pd.DataFrame])
     ]
 
 
+# initial states of each window: estimated (extra unknowns), not the first measured row, which
+# carries a sample's noise and calibration offset that neither the covariance nor the type-B
+# budget holds (docs/identification.md, "Initial states")
+X0_DEFAULT = "estimated"
+
 MIN_USED_SHARE = 0.95
 
 
@@ -312,7 +317,7 @@ def stage_two_options(structure, vehicle_data, kvalue, tables) -> tuple[dict, st
         "initial": initial,
         "bounds": bounds,
         "outputs": _outputs(structure, vehicle_data, tables),
-        "x0": model.get("x0", "measured"),
+        "x0": model.get("x0", X0_DEFAULT),
         "covariance": model.get("covariance", "hac"),
         "start": model.get("start", "auto"),
     }
@@ -480,6 +485,27 @@ def storage_corrected_k(
     correction = u_storage = u_model = u_kA = None
     theta: dict[str, float] = {}
     try:
+        # the capacities of the first balance come from the joint fit (kA free, started at
+        # eq. 10's): with kA held at eq. 10's biased value, a fit of T alone can settle in a
+        # far optimum of C, K_veh, C_veh whose balance then moves kA away from the truth;
+        # the joint fit's optimum does not depend on that bias
+        joint = pem.fit(
+            structure,
+            exps,
+            **{
+                **options,
+                "fixed": {},
+                "initial": {**options["initial"], "kA": kA_eq10},
+                "bounds": {**options["bounds"], "kA": KA_BOUNDS},
+            },
+        )
+        joint_theta = {p: float(joint.theta[p]) for p in ("C", "K_veh", "C_veh")}
+        if all(math.isfinite(v) and v > 0 for v in joint_theta.values()):
+            start = k_stage.storage_corrected_kA(k_window, **joint_theta).kA
+            if math.isfinite(start) and start > 0:
+                kA = start
+                fit_options["initial"] = joint_theta
+                fit_options["start"] = "initial"
         for _ in range(MAX_STORAGE_ITERATIONS):
             fit_options["fixed"]["kA"] = kA
             result = pem.fit(structure, exps, **fit_options)
