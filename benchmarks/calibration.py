@@ -526,7 +526,12 @@ def main(argv: list[str] | None = None) -> None:
         default=",".join(DEFAULT_SETTINGS),
         help=f"comma-separated estimator/mode/surface; 'all' for {len(ALL_SETTINGS)}",
     )
-    parser.add_argument("--x0", choices=("measured", "estimated"), default="measured")
+    parser.add_argument(
+        "--x0",
+        choices=("measured", "estimated"),
+        default="estimated",
+        help="model.x0 of every vehicle file (default: estimated, railtherm's default)",
+    )
     parser.add_argument("--no-offsets", action="store_true")
     parser.add_argument("--no-meter-error", action="store_true")
     parser.add_argument("--no-power-noise", action="store_true")

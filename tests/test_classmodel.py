@@ -218,8 +218,8 @@ def test_members_of_the_committed_study():
         "main-line": [],
     }
     assert by_id["Metro3"].why == (
-        "C, K_veh not identified (at a bound); C_veh not identified (coupled to a parameter not "
-        "identified); fit assumptions in doubt"
+        "K_veh not identified (interval unbounded); C_veh not identified (at a bound); C not "
+        "identified (coupled to a parameter not identified); fit assumptions in doubt"
     )
     assert by_id["Main1"].why == (
         "C not identified (at a bound); K_veh, C_veh not identified (coupled to a parameter not "
@@ -486,7 +486,7 @@ def test_cli_end_to_end(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "rests on 3 vehicles: Metro1, Metro2, Metro5" in printed
     assert "k from class" in printed
-    assert "Metro3 (C, K_veh not identified (at a bound)" in printed
+    assert "Metro3 (K_veh not identified (interval unbounded)" in printed
     model = read_reference_model(out)
     assert model.basis == ["Metro1", "Metro2", "Metro5"] and model.k_given is None
     # without --out: the YAML on stdout, the summary on stderr

@@ -21,7 +21,9 @@ def fitted(campaign_study):
 
         k = kvalue.for_vehicle(clean("kvalue"), data, source=vehicle.id).to_dict()
         tables = {w["name"]: clean(w["name"]) for w in data["windows"]["identification"]}
-        estimate, series = identify.identify(tables, data, k, 2)
+        # as the workflow runs it: kA storage-corrected from the k window
+        storage = identify.storage_corrected_k(tables, clean("kvalue"), data, k)
+        estimate, series = identify.identify(tables, data, k, 2, storage)
         estimates[vehicle.id] = estimate
         fits.append(identify.check(estimate, series, data["check"]))
     truth = synth.ground_truth_table(campaign)
