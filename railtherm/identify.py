@@ -426,10 +426,11 @@ def storage_corrected_k(
 
     Eq. 10 books every watt that goes into storage as loss: where the air is held steady but
     the car body still lags behind it, K_veh (T - T_veh) > 0 and eq. 10's kA is too high by
-    K_veh mean(T - T_veh) / mean(T - T_o). Starting from eq. 10's kA, the second-order model
-    (eqs. 7-8) is fitted with kA fixed (stage two, warm-started), the k window's energy
-    balance under that model gives a new kA (:func:`railtherm.kvalue.storage_corrected_kA`),
-    and the two steps alternate until kA moves by less than ``STORAGE_TOLERANCE`` u(kA)
+    K_veh mean(T - T_veh) / mean(T - T_o). The first balance takes C, K_veh, C_veh from the
+    joint fit (kA free, started at eq. 10's); then the second-order model (eqs. 7-8) is fitted
+    with the corrected kA fixed (stage two, warm-started), the k window's energy balance under
+    that model gives a new kA (:func:`railtherm.kvalue.storage_corrected_kA`), and the two
+    steps alternate until kA moves by less than ``STORAGE_TOLERANCE`` u(kA)
     (at most ``MAX_STORAGE_ITERATIONS`` fits). u(kA) is eq. 10's budget with its storage bound
     replaced by the correction's own standard uncertainty: the regression's (T_veh's start D0
     and its correlation with kA included) and that of the capacities' statistical errors
