@@ -65,7 +65,7 @@ _BUILTIN: dict[str, Any] = {
         "airflow_noise_rel": 0.04,
     },
     "fans": {"n": 4, "power_W": 250.0},
-    "power_meter": {"noise_rel": 0.007},
+    "power_meter": {"noise_rel": 0.007, "scale_u_rel": 0.0},
     "sensors": {
         "indoor": {"heights_m": [0.1, 1.1, 1.7, 1.1], "noise_K": 0.07, "offset_sd_K": 0.15},
         "surface": {"n": 4, "noise_K": 0.08, "offset_sd_K": 0.2},

@@ -23,7 +23,7 @@ from railtherm.errors import ConfigError
 from railtherm.models import lfilter
 from railtherm.rawfile import RawLayout
 from railtherm.synth.campaign import _deviation, vehicle_spec
-from railtherm.synth.physics import _interval_mean, _rngs, _run_cached
+from railtherm.synth.physics import _interval_mean, _rngs, _run_cached, meter_scale
 
 
 # --------------------------------------------------------------------------------------------
@@ -206,6 +206,7 @@ def _logged(spec, r, idx, t_s, m, K) -> pd.DataFrame:
     h_ref, s_str = se.get("reference_height_m", 1.1), se.get("stratification_K_per_m_kW", 0.0)
     kelvin = 273.15 if lg["temperature_unit"] == "K" else 0.0
     pn = spec["power_meter"]["noise_rel"]
+    scale = meter_scale(spec)  # the meters' common calibration error
     hv = spec["hvac"]
     data: dict[str, np.ndarray] = {}
     for name, kind, i in columns(spec):
@@ -236,12 +237,12 @@ def _logged(spec, r, idx, t_s, m, K) -> pd.DataFrame:
                 q = _interval_mean(on, m, K)
             else:
                 q = _interval_mean(r["Q_heat"], m, K)
-            v = q * (1 + rng.normal(0, pn, K))
+            v = q * scale * (1 + rng.normal(0, pn, K))
         elif kind in ("fan", "fan_total"):
             q = _interval_mean(r["Q_fan"], m, K)
             if kind == "fan":
                 q = q * inst["fan_factor"][i - 1] / inst["fan_factor"][: spec["fans"]["n"]].sum()
-            v = q * (1 + rng.normal(0, pn, K))
+            v = q * scale * (1 + rng.normal(0, pn, K))
         elif kind == "humidity":
             v = np.clip(40.0 - 0.8 * (T - To) + rng.normal(0, 1.0, K), 5, 95)
         else:  # wind

@@ -30,6 +30,15 @@ def _rngs(spec: dict):
     return [np.random.default_rng(s) for s in np.random.SeedSequence(spec["seed"]).spawn(4)]
 
 
+def meter_scale(spec: dict) -> float:
+    """The calibration error common to a vehicle's power meters (heater groups and fans), a
+    factor 1 + u N(0, 1) with u = ``power_meter.scale_u_rel``; drawn from a stream of its own
+    (the fifth child of the vehicle's seed), so the other draws do not move with it."""
+    u = float(spec["power_meter"].get("scale_u_rel", 0.0))
+    rng = np.random.default_rng(np.random.SeedSequence(spec["seed"]).spawn(5)[4])
+    return 1.0 + u * float(rng.normal())
+
+
 def _instruments(spec: dict, rng) -> dict:
     """Per-vehicle realisation of the instruments (drawn in a fixed order)."""
     se = spec["sensors"]
