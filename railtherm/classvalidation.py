@@ -26,7 +26,7 @@ through the same scenario (``heat_up_true_h``) and compared with the reference b
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -391,3 +391,70 @@ def validation_markdown(table: pd.DataFrame, scenario: Scenario, source: str) ->
         "model; the pooled basis takes every rail class together.",
     ]
     return "\n".join(lines) + "\n"
+
+
+TRUTH_PARAMETERS = ("kA", "C", "K_veh", "C_veh")
+
+
+def declared_truth(path: str | None, vehicles: Iterable[str]) -> dict[str, dict[str, float]]:
+    """The declared kA, C, K_veh, C_veh of each listed vehicle found in a synthetic
+    campaign's ``ground_truth.csv`` (``path`` None or empty: no truth, e.g. measured data)."""
+    if not path:
+        return {}
+    declared = pd.read_csv(path).set_index("vehicle")
+    return {
+        vid: declared.loc[vid, list(TRUTH_PARAMETERS)].astype(float).to_dict()
+        for vid in vehicles
+        if vid in declared.index
+    }
+
+
+def study_leave_one_out(
+    table2: str,
+    vehicles: Mapping[str, Mapping[str, Any]],
+    fit_files: Sequence[str],
+    series_files: Sequence[str],
+    scenario: Scenario,
+    truth_file: str | None = None,
+    **options: Any,
+) -> pd.DataFrame:
+    """:func:`leave_one_out` over a study's files: the members from its Table 2
+    (:func:`railtherm.classmodel.member_from_row` with each vehicle's config in ``vehicles``),
+    each vehicle's second-order fit file and series table (in the order of ``vehicles``), the
+    vehicles' volumes and, for a synthetic campaign, the truth of ``truth_file``. ``options``
+    go to :func:`leave_one_out` (min_vehicles, draws, seed)."""
+    from railtherm.fit import read_fit
+
+    rows = pd.read_csv(table2).to_dict("records")
+    members = [
+        classmodel.member_from_row(row, vehicles[row["vehicle"]])
+        for row in rows
+        if row["vehicle"] in vehicles
+    ]
+    fits = {vid: read_fit(path) for vid, path in zip(vehicles, fit_files, strict=True)}
+    series = {vid: pd.read_csv(path) for vid, path in zip(vehicles, series_files, strict=True)}
+    return leave_one_out(
+        members,
+        fits,
+        series,
+        scenario,
+        volumes={vid: data.get("volume_m3") for vid, data in vehicles.items()},
+        truth=declared_truth(truth_file, vehicles),
+        **options,
+    )
+
+
+def write_validation(
+    table: pd.DataFrame, scenario: Scenario, source: str, csv: str, md: str, figure: str
+) -> None:
+    """The leave-one-out table as CSV (4 significant digits) and Markdown, and its figure
+    (``figure``: the path without suffix; PNG and SVG)."""
+    from railtherm import plots, tables
+
+    tables.write_csv(table, csv, digits=4)
+    with open(md, "w", encoding="utf-8") as stream:
+        stream.write(validation_markdown(table, scenario, source))
+    fig = plots.reference_validation_figure(
+        table, note=plots.provenance_note(table.assign(source=source))
+    )
+    plots.save_figure(fig, figure)

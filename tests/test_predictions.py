@@ -169,3 +169,40 @@ def test_leave_one_out_says_when_a_class_is_too_small():
     assert (pooled["status"] == "predicted").all()  # T2 or T1 plus R1: two vehicles
     md = classvalidation.validation_markdown(table, scenario(), "synthetic: test")
     assert "class, k from class: no vehicle could be predicted" in md
+
+
+def test_declared_truth_reads_the_campaign_truth_of_the_listed_vehicles(tmp_path):
+    path = tmp_path / "ground_truth.csv"
+    pd.DataFrame(
+        {
+            "vehicle": ["M1", "M2"],
+            "kA": [800.0, 900.0],
+            "C": [8e6, 6e6],
+            "K_veh": [400.0, 500.0],
+            "C_veh": [1.6e7, 2.0e7],
+            "mass_kg": [4e4, 4e4],
+        }
+    ).to_csv(path, index=False)
+    truth = classvalidation.declared_truth(str(path), ["M2", "X"])
+    assert truth == {"M2": {"kA": 900.0, "C": 6e6, "K_veh": 500.0, "C_veh": 2.0e7}}
+    assert classvalidation.declared_truth(None, ["M2"]) == {}
+
+
+def test_write_validation_writes_the_table_its_markdown_and_figure(tmp_path):
+    theta = {"kA": 800.0, "C": 8e6, "K_veh": 400.0, "C_veh": 1.6e7}
+    names = ["M1", "M2", "M3"]
+    members = [_member(v, "metro", theta) for v in names]
+    fits = {v: second_order_fit(v, theta) for v in names}
+    series = {v: _series(theta, i) for i, v in enumerate(names)}
+    table = classvalidation.leave_one_out(members, fits, series, scenario(), 2, draws=20, seed=0)
+    out = tmp_path / "out"
+    out.mkdir()
+    classvalidation.write_validation(
+        table, scenario(), "synthetic: test", out / "v.csv", out / "v.md", str(out / "v")
+    )
+    written = pd.read_csv(out / "v.csv")
+    assert list(written.columns) == list(classvalidation.COLUMNS)
+    assert len(written) == len(table)
+    md = (out / "v.md").read_text(encoding="utf-8")
+    assert md == classvalidation.validation_markdown(table, scenario(), "synthetic: test")
+    assert (out / "v.png").stat().st_size > 0 and (out / "v.svg").stat().st_size > 0
