@@ -4,12 +4,12 @@ window's energy balance under the identified second-order model (eqs. 7-8) does 
 import numpy as np
 import pandas as pd
 import pytest
+from test_identify import TRUTH, A
+from test_identify import vehicle as identify_vehicle
 
 from railtherm import identify, kvalue, models
 from railtherm.config import section_defaults
 
-TRUTH = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
-A = 306.0
 STEP = 120.0
 T_O = -10.0
 NOISE_K = 0.01  # white noise of the measured temperatures
@@ -57,33 +57,11 @@ def k_window(lag_K: float, surface_sensors: bool = False) -> pd.DataFrame:
 
 
 def vehicle() -> dict:
-    return {
-        "id": "V",
-        "synthetic": True,
-        "surface_m2": A,
-        "mass_kg": 30_030.0,
-        "volume_m3": 120.0,
-        "channels": {
-            "indoor_air": [{"column": "a"}] * 4,
-            "surface": [{"column": "s"}] * 4,
-            "outdoor_air": [{"column": "o"}] * 2,
-            "heater_power": [{"column": "p", "unit": "W"}],
-        },
-        "instruments": {"temperature_u_K": 0.0, "power_u_rel": 0.0, "surface_u_rel": 0.0},
-        "kvalue": section_defaults("kvalue"),
-        "model": {
-            "orders": [2],
-            "mode": "static",
-            # the initial states estimated: "measured" takes the first row's noise as exact
-            # and biases C by about +0.2 % here, beyond its interval - a question of x0, not of
-            # the k stage (the capacities' errors with eq. 10's k are ten times larger)
-            "x0": "estimated",
-            "covariance": "iid",
-            "start": "auto",
-            "initial": {"C": 120480, "C_veh": 500000, "K_veh": 20, "C_bar": 620480},
-            "bounds": {"C": [1e4, 1e10], "K_veh": [1e-2, 1e7], "C_veh": [1e4, 1e10]},
-        },
-    }
+    # the vehicle of test_identify with its k stage's settings; the initial states estimated:
+    # "measured" takes the first row's noise as exact and biases C by about +0.2 % here,
+    # beyond its interval - a question of x0, not of the k stage (the capacities' errors with
+    # eq. 10's k are ten times larger)
+    return {**identify_vehicle(x0="estimated"), "kvalue": section_defaults("kvalue")}
 
 
 def k_stage(window: pd.DataFrame, data: dict) -> dict:
