@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from calibration import wilson  # benchmarks/ is the script's folder, first on sys.path
 
 from railtherm import identify, ingest, kvalue, synth
 from railtherm.config import load_study
@@ -127,14 +128,6 @@ def one_seed(seed: int) -> list[dict]:
                     }
                 )
     return rows
-
-
-def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """95 % Wilson score interval of a proportion k / n."""
-    p = k / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return centre - half, centre + half
 
 
 def summary(df: pd.DataFrame, by: str) -> pd.DataFrame:
