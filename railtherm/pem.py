@@ -1393,18 +1393,12 @@ def total_capacity(
     corr = np.asarray(fitted.get("correlation", []), dtype=float)
     effects = effects_log or {}
     varying = [i for i, p in enumerate(parts) if params[p].get("estimated") and p not in at_bounds]
-    var = 0.0
-    for i in varying:
-        for j in varying:
-            sd_i, sd_j = float(params[parts[i]]["sd_log"]), float(params[parts[j]]["sd_log"])
-            if i == j:
-                rho = 1.0
-            else:
-                rho = corr[free.index(parts[i]), free.index(parts[j])]
-                rho = float(rho) if np.isfinite(rho) else 0.0
-            with np.errstate(invalid="ignore", over="ignore"):
-                term = w[i] * w[j] * rho * sd_i * sd_j
-            var += term if np.isfinite(term) else math.inf
+    # w^T Sigma w over the varying parts, Sigma = diag(sd) R diag(sd)
+    g = np.array([w[i] * float(params[parts[i]]["sd_log"]) for i in varying])
+    at = [free.index(parts[i]) for i in varying]
+    R = np.nan_to_num(corr[np.ix_(at, at)], nan=0.0) if at else np.zeros((0, 0))
+    np.fill_diagonal(R, 1.0)
+    var = float(g @ R @ g) if np.all(np.isfinite(g)) else math.inf
     sources = sorted({s for i in varying for s in effects.get(parts[i], {})})
     for source in sources:  # a source shifts every part at once: signed, then squared
         shift = sum(w[i] * float(effects.get(parts[i], {}).get(source, 0.0)) for i in varying)
