@@ -294,16 +294,20 @@ def physical_bounds(
     a :class:`ConfigError` naming the key."""
     if vehicle_data.get("volume_m3") is None or structure.air not in structure.parameters:
         return {}
-    volume = vehicle_data["volume_m3"]
-    try:
-        V = float(volume)
-    except (TypeError, ValueError):
-        V = math.nan
-    if not (math.isfinite(V) and V > 0):
-        raise ConfigError(
-            vehicle_data.get("id", "(vehicle)"), "volume_m3", volume, "a positive volume in m³"
-        )
-    return {structure.air: (RHO_CP_AIR * V, AIR_CAPACITY)}
+    floor = air_capacity(vehicle_data["volume_m3"], vehicle_data.get("id", "(vehicle)"))
+    return {structure.air: (floor, AIR_CAPACITY)}
+
+
+def air_capacity(volume_m3: Any, source: str = "volume_m3") -> float | None:
+    """rho c_p V (J/K, :data:`RHO_CP_AIR`): the capacity of the air in ``volume_m3``, the
+    least the air node's capacity can be (None without a volume). A volume that is not a
+    positive number is a :class:`ConfigError` naming ``source`` and the key."""
+    if volume_m3 is None:
+        return None
+    number = isinstance(volume_m3, int | float | np.floating) and not isinstance(volume_m3, bool)
+    if not (number and math.isfinite(volume_m3) and volume_m3 > 0):
+        raise ConfigError(source, "volume_m3", volume_m3, "expected a volume > 0 (m³)")
+    return RHO_CP_AIR * float(volume_m3)
 
 
 def stage_two_options(structure, vehicle_data, kvalue, tables) -> tuple[dict, str, list]:

@@ -356,18 +356,10 @@ def parameter_set(params: Any) -> ParameterSet:
 
 
 def air_capacity(volume_m3: float | None, label: str = "volume_m3") -> float | None:
-    """rho c_p V (J/K): the capacity of the air in the vehicle's ``volume_m3``, the least
-    the air node's capacity can be (None without a volume). A volume that is not a positive
-    number is a :class:`ConfigError` naming ``label``."""
-    if volume_m3 is None:
-        return None
-    from railtherm.identify import RHO_CP_AIR
+    """rho c_p V (J/K) of ``volume_m3``: :func:`railtherm.identify.air_capacity`."""
+    from railtherm.identify import air_capacity as capacity
 
-    if isinstance(volume_m3, bool) or not isinstance(volume_m3, int | float | np.floating):
-        raise ConfigError(label, "volume_m3", volume_m3, "expected a volume > 0 (m³)")
-    if not (math.isfinite(volume_m3) and volume_m3 > 0):
-        raise ConfigError(label, "volume_m3", volume_m3, "expected a volume > 0 (m³)")
-    return RHO_CP_AIR * float(volume_m3)
+    return capacity(volume_m3, label)
 
 
 def _limits(structure: models.Structure, floor: float | None) -> str:
