@@ -15,10 +15,18 @@ from railtherm.fit import Fit
 from railtherm.scenario import Controller, Initial, Scenario
 
 MASS, SURFACE = 40_000.0, 300.0
+T_O = -20.0  # degC: the scenarios' outdoor air and soak
 
 
-def scenario(controller: Controller | None = None, heat_up_to_C: float | None = 15.0):
-    t = np.arange(12 * 60 + 1) * 60.0
+def scenario(
+    controller: Controller | None = None,
+    heat_up_to_C: float | None = 15.0,
+    hours: float = 12.0,
+    power_W: float = 50_000.0,
+):
+    """A soaked vehicle at T_O heated for ``hours`` at ``power_W`` (or by
+    ``controller``); the heat-up time to ``heat_up_to_C``."""
+    t = np.arange(round(hours * 60) + 1) * 60.0
     return Scenario(
         name="preheat",
         file="preheat.yaml",
@@ -27,8 +35,8 @@ def scenario(controller: Controller | None = None, heat_up_to_C: float | None = 
         dt_s=60.0,
         duration_s=t[-1],
         t_s=t,
-        T_o=np.full(t.shape, -20.0),
-        heating_W=None if controller else np.full(t.shape, 50_000.0),
+        T_o=np.full(t.shape, T_O),
+        heating_W=None if controller else np.full(t.shape, power_W),
         controller=controller,
         gains={},
         air_exchange_W_K=np.zeros(t.shape),

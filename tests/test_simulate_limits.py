@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 import yaml
+from test_predictions import T_O, scenario
 
 from railtherm import classvalidation, models, predictions
 from railtherm import simulate as sim
@@ -17,9 +18,9 @@ from railtherm.classmodel import ClassMember
 from railtherm.errors import ConfigError
 from railtherm.fit import Fit
 from railtherm.identify import RHO_CP_AIR
-from railtherm.scenario import Initial, Scenario
+from railtherm.scenario import Scenario
 
-T_O, TARGET, POWER = -20.0, 15.0, 60_000.0
+TARGET, POWER = 15.0, 60_000.0
 VOLUME = 89.4  # m³
 MASS, SURFACE = 40_000.0, 300.0
 THETA = {"kA": 800.0, "C": 2.0e6, "K_veh": 400.0, "C_veh": 1.6e7}
@@ -27,25 +28,7 @@ THETA = {"kA": 800.0, "C": 2.0e6, "K_veh": 400.0, "C_veh": 1.6e7}
 
 def preheat(hours: float = 6.0) -> Scenario:
     """A soaked vehicle at T_O heated at a constant POWER; the heat-up time to TARGET."""
-    t = np.arange(round(hours * 60) + 1) * 60.0
-    return Scenario(
-        name="preheat",
-        file="preheat.yaml",
-        description="a test pre-heating",
-        source="test",
-        dt_s=60.0,
-        duration_s=t[-1],
-        t_s=t,
-        T_o=np.full(t.shape, T_O),
-        heating_W=np.full(t.shape, POWER),
-        controller=None,
-        gains={},
-        air_exchange_W_K=np.zeros(t.shape),
-        irradiance={},
-        initial=Initial("soaked"),
-        heat_up_to_C=TARGET,
-        cool_down_to_C=None,
-    )
+    return scenario(heat_up_to_C=TARGET, hours=hours, power_W=POWER)
 
 
 def fit(
