@@ -803,7 +803,10 @@ def _r2_arithmetic(r2: Printed) -> str:
 def check_small_deviations(pub: Published, ranges: Mapping[str, Any]) -> list[Finding]:
     """The claim of §6.2, "a model with small deviations ... for all vehicles", against R^2
     (eq. 21): by eqs. 21-23, R^2 < 0.5 means SS_res > SS_tot / 2, the residual sum of squares
-    exceeds the part of the total the model reproduces (SS_tot - SS_res)."""
+    exceeds the part of the total the model reproduces (SS_tot - SS_res). R^2 is relative to
+    the variance of each test's indoor temperature, so the finding says what R^2 shows and
+    no more: a test with a narrow temperature range can have a low R^2 with deviations small
+    in kelvin, which the published numbers do not give."""
     out = []
     entry = _threshold(ranges, "r2_min")
     r2_min = entry["value"]
@@ -828,8 +831,11 @@ def check_small_deviations(pub: Published, ranges: Mapping[str, Any]) -> list[Fi
             )
             severity = _cap("warning", entry)
             message = (
-                f"contradicted: {len(below)} of {len(rows)} fits lie below {level}, their "
-                f"deviations larger than what the model reproduces: {listing}"
+                f"not supported by R^2: {len(below)} of {len(rows)} fits lie below {level}, "
+                f"the model reproducing less than half of the indoor temperature's variance "
+                f"in their own test: {listing}. R^2 is relative to each test's temperature "
+                "range; the deviations in kelvin (RMSE) are not published, so whether they "
+                "are small in absolute terms is not checked"
             )
         else:
             lowest = min(rows, key=lambda r: r[1].value)
