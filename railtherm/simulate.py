@@ -49,7 +49,10 @@ enforced, and the result says so.
 prediction only: its intervals hold where its assumptions do, and they are in doubt.
 
 A fit with a parameter the data do not determine is not simulated (:class:`NotPredictable`):
-its prediction would rest on a value set by the search's bound.
+its prediction would rest on a value set by the search's bound. A class reference model with
+a parameter whose 95 % prediction interval spans more than a factor 1000 (or coupled to one)
+gives its central prediction without a band: the class's centre is still its estimate, but
+the spread of its vehicles does not bound the prediction.
 """
 
 from __future__ import annotations
@@ -341,6 +344,7 @@ def parameter_set(params: Any) -> ParameterSet:
     if isinstance(params, classmodel.ReferenceModel):
         structure = models.structure_for(params.structure)
         theta = params.theta
+        judged = params.parameters  # the vehicles' rule applied to the class's intervals
         return ParameterSet(
             label=(
                 f"{params.vehicle_class} reference model "
@@ -351,6 +355,7 @@ def parameter_set(params: Any) -> ParameterSet:
             theta=params.theta,
             draw=lambda n, rng: _bounded(params.draws(n, seed=int(rng.integers(2**31))), theta),
             band_sources=("spread of the class's vehicles (95 % prediction)",),
+            band_withheld=_class_band_withheld(judged, structure),
         )
     raise TypeError(f"cannot simulate a {type(params).__name__}: give a Fit or a ReferenceModel")
 
@@ -735,6 +740,19 @@ def _time_outcome(
     return Outcome(name, "s", central, lo, hi, "ok", note)
 
 
+def _class_band_withheld(judged: Mapping[str, Any], structure: models.Structure) -> str:
+    """Why a class reference model gives no band: a parameter whose 95 % prediction interval
+    spans more than a factor 1000, or coupled to one (the vehicles' rule); "" otherwise. Its
+    centre is still the class's estimate; the spread of the class does not bound it."""
+    wide = [p for p in structure.parameters if not judged.get(p, {}).get("identified", True)]
+    if not wide:
+        return ""
+    return (
+        f"the class's vehicles leave {', '.join(wide)} not identified (a 95 % prediction "
+        "interval wider than a factor 1000, or coupled to one)"
+    )
+
+
 def simulate(
     params: Any,
     scenario: Scenario,
@@ -754,7 +772,8 @@ def simulate(
     Raises :class:`UnreachableSetpoint` when the controller's power limit is below the
     steady-state load under the scenario's most demanding input row (unless
     ``allow_unreachable``: then the heat-up time's status is "unreachable") and
-    :class:`NotPredictable` for a fit with a parameter that is not identified."""
+    :class:`NotPredictable` for a fit with a parameter that is not identified (a class
+    reference model with one gives its central prediction without a band)."""
     ps = params if isinstance(params, ParameterSet) else parameter_set(params)
     if ps.not_identified:
         raise NotPredictable(

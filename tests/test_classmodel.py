@@ -15,6 +15,7 @@ import scipy.stats
 import yaml
 
 from railtherm import classmodel, metrics
+from railtherm import simulate as sim
 from railtherm.aggregate import SYNTHETIC_SOURCE
 from railtherm.classmodel import (
     ClassMember,
@@ -26,6 +27,7 @@ from railtherm.classmodel import (
 from railtherm.cli import main
 from railtherm.errors import ConfigError
 from railtherm.fit import Fit
+from railtherm.scenario import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 MASS, SURFACE = 35_000.0, 300.0
@@ -543,3 +545,8 @@ def test_a_class_parameter_with_an_interval_over_a_factor_1000_is_not_an_estimat
     summary = model.summary()
     (line,) = [x for x in summary.splitlines() if x.strip().startswith("K_veh ")]
     assert "not identified" in line and "[" not in line
+    # its centre is predicted, with no band
+    scenario = load_scenario(Path(__file__).parents[1] / "config/scenarios/preheat_cold_soak.yaml")
+    result = sim.simulate(model, scenario, draws=10)
+    assert result.draws == 0 and "K_veh" in result.band_withheld
+    assert sim.parameter_set(build(tight, "metro", MASS, SURFACE)).band_withheld == ""

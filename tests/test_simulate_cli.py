@@ -77,16 +77,21 @@ def test_a_fit_through_two_scenarios(fitted, tmp_path, capsys):
 
 
 def test_a_class_reference_model(tmp_path, capsys):
-    ref = tmp_path / "ref.yaml"
-    argv = ["reference", "--class", "metro", "--mass-kg", "35000", "--surface-m2", "300"]
-    assert main([*argv, "-d", str(REPO), "--out", str(ref)]) == 0
-    capsys.readouterr()
-    assert simulate(str(ref), "--scenario", PREHEAT) == 0  # without --out: stdout only
-    printed = capsys.readouterr().out
-    assert "metro reference model" in printed and "scenario preheat_cold_soak" in printed
-    assert "class reference model from 3 vehicles" in printed
-    assert "spread of the class's vehicles" in printed
-    assert "written to" not in printed
+    """The pooled rail classes (7 vehicles) determine every parameter: a band from the
+    spread of the vehicles; the metro class (3, one with a K_veh ten times the others')
+    leaves K_veh's prediction interval wider than a factor 1000: its centre, no band."""
+    for name, n, band in (("all", 7, True), ("metro", 3, False)):
+        ref = tmp_path / f"{name}.yaml"
+        argv = ["reference", "--class", name, "--mass-kg", "35000", "--surface-m2", "300"]
+        assert main([*argv, "-d", str(REPO), "--out", str(ref)]) == 0
+        capsys.readouterr()
+        assert simulate(str(ref), "--scenario", PREHEAT) == 0  # without --out: stdout only
+        printed = capsys.readouterr().out
+        assert f"{name} reference model" in printed and "scenario preheat_cold_soak" in printed
+        assert f"class reference model from {n} vehicles" in printed
+        assert ("spread of the class's vehicles" in printed) is band
+        assert ("leave C, K_veh, C_veh not identified" in printed) is not band
+        assert "written to" not in printed
 
 
 @pytest.mark.bad_input
