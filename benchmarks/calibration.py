@@ -20,8 +20,10 @@ vehicle at a 60 s step (6 indoor-air, 2 tunnel-air and 4 surface sensors, 4 heat
 channels in kW) and a vehicle YAML per setting, as a test engineer writes it. Each sensor
 reads its state plus a calibration offset drawn with the declared standard uncertainty
 (``instruments.temperature_u_K`` = 0.1 K) plus white noise; the power meters share one scale
-error drawn with ``instruments.power_u_rel`` = 0.3 % and add white noise. The tunnel holds
-T_o with small, smooth fluctuations.
+error drawn with ``instruments.power_u_rel`` = 0.3 % and add white noise; the YAML declares
+the noise as a data sheet would (``instruments.outdoor_noise_K`` = 0.05 K,
+``instruments.power_noise_rel`` = 0.3 %). The tunnel holds T_o with small, smooth
+fluctuations.
 
 Truths per vehicle (log-uniform): k 1.2-3.2 W/(m^2 K), A 150-420 m^2, C 6e6-2.5e7 J/K,
 C_veh 4e6-6e7 J/K, K_veh 250-1500 W/K; mass and volume from A as for a rail car.
@@ -291,8 +293,12 @@ def iso(seconds: float) -> str:
     return (START + pd.Timedelta(seconds=seconds)).strftime("%Y-%m-%dT%H:%M:%S")
 
 
-def vehicle_yaml(truth: Truth, csv_name: str, setting: str, x0: str) -> dict:
-    """The vehicle file a test engineer writes for this record and setting."""
+def vehicle_yaml(
+    truth: Truth, csv_name: str, setting: str, x0: str, generator: Generator = Generator()
+) -> dict:
+    """The vehicle file a test engineer writes for this record and setting: the instruments'
+    declared accuracies and, where the bench has it, their white noise (a data sheet's
+    figures; 0 where the generator has none)."""
     estimator, mode, surface = setting.split("/")
     channels = {
         "indoor_air": [{"column": f"indoor_air_{j + 1}"} for j in range(N_INDOOR)],
@@ -318,7 +324,12 @@ def vehicle_yaml(truth: Truth, csv_name: str, setting: str, x0: str) -> dict:
             "time": {"column": "timestamp", "format": "iso"},
         },
         "channels": channels,
-        "instruments": {"temperature_u_K": U_T_K, "power_u_rel": U_POWER_REL},
+        "instruments": {
+            "temperature_u_K": U_T_K,
+            "power_u_rel": U_POWER_REL,
+            "outdoor_noise_K": NOISE_T_K,
+            "power_noise_rel": NOISE_POWER_REL if generator.power_noise else 0.0,
+        },
         "windows": {
             "kvalue": {
                 "file": "run",
@@ -358,10 +369,12 @@ def write_vehicle(
     return truth, errors, csv
 
 
-def write_yaml_file(truth: Truth, csv: Path, setting: str, x0: str) -> Path:
+def write_yaml_file(
+    truth: Truth, csv: Path, setting: str, x0: str, generator: Generator = Generator()
+) -> Path:
     path = csv.parent / f"{truth.vehicle}_{setting.replace('/', '_')}.yaml"
     with open(path, "w", encoding="utf-8") as f:
-        yaml.safe_dump(vehicle_yaml(truth, csv.name, setting, x0), f, sort_keys=False)
+        yaml.safe_dump(vehicle_yaml(truth, csv.name, setting, x0, generator), f, sort_keys=False)
     return path
 
 
@@ -421,10 +434,13 @@ def fit_rows(truth: Truth, yaml_path: Path, setting: str) -> list[dict]:
         row["sd_log_statistical"] = math.nan
         return row
 
-    if estimate["k_source"].startswith("static test"):
-        # eq. 10 as the standard gives it, and the k that stage two holds (storage-corrected
-        # where the correction is made, else eq. 10's)
+    if "/static/" in setting and estimate["k_eq10"] is not None:
+        # eq. 10 as the standard gives it, wherever the static mode ran it (also where the
+        # joint fit replaced the two-stage one)
         rows.append({**common, "parameter": "k_eq10", **static_row(k["k"], k["u_k"])})
+    if estimate["k_source"].startswith("static test"):
+        # the k that stage two holds (storage-corrected where the correction is made, else
+        # eq. 10's)
         if estimate.get("k_corrected") is not None:
             row = static_row(estimate["k_corrected"], estimate["u_k_corrected"])
         else:
@@ -465,7 +481,7 @@ def one_vehicle(job: tuple) -> list[dict]:
         truth, errors, csv = write_vehicle(seed, i, Path(tmp), generator)
         rows = []
         for setting in settings:
-            path = write_yaml_file(truth, csv, setting, x0)
+            path = write_yaml_file(truth, csv, setting, x0, generator)
             rows += [
                 {**run, **r, **{f"true_{k}": v for k, v in errors.items()}}
                 for r in fit_rows(truth, path, setting)

@@ -310,6 +310,29 @@ def air_capacity(volume_m3: Any, source: str = "volume_m3") -> float | None:
     return RHO_CP_AIR * float(volume_m3)
 
 
+def input_noise(structure, vehicle_data, exps) -> dict[str, list[float]]:
+    """The declared white noise of the measured inputs per record, as
+    :func:`railtherm.pem.fit` takes it (``input_noise``): T_o, the mean of the outdoor-air
+    sensors, ``instruments.outdoor_noise_K`` / sqrt(n_eff); Q_H, the sum of the power
+    channels, ``instruments.power_noise_rel`` times the record's rms Q_H / sqrt(n) (each
+    meter's noise relative to its own reading, the channels taken as equal shares). Empty
+    where nothing is declared."""
+    instruments = vehicle_data.get("instruments") or {}
+    counts = sensor_counts(vehicle_data.get("channels") or {})
+    out: dict[str, list[float]] = {}
+    s_T_o = float(instruments.get("outdoor_noise_K", 0.0) or 0.0)
+    if s_T_o > 0 and "T_o" in structure.inputs and counts["outdoor"] > 0:
+        out["T_o"] = [s_T_o / math.sqrt(counts["outdoor"])] * len(exps)
+    r = float(instruments.get("power_noise_rel", 0.0) or 0.0)
+    if r > 0 and "Q_H" in structure.inputs and counts["power"] > 0:
+        k = structure.inputs.index("Q_H")
+        out["Q_H"] = [
+            r * math.sqrt(float(np.mean(np.square(e.u[:, k])))) / math.sqrt(counts["power"])
+            for e in exps
+        ]
+    return out
+
+
 def stage_two_options(structure, vehicle_data, kvalue, tables) -> tuple[dict, str, list]:
     """The options of the stage-two fit (:func:`estimate_parameters`: fixed, initial, bounds,
     outputs, x0, covariance, start) from the config and the k stage, with the provenance of
@@ -326,6 +349,184 @@ def stage_two_options(structure, vehicle_data, kvalue, tables) -> tuple[dict, st
         "start": model.get("start", "auto"),
     }
     return options, k_source, notes
+
+
+# the records contradict the two-stage fit when an estimate of the joint fit differs from it
+# by more than this many standard uncertainties of the difference (two-sided p about 0.003);
+# relative differences up to SAME_ESTIMATE are the optimiser's resolution (z = 0)
+CONTRADICTION_Z = 3.0
+SAME_ESTIMATE = 1e-6
+
+
+def _judged_fit(structure, exps, options, vehicle_data, kvalue, storage):
+    """One fit of ``structure`` with ``options``: the estimate, its dict with the combined
+    (statistical and type-B) intervals judged for identification, and the type-B budget."""
+    result = estimate_parameters(structure, exps, options)
+    fitted = result.to_dict()
+    budget = systematic_budget(structure, exps, options, result, vehicle_data, kvalue, storage)
+    combine_uncertainty(fitted["parameters"], budget)
+    if "kA" not in fitted["parameters"]:
+        fitted["parameters"]["kA"] = derived_kA(fitted)
+    judge_identification(
+        fitted,
+        {**structure.bounds, **options["bounds"]},
+        structure,
+        physical={
+            p: what
+            for p, (floor, what) in physical_bounds(structure, vehicle_data).items()
+            if float(options["bounds"][p][0]) == floor
+        },
+        budget=budget,
+    )
+    return result, fitted, budget
+
+
+def _not_identified(fitted: Mapping[str, Any], structure: models.Structure) -> list[str]:
+    """The estimated parameters of ``fitted`` judged not identified, in the structure's order."""
+    params = fitted["parameters"]
+    return [
+        p
+        for p in structure.parameters
+        if params.get(p, {}).get("estimated") and not params[p].get("identified", True)
+    ]
+
+
+def _static_kA_check(
+    structure, exps, options, vehicle_data, kvalue, storage, static, u_static_rel
+) -> dict[str, Any]:
+    """Whether the identification records accept the two-stage fit (``static``: its result,
+    judged dict and budget), which holds the static kA fixed.
+
+    The same structure is fitted with kA free (the joint fit, started at the static kA), and
+    kA and each coupled parameter are compared between the two (:func:`_differences`: z of
+    the log difference). The static kA is measured independently of the records; under the
+    two-stage premise both fits estimate the same values and differ within their
+    uncertainties. Where a |z| exceeds ``CONTRADICTION_Z`` they do not: either the records
+    contradict the static kA, or the capacities follow kA so steeply (several optima of a fit
+    of T alone, a factor 3 for 0.4 % of kA) that the linearised type-B effect of kA's
+    uncertainty does not describe them - the joint fit, which carries kA's uncertainty in its
+    own covariance, is reported then. Where the static kA leaves a parameter not identified,
+    likewise. Either only where the joint fit determines every parameter and its kA lies
+    within ``CONTRADICTION_Z`` times the static test's own relative uncertainty
+    ``u_static_rel`` of the static kA: two independent measurements of kA that disagree
+    beyond that (a heat source or sink the model lacks moves the joint kA as far as it likes)
+    leave the two-stage fit in place with a note that says so (a verdict reason). Returns
+    the check's record (``kA_static``, ``kA_joint``, ``z`` per parameter,
+    ``kA_within_static_u``, ``use_joint`` and its ``reason``; with ``note`` where the fit is
+    replaced or in conflict, and ``joint`` and ``options`` where the joint fit replaces the
+    two-stage one)."""
+    result, fitted, budget = static
+    fixed = options["fixed"]
+    kA_static = float(fixed["kA"])
+    joint_options = {
+        **options,
+        "fixed": {p: v for p, v in fixed.items() if p != "kA"},
+        "initial": {**options["initial"], "kA": kA_static},
+        "bounds": {**options["bounds"], "kA": KA_BOUNDS},
+    }
+    record: dict[str, Any] = {"kA_static": kA_static, "use_joint": False}
+    try:
+        joint = _judged_fit(structure, exps, joint_options, vehicle_data, kvalue, None)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:
+        record["reason"] = f"the joint fit failed ({err})"
+        return record
+    kA_joint = float(joint[1]["parameters"]["kA"]["value"])
+    z = _differences(structure, (fitted, budget), joint, kA_static)
+    undetermined = _not_identified(fitted, structure)
+    joint_undetermined = _not_identified(joint[1], structure)
+    worst = max(z, key=lambda p: abs(z[p]) if math.isfinite(z[p]) else -1.0)
+    contradicted = math.isfinite(z[worst]) and abs(z[worst]) > CONTRADICTION_Z
+    d_kA = math.log(kA_joint / kA_static)
+    within = abs(d_kA) <= max(CONTRADICTION_Z * u_static_rel, SAME_ESTIMATE)
+    record.update(kA_joint=kA_joint, z=z, u_static_rel=u_static_rel, kA_within_static_u=within)
+    if not (undetermined or contradicted):
+        record["reason"] = "the records accept the two-stage fit"
+        return record
+    if joint_undetermined:
+        record["reason"] = (
+            f"the joint fit leaves {', '.join(joint_undetermined)} not identified: the "
+            "two-stage fit stays"
+        )
+        return record
+    if not within:
+        # two independent measurements of kA disagree beyond the static test's own
+        # uncertainty: the records' kA cannot simply replace it (a heat source the model
+        # lacks moves the joint kA as far as it likes), and the two-stage fit stays in doubt
+        record["reason"] = STATIC_CONFLICT
+        record["note"] = (
+            f"the static test and the records disagree: with kA free the records give kA "
+            f"{kA_joint:.4g} W/K, {100 * math.expm1(d_kA):+.2f} % from the static "
+            f"{kA_static:.4g} W/K, more than {CONTRADICTION_Z:g} times the static test's own "
+            f"uncertainty ({100 * u_static_rel:.2g} %): a heat source or sink the model lacks, "
+            "or a k window that does not measure the loss; the two-stage fit is kept"
+        )
+        return record
+    if undetermined:
+        record["reason"] = STATIC_UNDETERMINED
+        note = (
+            f"the static kA ({kA_static:.4g} W/K), held fixed, left "
+            f"{', '.join(undetermined)} not identified; the joint fit (kA {kA_joint:.4g} W/K, "
+            "within the static test's uncertainty, estimated with the capacities) determines "
+            "every parameter and is reported"
+        )
+    else:
+        record["reason"] = STATIC_CONTRADICTED
+        static_value = kA_static if worst == "kA" else fitted["parameters"][worst]["value"]
+        joint_value = joint[1]["parameters"][worst]["value"]
+        note = (
+            f"the records contradict the two-stage fit: with kA free (the joint fit, kA "
+            f"{kA_joint:.4g} W/K against the static {kA_static:.4g} W/K, within the static "
+            f"test's uncertainty) {worst} is {joint_value:.4g} against {static_value:.4g}, "
+            f"z = {z[worst]:+.1f}, more than {CONTRADICTION_Z:g} standard uncertainties of "
+            "the difference; the fit with the static kA held fixed does not hold against "
+            "kA's own uncertainty, so the joint fit is reported"
+        )
+    own = [f["message"] for f in fitted["flags"]]
+    if own:  # what the two-stage fit showed stays in view (a misfit shows in it first)
+        note += "; the two-stage fit's own flags: " + "; ".join(own)
+    record["two_stage"] = {
+        p: float(fitted["parameters"][p]["value"]) for p in ("kA", *structure.coupled)
+    }
+    record.update(use_joint=True, note=note, joint=joint, options=joint_options)
+    return record
+
+
+def _differences(structure, static, joint, kA_static: float) -> dict[str, float]:
+    """z of ln(joint / two-stage) for kA and each coupled parameter: the difference over its
+    standard uncertainty, the two fits' statistical sds in quadrature (the same records make
+    them correlated, so this is on the wide side) and, per error source, the difference of
+    the source's effects on the two estimates (a source moving both alike cancels; the k
+    window's own random error moves the static kA alone). NaN where an sd is not finite; 0
+    where the two agree within ``SAME_ESTIMATE`` (noise-free records give sds near 0)."""
+    (fitted, budget), (_, joint_fitted, joint_budget) = static, joint
+    z = {}
+    for p in ("kA", *structure.coupled):
+        if p == "kA":
+            value, sd = kA_static, 0.0
+            effects = budget.get("effects_log_fixed", {}).get("kA", {})
+        else:
+            value = float(fitted["parameters"][p]["value"])
+            sd = float(fitted["parameters"][p]["sd_log"])
+            effects = budget["effects_log"].get(p, {})
+        entry = joint_fitted["parameters"][p]
+        joint_effects = joint_budget["effects_log"].get(p, {})
+        variance = sd**2 + float(entry["sd_log"]) ** 2
+        variance += sum(
+            (joint_effects.get(s, 0.0) - effects.get(s, 0.0)) ** 2
+            for s in sorted(set(effects) | set(joint_effects))
+        )
+        d = math.log(float(entry["value"]) / value)
+        finite = variance > 0 and math.isfinite(variance)
+        if abs(d) <= SAME_ESTIMATE:  # one estimate, as far as the optimiser resolves it
+            z[p] = 0.0
+        else:
+            z[p] = d / math.sqrt(variance) if finite else math.nan
+    return z
+
+
+STATIC_UNDETERMINED = "the static kA left the capacities not identified"
+STATIC_CONTRADICTED = "the records contradict the two-stage fit"
+STATIC_CONFLICT = "the static test and the records disagree"
 
 
 def identify(
@@ -360,25 +561,38 @@ def identify(
         options["estimator"] = "kalman"
     rows = rows_used(structure, tables, outputs, vehicle_data)
     exps = experiments(structure, tables)
-    result = estimate_parameters(structure, exps, options)
-    fitted = result.to_dict()
-    budget = systematic_budget(
-        structure, exps, options, result, vehicle_data, kvalue, storage if applied else None
+    options["input_noise"] = input_noise(structure, vehicle_data, exps)
+    result, fitted, budget = _judged_fit(
+        structure, exps, options, vehicle_data, kvalue, storage if applied else None
     )
-    combine_uncertainty(fitted["parameters"], budget)
-    if "kA" not in fitted["parameters"]:
-        fitted["parameters"]["kA"] = derived_kA(fitted)
-    judge_identification(
-        fitted,
-        {**structure.bounds, **options["bounds"]},
-        structure,
-        physical={
-            p: what
-            for p, (floor, what) in physical_bounds(structure, vehicle_data).items()
-            if float(options["bounds"][p][0]) == floor
-        },
-        budget=budget,
-    )
+    checked = bool(vehicle_data["model"].get("two_stage_check", True))
+    if checked and "kA" in fixed and kvalue is not None and structure.coupled:
+        storage_used = storage if applied else None
+        if applied:
+            u_static_rel = float(storage["u_kA_corrected"]) / float(storage["kA_corrected"])
+        else:
+            u_static_rel = float(kvalue.get("u_k_rel") or 0.0)
+        check = _static_kA_check(
+            structure,
+            exps,
+            options,
+            vehicle_data,
+            kvalue,
+            storage_used,
+            (result, fitted, budget),
+            u_static_rel,
+        )
+        if not check["use_joint"] and check.get("note"):
+            notes.append(check["note"])
+        if check["use_joint"]:
+            result, fitted, budget = check.pop("joint")
+            options = check.pop("options")
+            k_source = f"joint estimation (PEM): {check['reason']}"
+            notes.append(check["note"])
+            fixed = options["fixed"]
+        check.pop("joint", None)
+        check.pop("options", None)
+        fitted["static_kA_check"] = check
     estimate = {
         "vehicle": vehicle_data["id"],
         "synthetic": bool(vehicle_data.get("synthetic", False)),
@@ -387,7 +601,7 @@ def identify(
         "estimator": estimator,
         "structure": structure.name,
         "k_source": k_source,
-        **k_stage_fields(fixed.get("kA"), kvalue, storage if "kA" in fixed else None, vehicle_data),
+        **k_stage_fields(fixed.get("kA"), kvalue, storage, vehicle_data),
         "A": surface(vehicle_data),
         "mass_kg": float(vehicle_data["mass_kg"]) if "mass_kg" in vehicle_data else None,
         "volume_m3": float(vehicle_data["volume_m3"]) if "volume_m3" in vehicle_data else None,
@@ -439,8 +653,11 @@ def storage_corrected_k(
     replaced by the correction's own standard uncertainty: the regression's (T_veh's start D0
     and its correlation with kA included) and that of the capacities' statistical errors
     carried through the balance (finite differences in log theta with the fit's covariance),
-    in quadrature. The power, temperature, surface and scatter components stay as eq. 10 has
-    them (relative to k).
+    in quadrature. This one term replaces both eq. 10's storage bound and its scatter: the
+    scatter is the stored energy's swing at the window's ends and the balance's noise, which
+    the regression's residuals (about the modelled storage, with their autocorrelation time)
+    already hold, so counting it again would count the same heat twice. The power,
+    temperature and surface components stay as eq. 10 has them (relative to k).
 
     None where there is nothing to correct: no k window or no usable static k, ``model.mode``
     joint, or ``kvalue.storage_correction: false``. Otherwise a dict for the fit files; with
@@ -484,6 +701,7 @@ def storage_corrected_k(
         )
         return record
     exps = experiments(structure, tables)
+    options["input_noise"] = input_noise(structure, vehicle_data, exps)
     fit_options = {**options, "fixed": dict(options["fixed"])}
     kA, history = kA_eq10, []
     converged = False
@@ -523,9 +741,7 @@ def storage_corrected_k(
                 raise ValueError(f"the k window's balance gives kA = {kA_new:.4g} W/K")
             if not math.isfinite(u_storage):
                 raise ValueError("the second-order fit does not determine C, K_veh and C_veh")
-            other = (
-                sum((r * kA_new) ** 2 for r in relative.values()) + (budget["scatter"] * per) ** 2
-            )
+            other = sum((r * kA_new) ** 2 for r in relative.values())
             u_kA = math.sqrt(other + u_storage**2)
             history.append(kA_new)
             converged = abs(kA_new - kA) < STORAGE_TOLERANCE * u_kA
@@ -542,7 +758,8 @@ def storage_corrected_k(
         "power": relative["power"] * kA / per,
         "temperature": relative["temperature"] * kA / per,
         "surface": relative["surface"] * kA / per,
-        "scatter": budget["scatter"],
+        # held by the regression's residuals (its u is the storage term)
+        "scatter": 0.0,
         "storage": u_storage / per,
     }
     record.update(
@@ -689,6 +906,7 @@ def estimate_parameters(structure: models.Structure, exps: Sequence, options: Ma
         from railtherm import kalman
 
         options.pop("covariance", None)  # the observed information gives the covariance
+        options.pop("input_noise", None)  # the filter's process noise takes it up
         return kalman.fit(structure, exps, **options)
     return pem.fit(structure, exps, **options)
 
@@ -771,8 +989,8 @@ def error_sources(structure, options, vehicle_data, kvalue, storage=None) -> lis
     window's energy balance scales with Q_H), and an offset u of T or T_o changes the integral
     of T - T_o alone, by u times the duration, so kA moves by the factor dT / (dT +- u) as
     eq. 10's does (dT the window's mean T - T_o); an offset of the surface sensors cancels
-    in the change of T_veh. The storage term is then the correction's own uncertainty
-    instead of the k stage's bound."""
+    in the change of T_veh. The correction's own random error (``k_storage``) then replaces
+    both the k stage's storage bound and its scatter, which the regression's residuals hold."""
     instruments = vehicle_data["instruments"]
     counts = sensor_counts(vehicle_data["channels"])
     u_power = float(instruments["power_u_rel"])
@@ -823,32 +1041,31 @@ def error_sources(structure, options, vehicle_data, kvalue, storage=None) -> lis
         # the budget is in the unit of k, or of kA where no surface is given
         budget = kvalue["budget"]
         k = float(kvalue["kA"]) if kvalue.get("k") is None else float(kvalue["k"])
-        u_scatter = float(budget["scatter"]) / k
         if storage is None:
+            u_scatter = float(budget["scatter"]) / k
             u_storage = float(budget["storage"]) / k
+            sources.append(
+                ErrorSource(
+                    "k_scatter",
+                    u_scatter,
+                    None,
+                    kA * (1.0 + u_scatter),
+                    "random error of eq. 10 on the k window, from its energy balance "
+                    "(relative to kA)",
+                )
+            )
             storage_meaning = "heat still going into storage during the k window (relative to kA)"
         else:
+            # the correction's regression residuals hold eq. 10's scatter: one random term
             u_storage = float(storage["u_storage_kA"]) / float(storage["kA_corrected"])
             storage_meaning = (
-                "uncertainty of the storage correction of the k window (its energy-balance "
-                "regression on eqs. 7-8 and the capacities' statistical error, relative to kA)"
+                "random error of the storage-corrected kA: its energy-balance regression on "
+                "eqs. 7-8 (residuals about the modelled storage, which hold eq. 10's scatter) "
+                "and the capacities' statistical error, relative to kA"
             )
-        sources += [
-            ErrorSource(
-                "k_scatter",
-                u_scatter,
-                None,
-                kA * (1.0 + u_scatter),
-                "random error of eq. 10 on the k window, from its energy balance (relative to kA)",
-            ),
-            ErrorSource(
-                "k_storage",
-                u_storage,
-                None,
-                kA * (1.0 + u_storage),
-                storage_meaning,
-            ),
-        ]
+        sources.append(
+            ErrorSource("k_storage", u_storage, None, kA * (1.0 + u_storage), storage_meaning)
+        )
     return sources
 
 
@@ -996,8 +1213,10 @@ def _series(structure, exps, result) -> pd.DataFrame:
 def _cross_validate(structure, exps, options) -> list[dict[str, Any]]:
     """Fit on each window alone; R^2 (eq. 21) of the simulated T on every other window."""
     rows = []
-    for train in exps:
-        fitted = estimate_parameters(structure, [train], options)
+    noise = options.get("input_noise") or {}
+    for i, train in enumerate(exps):
+        alone = {**options, "input_noise": {n: [v[i]] for n, v in noise.items()}}
+        fitted = estimate_parameters(structure, [train], alone)
         for test in exps:
             if test is train:
                 continue
@@ -1005,6 +1224,7 @@ def _cross_validate(structure, exps, options) -> list[dict[str, Any]]:
                 sim = models.simulate(structure, fitted.theta, test.u, test.dt, test.x0)
             else:  # an unmeasured initial state: estimate only it, theta held
                 held = {**options, "fixed": dict(fitted.theta), "initial": {}, "bounds": {}}
+                held["input_noise"] = {}
                 held.pop("estimator", None)  # the simulation of the same parameters
                 sim = pem.fit(structure, [test], **{**held, "x0": "estimated"}).simulated[0]
             rows.append(

@@ -210,6 +210,7 @@ class FitResult:
     dt: list[float] = field(default_factory=list)
     states: tuple[str, ...] = ()
     bandwidths: list[int] = field(default_factory=list)
+    input_noise_sd: list[dict[str, float]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain floats, lists and strings in a stable order (YAML-ready)."""
@@ -255,6 +256,9 @@ class FitResult:
                 )
             ],
             "hac_bandwidths": [int(b) for b in self.bandwidths],
+            "input_noise_sd": [
+                {name: float(sd) for name, sd in record.items()} for record in self.input_noise_sd
+            ],
         }
 
 
@@ -809,6 +813,120 @@ def _andrews_bandwidth(e: np.ndarray) -> int:
     return max(0, min(L, T // 2))
 
 
+def _noise_levels(structure, input_noise, n_experiments: int) -> list[dict[str, float]]:
+    """Per experiment, {input name: sd} of the declared white input noise (those > 0)."""
+    unknown = [n for n in input_noise if n not in structure.inputs]
+    if unknown:
+        raise ValueError(f"input_noise {unknown} not in the inputs {structure.inputs}")
+    levels: list[dict[str, float]] = [{} for _ in range(n_experiments)]
+    for name, sd in input_noise.items():
+        values = [sd] * n_experiments if np.ndim(sd) == 0 else list(sd)
+        if len(values) != n_experiments:
+            raise ValueError(
+                f"input_noise {name!r}: {len(values)} values for {n_experiments} experiments"
+            )
+        for level, value in zip(levels, values, strict=True):
+            if not (math.isfinite(float(value)) and float(value) >= 0):
+                raise ValueError(f"input_noise {name!r}: an sd must be >= 0, got {value}")
+            if float(value) > 0:
+                level[name] = float(value)
+    return levels
+
+
+def _input_noise_meat(structure, prob, v, J, levels) -> np.ndarray:
+    """The part of the scores' covariance that white noise on measured inputs causes.
+
+    Output error simulates the model from the measured inputs, so noise e on input k at step
+    j moves every later simulated sample: d x[t] = Ad^(t-1-j) Bd[:, k] e_j (t > j). The
+    estimate moves by (J^T J)^+ J^T d r, and d r is slow (the model filters e), so the fit
+    absorbs most of it into the parameters and the residuals, which the HAC meat reads, keep
+    little: its share of the covariance must come from the model. With W_k = J^T H_k (H_k
+    the map from e to the compared samples) the meat is sum_k sigma_k^2 W_k W_k^T per record
+    (``levels``: per record, {input: sigma}). W_k is one backward recursion per record:
+    Lambda[j] = G[j + 1] + Ad^T Lambda[j + 1], W_k[:, j] = Bd[:, k]^T Lambda[j], G[t] the
+    rows of J at sample t placed on their states."""
+    p_all = J.shape[1]
+    meat = np.zeros((p_all, p_all))
+    _, sims = prob._evaluate(v, derivatives=False)
+    row = 0
+    for e, (d, _), rows, sigma in zip(prob.exps, sims, prob.rows, levels, strict=True):
+        N = len(e.u)
+        G = np.zeros((N, prob.n, p_all))
+        for i, rr in zip(prob.out_idx, rows, strict=True):
+            idx = np.arange(N) if rr is None else rr
+            G[idx, i, :] = J[row : row + len(idx)]
+            row += len(idx)
+        if not sigma:
+            continue
+        Lam = np.zeros((N, prob.n, p_all))
+        AdT = d.Ad.T
+        for j in range(N - 2, -1, -1):
+            Lam[j] = G[j + 1] + AdT @ Lam[j + 1]
+        for name, s_k in sigma.items():
+            W = np.einsum("n,jnp->pj", d.Bd[:, structure.inputs.index(name)], Lam)
+            meat += s_k**2 * (W @ W.T)
+    return meat
+
+
+def _noise_gain(structure, theta, dt, k, out_idx, rows, N) -> float:
+    """||H_k||_F^2 of one record: the summed squares, over the compared samples, of the
+    simulated outputs' response to unit white noise on input k (eq. 15's ZOH model):
+    sum over outputs i and lags l of h_i(l)^2 times the number of compared samples t > l,
+    h_i(l) = (Ad^l Bd)[i, k]."""
+    d = models.discretize(structure, theta, dt)
+    b = d.Qinv @ d.Bd[:, k]
+    lags = np.arange(N - 1)
+    modes = d.lam[:, None] ** lags[None, :]  # lam^l
+    total = 0.0
+    for i, rr in zip(out_idx, rows, strict=True):
+        h = np.real((d.Q[i] * b) @ modes) if d.diagonal else None
+        if h is None:  # a non-diagonal (Schur) form: iterate Ad
+            x, h = d.Bd[:, k].copy(), np.empty(N - 1)
+            for lag in lags:
+                h[lag] = x[i]
+                x = d.Ad @ x
+        later = N - 1 - lags if rr is None else len(rr) - np.searchsorted(rr, lags, "right")
+        total += float(later @ h**2)
+    return total
+
+
+def _input_noise_bias(structure, prob, v, Vt, inv_s, levels) -> np.ndarray:
+    """The step that removes the bias white noise on the measured inputs gives the estimate.
+
+    Output error minimises V = ||r||^2 with r simulated from the noisy inputs; noise e adds
+    H_theta e to r, so E V = V_0 + sum_k sigma_k^2 ||H_k(theta)||_F^2 (the noise is
+    independent of the true inputs and of the output noise), and the model that minimises V
+    is biased towards small gains H (for the air node: a larger C). The compensated
+    criterion V - sum_k sigma_k^2 ||H_k||^2 (bias-compensated least squares, as for
+    errors-in-variables) is minimised from the estimate by one Gauss-Newton step:
+    dv = (J^T J)^+ sum_k sigma_k^2 grad ||H_k||^2 / 2, the gradient in log theta by central
+    differences (:func:`_noise_gain`, per record; the initial states do not enter H)."""
+    th = prob.theta(v)
+    gradient = np.zeros(Vt.shape[1])
+    h = 1e-4
+    for e, rows, sigma in zip(prob.exps, prob.rows, levels, strict=True):
+        N = len(e.u)
+        for name, s_k in sigma.items():
+            if not s_k > 0:
+                continue
+            k = structure.inputs.index(name)
+            for j, p in enumerate(prob.free):
+                up, down = (
+                    _noise_gain(
+                        structure,
+                        {**th, p: th[p] * math.exp(sign * h)},
+                        e.dt,
+                        k,
+                        prob.out_idx,
+                        rows,
+                        N,
+                    )
+                    for sign in (1.0, -1.0)
+                )
+                gradient[j] += s_k**2 * (up - down) / (2.0 * h)
+    return 0.5 * (Vt.T @ (inv_s**2 * (Vt @ gradient)))
+
+
 # ----------------------------------------------------------------------------------------------
 # fit
 
@@ -844,6 +962,7 @@ def fit(
     covariance: str = "hac",
     start: str = "auto",
     max_nfev: int | None = None,
+    input_noise: Mapping[str, float | Sequence[float]] | None = None,
 ) -> FitResult:
     """Simulation-error PEM (eqs. 17-18, K = 0) of ``structure`` to ``experiments`` jointly.
 
@@ -851,7 +970,10 @@ def fit(
     parameters (default: the paper's, ``structure.initial``); bounds: {param: (lo, hi)} in SI
     units (default ``structure.bounds``); outputs: state names compared (default: every state
     with a measurement); x0: "measured" | "estimated"; covariance: "hac" | "iid";
-    start: "initial" | "auto".
+    start: "initial" | "auto"; input_noise: {input name (``structure.inputs``): the standard
+    deviation of its white measurement noise, one number or one per experiment}, carried
+    into the covariance (:func:`_input_noise_meat`) and removed from the estimate's bias
+    (:func:`_input_noise_bias`).
     """
     fixed = {p: float(v) for p, v in (fixed or {}).items()}
     unknown = [p for p in fixed if p not in structure.parameters]
@@ -866,6 +988,7 @@ def fit(
     experiments = list(experiments)
     if not experiments:
         raise ValueError("fit needs at least one experiment")
+    noisy = _noise_levels(structure, input_noise or {}, len(experiments))
     m_in = len(structure.inputs)
     wrong = [f"{e.name!r} ({e.u.shape[1]})" for e in experiments if e.u.shape[1] != m_in]
     if wrong:
@@ -945,7 +1068,9 @@ def fit(
             message="nothing to estimate: every parameter and initial state is given",
         )
         J = np.zeros((prob.m, 0))
-        return _result(structure, prob, sol, v0, r, J, covariance, start_used, costs, outputs, bnds)
+        return _result(
+            structure, prob, sol, v0, r, J, covariance, start_used, costs, outputs, bnds, noisy
+        )
     lo = np.concatenate([lb, prob.x0_lo])
     hi = np.concatenate([ub, prob.x0_hi])
     # Levenberg-Marquardt without bounds first: an optimum strictly inside the bounds (of the
@@ -975,7 +1100,9 @@ def fit(
     v = sol.x
     r = prob.residuals(v)
     J = prob.jacobian(v)  # cached: the solver evaluated it at sol.x
-    return _result(structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds)
+    return _result(
+        structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy
+    )
 
 
 def heat_balance_kA(experiments: Sequence[Experiment]) -> float:
@@ -1141,7 +1268,7 @@ def _scale_aware_start(
     return best
 
 
-def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds):
+def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy):
     P, m = prob.P, prob.m
     p_all = J.shape[1]
     ssr = float(r @ r)
@@ -1188,6 +1315,18 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
                 meat += _bartlett_hac(gT, L)
                 row += N_i
         cov = _sandwich(Vt, inv_s, meat)
+    input_sd = [dict(level) for level in noisy] if any(noisy) else []
+    if input_sd:
+        cov = cov + _sandwich(Vt, inv_s, _input_noise_meat(structure, prob, v, J, noisy))
+        step = _input_noise_bias(structure, prob, v, Vt, inv_s, noisy)
+        moved = v + step
+        lo = [math.log(bnds[p][0]) if bnds[p][0] > 0 else -math.inf for p in prob.free]
+        hi = [math.log(bnds[p][1]) for p in prob.free]
+        lo, hi = np.concatenate([lo, prob.x0_lo]), np.concatenate([hi, prob.x0_hi])
+        if np.all(np.isfinite(step)) and np.all(moved > lo) and np.all(moved < hi):
+            v = moved
+            r = prob.residuals(v)
+            ssr = float(r @ r)
     var = np.diag(cov)[:P].copy()
     # directions the data do not determine: infinite variance for the parameters on them
     if null.any():
@@ -1281,6 +1420,7 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
         dt=[float(e.dt) for e in prob.exps],
         states=tuple(structure.states),
         bandwidths=bandwidths,
+        input_noise_sd=input_sd,
     )
 
 
