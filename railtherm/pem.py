@@ -868,25 +868,27 @@ def _input_noise_meat(structure, prob, v, J, levels) -> np.ndarray:
     return meat
 
 
-def _noise_gain(structure, theta, dt, k, out_idx, rows, N) -> float:
-    """||H_k||_F^2 of one record: the summed squares, over the compared samples, of the
-    simulated outputs' response to unit white noise on input k (eq. 15's ZOH model):
-    sum over outputs i and lags l of h_i(l)^2 times the number of compared samples t > l,
-    h_i(l) = (Ad^l Bd)[i, k]."""
-    d = models.discretize(structure, theta, dt)
-    b = d.Qinv @ d.Bd[:, k]
-    lags = np.arange(N - 1)
-    modes = d.lam[:, None] ** lags[None, :]  # lam^l
-    total = 0.0
-    for i, rr in zip(out_idx, rows, strict=True):
-        h = np.real((d.Q[i] * b) @ modes) if d.diagonal else None
-        if h is None:  # a non-diagonal (Schur) form: iterate Ad
-            x, h = d.Bd[:, k].copy(), np.empty(N - 1)
-            for lag in lags:
-                h[lag] = x[i]
-                x = d.Ad @ x
-        later = N - 1 - lags if rr is None else len(rr) - np.searchsorted(rr, lags, "right")
-        total += float(later @ h**2)
+def _noise_energy(structure, prob, theta, levels) -> float:
+    """sum over records and noisy inputs k of sigma_k^2 ||H_k(theta)||_F^2: the summed
+    squares, over the compared samples, of the simulated outputs' response to the white
+    noise on input k (eq. 15's ZOH model), i.e. sum over outputs i and lags l of
+    sigma_k^2 h_ik(l)^2 times the number of compared samples t > l, with the impulse
+    response h(l) = Ad^l Bd (:func:`railtherm.models.free_response_head`, one discretisation
+    per step length)."""
+    total, impulse = 0.0, {}
+    for e, rows, sigma in zip(prob.exps, prob.rows, levels, strict=True):
+        if not sigma:
+            continue
+        N = len(e.u)
+        if (e.dt, N) not in impulse:
+            d = models.discretize(structure, theta, e.dt)
+            impulse[e.dt, N] = models.free_response_head(d, N - 1) @ d.Bd  # (lags, n, m)
+        H = impulse[e.dt, N]
+        lags = np.arange(len(H))
+        for i, rr in zip(prob.out_idx, rows, strict=True):
+            later = N - 1 - lags if rr is None else len(rr) - np.searchsorted(rr, lags, "right")
+            for name, s_k in sigma.items():
+                total += s_k**2 * float(later @ H[:, i, structure.inputs.index(name)] ** 2)
     return total
 
 
@@ -899,31 +901,17 @@ def _input_noise_bias(structure, prob, v, Vt, inv_s, levels) -> np.ndarray:
     is biased towards small gains H (for the air node: a larger C). The compensated
     criterion V - sum_k sigma_k^2 ||H_k||^2 (bias-compensated least squares, as for
     errors-in-variables) is minimised from the estimate by one Gauss-Newton step:
-    dv = (J^T J)^+ sum_k sigma_k^2 grad ||H_k||^2 / 2, the gradient in log theta by central
-    differences (:func:`_noise_gain`, per record; the initial states do not enter H)."""
+    dv = (J^T J)^+ grad E / 2, E = :func:`_noise_energy`, its gradient in log theta by
+    central differences (the initial states do not enter H)."""
     th = prob.theta(v)
     gradient = np.zeros(Vt.shape[1])
     h = 1e-4
-    for e, rows, sigma in zip(prob.exps, prob.rows, levels, strict=True):
-        N = len(e.u)
-        for name, s_k in sigma.items():
-            if not s_k > 0:
-                continue
-            k = structure.inputs.index(name)
-            for j, p in enumerate(prob.free):
-                up, down = (
-                    _noise_gain(
-                        structure,
-                        {**th, p: th[p] * math.exp(sign * h)},
-                        e.dt,
-                        k,
-                        prob.out_idx,
-                        rows,
-                        N,
-                    )
-                    for sign in (1.0, -1.0)
-                )
-                gradient[j] += s_k**2 * (up - down) / (2.0 * h)
+    for j, p in enumerate(prob.free):
+        up, down = (
+            _noise_energy(structure, prob, {**th, p: th[p] * math.exp(sign * h)}, levels)
+            for sign in (1.0, -1.0)
+        )
+        gradient[j] = (up - down) / (2.0 * h)
     return 0.5 * (Vt.T @ (inv_s**2 * (Vt @ gradient)))
 
 
@@ -1055,6 +1043,8 @@ def fit(
             "initial values, bounds and inputs"
         )
 
+    lo = np.concatenate([lb, prob.x0_lo])
+    hi = np.concatenate([ub, prob.x0_hi])
     if prob.P + prob.n_x0 == 0:  # every parameter and initial state given: evaluate only
         r = prob.residuals(v0)
         sol = SimpleNamespace(
@@ -1069,10 +1059,9 @@ def fit(
         )
         J = np.zeros((prob.m, 0))
         return _result(
-            structure, prob, sol, v0, r, J, covariance, start_used, costs, outputs, bnds, noisy
-        )
-    lo = np.concatenate([lb, prob.x0_lo])
-    hi = np.concatenate([ub, prob.x0_hi])
+            structure, prob, sol, v0, r, J, covariance, start_used, costs, outputs, bnds, noisy,
+            (lo, hi),
+        )  # fmt: skip
     # Levenberg-Marquardt without bounds first: an optimum strictly inside the bounds (of the
     # parameters and of the estimated initial states) is a local optimum of the bounded
     # problem too. Otherwise (the search left the box or failed) scipy's bounded trust-region
@@ -1101,8 +1090,9 @@ def fit(
     r = prob.residuals(v)
     J = prob.jacobian(v)  # cached: the solver evaluated it at sol.x
     return _result(
-        structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy
-    )
+        structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy,
+        (lo, hi),
+    )  # fmt: skip
 
 
 def heat_balance_kA(experiments: Sequence[Experiment]) -> float:
@@ -1268,7 +1258,9 @@ def _scale_aware_start(
     return best
 
 
-def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy):
+def _result(
+    structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy, box
+):
     P, m = prob.P, prob.m
     p_all = J.shape[1]
     ssr = float(r @ r)
@@ -1320,10 +1312,7 @@ def _result(structure, prob, sol, v, r, J, covariance, start_used, costs, output
         cov = cov + _sandwich(Vt, inv_s, _input_noise_meat(structure, prob, v, J, noisy))
         step = _input_noise_bias(structure, prob, v, Vt, inv_s, noisy)
         moved = v + step
-        lo = [math.log(bnds[p][0]) if bnds[p][0] > 0 else -math.inf for p in prob.free]
-        hi = [math.log(bnds[p][1]) for p in prob.free]
-        lo, hi = np.concatenate([lo, prob.x0_lo]), np.concatenate([hi, prob.x0_hi])
-        if np.all(np.isfinite(step)) and np.all(moved > lo) and np.all(moved < hi):
+        if np.all(np.isfinite(step)) and np.all(moved > box[0]) and np.all(moved < box[1]):
             v = moved
             r = prob.residuals(v)
             ssr = float(r @ r)
