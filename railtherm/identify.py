@@ -358,6 +358,17 @@ CONTRADICTION_Z = 3.0
 SAME_ESTIMATE = 1e-6
 
 
+def kA_estimated(options: Mapping[str, Any], kA_start: float) -> dict[str, Any]:
+    """The options of a two-stage fit with kA estimated instead of fixed (the joint fit):
+    started at ``kA_start``, within ``KA_BOUNDS`` unless the options bound it already."""
+    return {
+        **options,
+        "fixed": {p: v for p, v in options["fixed"].items() if p != "kA"},
+        "initial": {**options["initial"], "kA": float(kA_start)},
+        "bounds": {"kA": KA_BOUNDS, **options["bounds"]},
+    }
+
+
 def _judged_fit(structure, exps, options, vehicle_data, kvalue, storage):
     """One fit of ``structure`` with ``options``: the estimate, its dict with the combined
     (statistical and type-B) intervals judged for identification, and the type-B budget."""
@@ -392,8 +403,8 @@ def _not_identified(fitted: Mapping[str, Any], structure: models.Structure) -> l
 
 
 def _static_kA_check(
-    structure, exps, options, vehicle_data, kvalue, storage, static, u_static_rel
-) -> dict[str, Any]:
+    structure, exps, options, vehicle_data, kvalue, storage, static
+) -> tuple[dict[str, Any], tuple | None]:
     """Whether the identification records accept the two-stage fit (``static``: its result,
     judged dict and budget), which holds the static kA fixed.
 
@@ -407,29 +418,27 @@ def _static_kA_check(
     uncertainty does not describe them - the joint fit, which carries kA's uncertainty in its
     own covariance, is reported then. Where the static kA leaves a parameter not identified,
     likewise. Either only where the joint fit determines every parameter and its kA lies
-    within ``CONTRADICTION_Z`` times the static test's own relative uncertainty
-    ``u_static_rel`` of the static kA: two independent measurements of kA that disagree
-    beyond that (a heat source or sink the model lacks moves the joint kA as far as it likes)
-    leave the two-stage fit in place with a note that says so (a verdict reason). Returns
-    the check's record (``kA_static``, ``kA_joint``, ``z`` per parameter,
-    ``kA_within_static_u``, ``use_joint`` and its ``reason``; with ``note`` where the fit is
-    replaced or in conflict, and ``joint`` and ``options`` where the joint fit replaces the
-    two-stage one)."""
-    result, fitted, budget = static
-    fixed = options["fixed"]
-    kA_static = float(fixed["kA"])
-    joint_options = {
-        **options,
-        "fixed": {p: v for p, v in fixed.items() if p != "kA"},
-        "initial": {**options["initial"], "kA": kA_static},
-        "bounds": {**options["bounds"], "kA": KA_BOUNDS},
-    }
+    within ``CONTRADICTION_Z`` times the static test's own relative uncertainty (the
+    storage-corrected kA's where ``storage`` is given, else eq. 10's): two independent
+    measurements of kA that disagree beyond that (a heat source or sink the model lacks moves
+    the joint kA as far as it likes) leave the two-stage fit in place with a note that says
+    so (a verdict reason). Returns the check's record for the fit file (``kA_static``,
+    ``kA_joint``, ``z`` per parameter, ``kA_within_static_u``, ``use_joint`` and its
+    ``reason``; with ``note`` where the fit is replaced or in conflict) and, where the joint
+    fit replaces the two-stage one, its (result, judged dict, budget, options), else None."""
+    _, fitted, budget = static
+    kA_static = float(options["fixed"]["kA"])
+    if storage:
+        u_static_rel = float(storage["u_kA_corrected"]) / float(storage["kA_corrected"])
+    else:
+        u_static_rel = float(kvalue.get("u_k_rel") or 0.0)
+    joint_options = kA_estimated(options, kA_static)
     record: dict[str, Any] = {"kA_static": kA_static, "use_joint": False}
     try:
         joint = _judged_fit(structure, exps, joint_options, vehicle_data, kvalue, None)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:
         record["reason"] = f"the joint fit failed ({err})"
-        return record
+        return record, None
     kA_joint = float(joint[1]["parameters"]["kA"]["value"])
     z = _differences(structure, (fitted, budget), joint, kA_static)
     undetermined = _not_identified(fitted, structure)
@@ -441,13 +450,13 @@ def _static_kA_check(
     record.update(kA_joint=kA_joint, z=z, u_static_rel=u_static_rel, kA_within_static_u=within)
     if not (undetermined or contradicted):
         record["reason"] = "the records accept the two-stage fit"
-        return record
+        return record, None
     if joint_undetermined:
         record["reason"] = (
             f"the joint fit leaves {', '.join(joint_undetermined)} not identified: the "
             "two-stage fit stays"
         )
-        return record
+        return record, None
     if not within:
         # two independent measurements of kA disagree beyond the static test's own
         # uncertainty: the records' kA cannot simply replace it (a heat source the model
@@ -460,7 +469,7 @@ def _static_kA_check(
             f"uncertainty ({100 * u_static_rel:.2g} %): a heat source or sink the model lacks, "
             "or a k window that does not measure the loss; the two-stage fit is kept"
         )
-        return record
+        return record, None
     if undetermined:
         record["reason"] = STATIC_UNDETERMINED
         note = (
@@ -487,8 +496,8 @@ def _static_kA_check(
     record["two_stage"] = {
         p: float(fitted["parameters"][p]["value"]) for p in ("kA", *structure.coupled)
     }
-    record.update(use_joint=True, note=note, joint=joint, options=joint_options)
-    return record
+    record.update(use_joint=True, note=note)
+    return record, (*joint, joint_options)
 
 
 def _differences(structure, static, joint, kA_static: float) -> dict[str, float]:
@@ -562,36 +571,21 @@ def identify(
     rows = rows_used(structure, tables, outputs, vehicle_data)
     exps = experiments(structure, tables)
     options["input_noise"] = input_noise(structure, vehicle_data, exps)
+    storage_used = storage if applied else None
     result, fitted, budget = _judged_fit(
-        structure, exps, options, vehicle_data, kvalue, storage if applied else None
+        structure, exps, options, vehicle_data, kvalue, storage_used
     )
     checked = bool(vehicle_data["model"].get("two_stage_check", True))
     if checked and "kA" in fixed and kvalue is not None and structure.coupled:
-        storage_used = storage if applied else None
-        if applied:
-            u_static_rel = float(storage["u_kA_corrected"]) / float(storage["kA_corrected"])
-        else:
-            u_static_rel = float(kvalue.get("u_k_rel") or 0.0)
-        check = _static_kA_check(
-            structure,
-            exps,
-            options,
-            vehicle_data,
-            kvalue,
-            storage_used,
-            (result, fitted, budget),
-            u_static_rel,
+        check, joint = _static_kA_check(
+            structure, exps, options, vehicle_data, kvalue, storage_used, (result, fitted, budget)
         )
-        if not check["use_joint"] and check.get("note"):
-            notes.append(check["note"])
-        if check["use_joint"]:
-            result, fitted, budget = check.pop("joint")
-            options = check.pop("options")
-            k_source = f"joint estimation (PEM): {check['reason']}"
-            notes.append(check["note"])
+        if joint is not None:
+            result, fitted, budget, options = joint
             fixed = options["fixed"]
-        check.pop("joint", None)
-        check.pop("options", None)
+            k_source = f"joint estimation (PEM): {check['reason']}"
+        if check.get("note"):
+            notes.append(check["note"])
         fitted["static_kA_check"] = check
     estimate = {
         "vehicle": vehicle_data["id"],
@@ -712,16 +706,7 @@ def storage_corrected_k(
         # eq. 10's): with kA held at eq. 10's biased value, a fit of T alone can settle in a
         # far optimum of C, K_veh, C_veh whose balance then moves kA away from the truth;
         # the joint fit's optimum does not depend on that bias
-        joint = pem.fit(
-            structure,
-            exps,
-            **{
-                **options,
-                "fixed": {},
-                "initial": {**options["initial"], "kA": kA_eq10},
-                "bounds": {**options["bounds"], "kA": KA_BOUNDS},
-            },
-        )
+        joint = pem.fit(structure, exps, **kA_estimated(options, kA_eq10))
         joint_theta = {p: float(joint.theta[p]) for p in ("C", "K_veh", "C_veh")}
         if all(math.isfinite(v) and v > 0 for v in joint_theta.values()):
             start = k_stage.storage_corrected_kA(k_window, **joint_theta).kA
