@@ -179,16 +179,7 @@ def scenario_markdown(
                     notes.append(f"- {row['vehicle']}: {row['status']}")
                 rejected = row.get("draws_rejected_pct")
                 if isinstance(rejected, float) and rejected > 0:
-                    dominated = (
-                        ": the band reaches the limit, an end of it rests on the limit, not on "
-                        "the data"
-                        if rejected >= 100 * sim.LIMIT_DOMINATED
-                        else ""
-                    )
-                    notes.append(
-                        f"- {row['vehicle']}: {rejected:.1f} % of the parameter draws lay beyond "
-                        f"the physical limits and were replaced{dominated}"
-                    )
+                    notes.append(f"- {row['vehicle']}: {sim.rejected_note(rejected / 100.0)}")
             lines.append(
                 f"| {row['vehicle']} | {row['class']} | "
                 + " | ".join(cells)

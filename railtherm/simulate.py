@@ -78,6 +78,7 @@ __all__ = [
     "UnreachableSetpoint",
     "load_parameters",
     "parameter_set",
+    "rejected_note",
     "simulate",
 ]
 
@@ -88,6 +89,21 @@ PI_TI_S = 1800.0  # default PI integral time (s)
 DRAW_FACTOR = 1e8  # a class model's draws are held within this factor of its centre
 MAX_DRAW_ROUNDS = 50  # rejection sampling: at most this many batches of draws per band
 LIMIT_DOMINATED = 0.025  # a rejected share from which a band's end rests on the limit
+
+
+def rejected_note(share: float, counts: str = "") -> str:
+    """The sentence on a ``share`` of parameter draws rejected at the physical limits, with
+    ``counts`` in words after "draws" where known; from :data:`LIMIT_DOMINATED` on it says
+    the band's end rests on the limit."""
+    text = (
+        f"{100 * share:.1f} % of the parameter draws{counts} lay beyond the physical limits and "
+        "were replaced"
+    )
+    if share >= LIMIT_DOMINATED:
+        text += ": the band reaches the limit, an end of it rests on the limit, not on the data"
+    return text
+
+
 BISECTION_STEPS = 60  # bisection of a threshold crossing within one step: dt / 2^60
 
 
@@ -198,15 +214,9 @@ class SimulationResult:
         """A sentence on the draws rejected at the physical limits ("" when none was)."""
         if not self.rejected:
             return ""
-        share = self.rejected_share
-        text = (
-            f"{100 * share:.1f} % of the parameter draws ({self.rejected} of "
-            f"{self.draws + self.rejected}) lay beyond the physical limits and were "
-            "replaced"
+        return rejected_note(
+            self.rejected_share, f" ({self.rejected} of {self.draws + self.rejected})"
         )
-        if share >= LIMIT_DOMINATED:
-            text += ": the band reaches the limit, an end of it rests on the limit, not on the data"
-        return text
 
     def to_dict(self) -> dict[str, Any]:
         out = {
