@@ -579,15 +579,21 @@ def main(argv: list[str] | None = None) -> None:
             (args.seed, i, settings, args.x0, generator)
             for i in range(args.first, args.first + args.count)
         ]
-        rows: list[dict] = []
-        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-            for done, part in enumerate(pool.map(one_vehicle, jobs), start=1):
-                rows += part
-                print(f"vehicle {done}/{args.count} done", file=sys.stderr, flush=True)
-        df = pd.DataFrame(rows)
+        df = pd.DataFrame(collect(one_vehicle, jobs, args.jobs, "vehicle"))
     if args.out:
         df.to_csv(args.out, index=False, float_format="%.6g")
     report(df)
+
+
+def collect(function, jobs: list, workers: int, label: str) -> list[dict]:
+    """The rows of ``function`` over ``jobs`` in ``workers`` processes, in the jobs' order,
+    with a progress line per finished job on stderr."""
+    rows: list[dict] = []
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for done, part in enumerate(pool.map(function, jobs), start=1):
+            rows += part
+            print(f"{label} {done}/{len(jobs)} done", file=sys.stderr, flush=True)
+    return rows
 
 
 def vehicle_ranges(numbers: list[int]) -> str:

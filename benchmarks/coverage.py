@@ -24,14 +24,12 @@ from __future__ import annotations
 import argparse
 import math
 import shutil
-import sys
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from calibration import wilson  # benchmarks/ is the script's folder, first on sys.path
+from calibration import collect, wilson  # benchmarks/ is the script's folder, first on sys.path
 
 from railtherm import identify, ingest, kvalue, synth
 from railtherm.config import load_study
@@ -169,12 +167,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None, help="per-interval CSV")
     args = parser.parse_args()
     seeds = range(args.first, args.first + args.seeds)
-    rows: list[dict] = []
-    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for done, part in enumerate(pool.map(one_seed, seeds), start=1):
-            rows += part
-            print(f"seed {done}/{args.seeds} done", file=sys.stderr, flush=True)
-    df = pd.DataFrame(rows)
+    df = pd.DataFrame(collect(one_seed, list(seeds), args.jobs, "seed"))
     if args.out:
         df.to_csv(args.out, index=False, float_format="%.6g")
     fmt = {"coverage": "{:.3f}".format, "coverage_lo": "{:.3f}".format}

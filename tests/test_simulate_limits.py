@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 import yaml
-from test_predictions import T_O, scenario
+from test_predictions import T_O, _member, scenario
 
 from railtherm import classvalidation, models, predictions
 from railtherm import simulate as sim
@@ -22,7 +22,6 @@ from railtherm.scenario import Scenario
 
 TARGET, POWER = 15.0, 60_000.0
 VOLUME = 89.4  # m³
-MASS, SURFACE = 40_000.0, 300.0
 THETA = {"kA": 800.0, "C": 2.0e6, "K_veh": 400.0, "C_veh": 1.6e7}
 
 
@@ -160,21 +159,6 @@ def test_the_share_rejected_is_reported_in_the_scenario_table():
 
 
 # ------------------------------------------------------------------------ leave-one-out
-def _member(vid: str, theta: dict) -> ClassMember:
-    return ClassMember(
-        vehicle=vid,
-        vehicle_class="metro",
-        mass_kg=MASS,
-        surface_m2=SURFACE,
-        k=theta["kA"] / SURFACE,
-        c_veh=theta["C_veh"] / MASS,
-        delta=theta["C_veh"] / theta["C"],
-        kappa_veh=theta["K_veh"] / SURFACE,
-        usable=True,
-        why="",
-    )
-
-
 def _series(theta: dict) -> object:
     import pandas as pd
 
@@ -204,7 +188,7 @@ def _class(n: int) -> tuple[dict, list[ClassMember]]:
         }
         for i in range(n)
     }
-    return thetas, [_member(vid, th) for vid, th in thetas.items()]
+    return thetas, [_member(vid, "metro", th) for vid, th in thetas.items()]
 
 
 def test_leave_one_out_with_two_other_vehicles_gives_no_band():
