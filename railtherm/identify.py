@@ -21,7 +21,7 @@ import pandas as pd
 
 from railtherm import ingest, metrics, models, pem
 from railtherm.errors import ConfigError, DataError
-from railtherm.kvalue import sensor_counts, sensor_u_K
+from railtherm.kvalue import COMPONENTS, sensor_counts, sensor_u_K, storage_corrected_kA
 from railtherm.yamlio import packaged_schema, validate_schema
 
 # the fitted models of a vehicle, by the key in their file names (fit_<key>.yaml)
@@ -659,8 +659,6 @@ def storage_corrected_k(
     k window, a fit that fails or leaves C, K_veh, C_veh undetermined, a kA that is not
     positive) - eq. 10's kA is fixed then.
     """
-    from railtherm import kvalue as k_stage
-
     if k_window is None or not kvalue or not kvalue.get("usable"):
         return None
     if not (vehicle_data.get("kvalue") or {}).get("storage_correction", True):
@@ -674,7 +672,7 @@ def storage_corrected_k(
     per = 1.0 if A is None else A
     kA_eq10 = float(options["fixed"]["kA"])
     k_eq10 = kA_eq10 / per
-    budget = {c: float(kvalue["budget"].get(c, 0.0)) for c in k_stage.COMPONENTS}
+    budget = {c: float(kvalue["budget"].get(c, 0.0)) for c in COMPONENTS}
     # the components that stay: relative to k (power, temperature, surface), or absolute
     relative = {c: budget[c] / k_eq10 for c in ("power", "temperature", "surface")}
     record: dict[str, Any] = {
@@ -709,7 +707,7 @@ def storage_corrected_k(
         joint = pem.fit(structure, exps, **kA_estimated(options, kA_eq10))
         joint_theta = {p: float(joint.theta[p]) for p in ("C", "K_veh", "C_veh")}
         if all(math.isfinite(v) and v > 0 for v in joint_theta.values()):
-            start = k_stage.storage_corrected_kA(k_window, **joint_theta).kA
+            start = storage_corrected_kA(k_window, **joint_theta).kA
             if math.isfinite(start) and start > 0:
                 kA = start
                 fit_options["initial"] = joint_theta
@@ -718,7 +716,7 @@ def storage_corrected_k(
             fit_options["fixed"]["kA"] = kA
             result = pem.fit(structure, exps, **fit_options)
             theta = {p: float(result.theta[p]) for p in ("C", "K_veh", "C_veh")}
-            correction = k_stage.storage_corrected_kA(k_window, **theta)
+            correction = storage_corrected_kA(k_window, **theta)
             u_model = _storage_model_u(k_window, theta, result)
             u_storage = math.hypot(correction.u_kA, u_model)
             kA_new = correction.kA
@@ -769,8 +767,6 @@ def _storage_model_u(k_window: pd.DataFrame, theta: Mapping[str, float], result)
     """Standard uncertainty (W/K) of the storage-corrected kA from the statistical errors of
     C, K_veh, C_veh: the sensitivities d kA / d log theta by central differences, with the
     fit's covariance of log theta (sd_log and correlation over its free parameters)."""
-    from railtherm.kvalue import storage_corrected_kA
-
     free = list(result.free)
     names = [p for p in ("C", "K_veh", "C_veh") if p in free]
     if not names:
