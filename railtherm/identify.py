@@ -887,7 +887,6 @@ def estimate_parameters(structure: models.Structure, exps: Sequence, options: Ma
         from railtherm import kalman
 
         options.pop("covariance", None)  # the observed information gives the covariance
-        options.pop("input_noise", None)  # the filter's process noise takes it up
         return kalman.fit(structure, exps, **options)
     return pem.fit(structure, exps, **options)
 

@@ -875,6 +875,7 @@ class KalmanResult:
     start_used: str = "output_error"
     start_costs: dict[str, float] = field(default_factory=dict)
     bandwidths: list[int] = field(default_factory=list)
+    input_noise_sd: list[dict[str, float]] = field(default_factory=list)
 
     @property
     def aic(self) -> float:
@@ -939,6 +940,9 @@ class KalmanResult:
                     self.names, self.dt, self.x0, self.x0_estimated, strict=True
                 )
             ],
+            "input_noise_sd": [
+                {name: float(sd) for name, sd in record.items()} for record in self.input_noise_sd
+            ],
         }
 
 
@@ -984,6 +988,7 @@ def fit(
     x0: str = "estimated",
     start: str = "auto",
     sigma_initial: float | Mapping[str, float] | None = None,
+    input_noise: Mapping[str, float | Sequence[float]] | None = None,
 ) -> KalmanResult:
     """Maximum-likelihood fit of the stochastic model of ``structure`` to ``experiments``
     jointly (shared parameters, each experiment its own initial state).
@@ -998,7 +1003,10 @@ def fit(
     (:func:`railtherm.pem.fit`, ``"auto"`` or ``"initial"``) whose optimum starts theta and
     the initial states; the measurement variances start at the output-error residual variance,
     the diffusions at sigma_initial (K/sqrt(s), one value or {state: value}), by default
-    sigma_i^2 dt = SIGMA_START^2 times the mean of those variances.
+    sigma_i^2 dt = SIGMA_START^2 times the mean of those variances. input_noise: {input name:
+    the standard deviation of its white measurement noise, one value or one per experiment},
+    as :func:`railtherm.pem.fit` takes it: compensated in the estimate and added to the
+    covariance (:func:`_input_noise_terms`).
     """
     if x0 not in ("estimated", "measured"):
         raise ValueError(f"x0 must be 'estimated' or 'measured', got {x0!r}")
@@ -1113,7 +1121,23 @@ def fit(
     sol = _optimise(lik, v0, lo, hi, clip)
     v = sol.x
     H = _hessian(lik, v, lik.evaluate(v, 1)[1])
-    return _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost)
+    levels = pem._noise_levels(structure, input_noise or {}, len(experiments))
+    meat = None
+    if any(levels):
+        v = _input_noise_terms(lik, v, levels, lo, hi)
+        active = np.zeros(len(v), int)
+        active[v <= lo + 1e-9] = -1
+        active[v >= hi - 1e-9] = 1
+        sol = SimpleNamespace(
+            **{**vars(sol), "x": v, "fun": float(lik.evaluate(v, 0)[0]), "active_mask": active}
+        )
+        # the Fisher information: the compensated point is no stationary point of the NLL, so
+        # its observed information holds the residuals' second-order terms
+        H = lik.evaluate(v, 2)[2]
+        meat = _input_noise_meat(lik, v, _kept(lik, sol, v, lo, hi), levels)
+    result = _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost, meat)
+    result.input_noise_sd = [dict(level) for level in levels] if any(levels) else []
+    return result
 
 
 def _optimise(lik: _Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace:
@@ -1254,30 +1278,220 @@ def _pull(lik: _Likelihood, i: int, b: float, v, v0, g, lo, hi) -> float:
     return -inward * g[i]
 
 
-def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost):
+def _kept(lik: _Likelihood, sol, v: np.ndarray, lo, hi) -> np.ndarray:
+    """The unknowns the covariance is computed for: every one but the noise parameters at a
+    bound, which are held there (the likelihood is flat beyond: a diffusion the data do not
+    show), so they carry no curvature to invert."""
+    held = {
+        i
+        for i in range(lik.P, lik.Qg)
+        if v[i] - lo[i] < _AT_BOUND_LOG or hi[i] - v[i] < _AT_BOUND_LOG or sol.active_mask[i]
+    }
+    return np.array([i for i in range(len(v)) if i not in held], dtype=int)
+
+
+def _pinv_sym(Hk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pseudo-inverse of a symmetric information matrix (directions below pem._NULL_REL of
+    the largest eigenvalue dropped) and a mask of the unknowns loading on a dropped one."""
+    lam, V = np.linalg.eigh(Hk)
+    top = float(np.max(np.abs(lam))) if lam.size else 0.0
+    null = lam <= pem._NULL_REL * top if top > 0 else np.ones_like(lam, dtype=bool)
+    inv = np.where(null, 0.0, 1.0 / np.where(null, 1.0, lam))
+    unresolved = np.abs(V[:, null]).max(axis=1) > 1e-8 if null.any() else np.zeros(len(lam), bool)
+    return (V * inv) @ V.T, unresolved
+
+
+def _lag_sums(z: np.ndarray, N: int) -> np.ndarray:
+    """S(z) = sum_{l=0}^{N-2} (N - 1 - l) z^l elementwise (complex z, |z| <= 1): the number of
+    row pairs at lag l of a record of N rows, weighting z^l."""
+    z = np.asarray(z, dtype=complex)
+    one = np.abs(1.0 - z) < 1e-9
+    zz = np.where(one, 0.5, z)
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = ((N - 1) - zz * (1.0 - zz ** (N - 1)) / (1.0 - zz)) / (1.0 - zz)
+    return np.where(one, N * (N - 1) / 2.0, out)
+
+
+def _record_noise_terms(lik: _Likelihood, v: np.ndarray, i: int, level: Mapping[str, float]):
+    """Experiment i's stationary predictor (F, C_o, R^-1, Bd) and the compensation
+    1/2 sum_j sd_j^2 sum_l (N - 1 - l) g_l^T R^-1 g_l, g_l = C_o F^l Bd[:, j]
+    (:func:`_input_noise_terms`), in closed form over F's modes. None where the record has no
+    stationary filter for all its outputs."""
+    d = lik.data[i]
+    sysm = lik.system(v, d.e.dt, 0)
+    n_out = len(lik.out_idx)
+    st = sysm.steady((1 << n_out) - 1, np.arange(n_out))
+    if st is None:
+        return None
+    N = len(d.y)
+    lam, V = np.linalg.eig(st.F)
+    CV = st.C @ V
+    G = CV.T @ st.Rinv @ CV  # (modes, modes): alpha_a^T R^-1 alpha_b per unit amplitudes
+    S = _lag_sums(np.outer(lam, lam), N)
+    comp = 0.0
+    for name, sd in level.items():
+        beta = np.linalg.solve(V, sysm.Bd[:, lik.s.inputs.index(name)])
+        comp += 0.5 * sd**2 * float(np.real(np.sum(G * np.outer(beta, beta) * S)))
+    return SimpleNamespace(F=st.F, C=st.C, Rinv=st.Rinv, Bd=sysm.Bd, N=N, comp=comp)
+
+
+def _compensation(lik: _Likelihood, v: np.ndarray, levels) -> float:
+    total = 0.0
+    for i, level in enumerate(levels):
+        if level:
+            terms = _record_noise_terms(lik, v, i, level)
+            if terms is None:
+                raise ValueError("no stationary filter")
+            total += terms.comp
+    return total
+
+
+def _input_noise_terms(lik: _Likelihood, v, levels, lo, hi):
+    """The declared white noise of measured inputs in a Kalman fit: its bias removed from the
+    estimate, and its share of the covariance.
+
+    The filter conditions on the measured inputs u = u0 + e. Noise e_t on input j moves the
+    one-step predictions of the later rows by g_l e_t (g_l = C F^l Bd[:, j], F the stationary
+    predictor's transition), so the innovations are the clean ones minus sum_l g_l e_{t-1-l}.
+    That is not process noise - it is correlated with the input the filter is given (errors
+    in variables) - but the likelihood takes it for some: its expectation adds to the NLL
+
+        c(v) = 1/2 sum_j sd_j^2 sum_l (N - 1 - l) g_l^T R^-1 g_l
+
+    (per record, summed), which prefers diffusions that let the filter follow the record and
+    a small gain from the noisy input (for the air node, a larger C). The estimate is the
+    minimiser of the compensated criterion NLL - c from the maximum-likelihood point, with the
+    measurement variances held at their maximum-likelihood values: first over the
+    structure's parameters, the diffusions and the initial states where a diffusion lies
+    above its bound (L-BFGS-B within the bounds), then by Gauss-Newton steps with the Fisher
+    information in the parameters and initial states (grad c by forward differences, c in
+    closed form over F's modes). Where the declared noise accounts for the apparent process
+    noise, the diffusions go to their lower bound and the estimate to the compensated
+    output-error one. Returns the compensated v (or v unchanged where c cannot be evaluated)."""
+    U = len(v)
+    P, a = lik.P, lik.P + len(lik.sigma_free)
+    diffusions = range(P, a)
+    h = 1e-6
+
+    def criterion(w: np.ndarray, order: int, along: Sequence[int]):
+        """NLL - c, its gradient along ``along`` (forward differences of c) and, with
+        order 2, the Fisher information; (inf, ...) where either cannot be evaluated."""
+        nll, g, F = lik.evaluate(w, order)
+        if not math.isfinite(nll):
+            return math.inf, None, None
+        try:
+            c = _compensation(lik, w, levels)
+            gc = np.zeros(U)
+            for q in along:
+                if q < a:
+                    e = np.zeros(U)
+                    e[q] = h
+                    gc[q] = (_compensation(lik, w + e, levels) - c) / h
+        except (ValueError, np.linalg.LinAlgError, ArithmeticError):
+            return math.inf, None, None
+        return nll - c, (None if g is None else g - gc), F
+
+    start = criterion(v, 0, ())[0]
+    if not math.isfinite(start):
+        return v
+    # 1. a diffusion above its bound may have taken up the input noise: the compensated
+    # criterion over the parameters, the diffusions and the initial states (the measurement
+    # variances held at their maximum-likelihood values: c grows as 1 / s, so NLL - c has no
+    # minimum in them)
+    if any(v[i] > lo[i] + _AT_BOUND_LOG for i in diffusions):
+        free = [i for i in range(U) if not a <= i < lik.Qg]
+        res = minimize(
+            lambda w: criterion(w, 1, free)[:2],
+            v,
+            jac=True,
+            method="L-BFGS-B",
+            bounds=[(v[i], v[i]) if a <= i < lik.Qg else (lo[i], hi[i]) for i in range(U)],
+            options={"maxiter": 300},
+        )
+        if math.isfinite(res.fun) and res.fun <= start:
+            v, start = res.x.copy(), float(res.fun)
+        # a diffusion left in the flat region near zero is taken at its bound when that
+        # costs nothing (as the maximum-likelihood search does)
+        for i in diffusions:
+            if v[i] > lo[i]:
+                w = v.copy()
+                w[i] = lo[i]
+                value = criterion(w, 0, ())[0]
+                if value <= start + 1e-8 * max(1.0, abs(start)):
+                    v, start = w, value
+    # 2. Gauss-Newton steps with the Fisher information in the parameters and initial states,
+    # the noise parameters held, each step halved until the criterion falls
+    moved = [i for i in range(U) if i < P or i >= lik.Qg]
+    for _ in range(20):
+        value, g, F = criterion(v, 2, moved)
+        if g is None:
+            break
+        Fm, gm = F[np.ix_(moved, moved)], g[moved]
+        step = np.zeros(U)
+        step[moved] = -np.linalg.lstsq(Fm, gm, rcond=1e-12)[0]
+        if float(-gm @ step[moved]) <= 1e-10 * max(len(moved), 1):
+            break
+        for _ in range(30):
+            w = np.clip(v + step, lo, hi)
+            if criterion(w, 0, ())[0] < value:
+                v = w
+                break
+            step = step / 2.0
+        else:
+            break
+    return v
+
+
+def _input_noise_meat(lik: _Likelihood, v: np.ndarray, keep: np.ndarray, levels) -> np.ndarray:
+    """The covariance's share of the input noise (:func:`_input_noise_terms`): H^-1 M H^-1
+    with M = sum_j sd_j^2 sum_t w_t w_t^T, w_t = -sum_l D_{t+1+l}^T R^-1 g_l the score's
+    response to the noise at row t (D_k = d eps_k / d v by forward differences), in the
+    order of v."""
+    U = len(v)
+    h = 1e-6
+    base = lik.passes(v, 0, series=True)
+    D = [np.zeros((len(r.eps), U, r.eps.shape[1])) for r in base]
+    for q in keep:
+        e = np.zeros(U)
+        e[q] = h
+        for k, r in enumerate(lik.passes(v + e, 0, series=True)):
+            D[k][:, q, :] = np.nan_to_num((r.eps - base[k].eps) / h)
+    M = np.zeros((U, U))
+    for i, level in enumerate(levels):
+        terms = _record_noise_terms(lik, v, i, level) if level else None
+        if terms is None:
+            continue
+        A = D[i] @ terms.Rinv  # (N, U, n_out): D_k^T R^-1
+        N = len(A)
+        for name, sd in level.items():
+            x = terms.Bd[:, lik.s.inputs.index(name)].copy()
+            wt = np.zeros((N - 1, U))
+            top = 0.0
+            for lag in range(N - 1):
+                g = terms.C @ x
+                size = float(np.abs(g).max())
+                top = max(top, size)
+                if size < 1e-12 * top:
+                    break
+                wt[: N - 1 - lag] -= A[1 + lag : N] @ g
+                x = terms.F @ x
+            M += sd**2 * (wt.T @ wt)
+    return M
+
+
+def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost, meat=None):
     P, Qg = lik.P, lik.Qg
     U = len(v)
-    # noise parameters at a bound are held there: the likelihood is flat beyond (a diffusion
-    # the data do not show), so they carry no curvature to invert
-    held = [
-        i
-        for i in range(P, Qg)
-        if v[i] - lo[i] < _AT_BOUND_LOG or hi[i] - v[i] < _AT_BOUND_LOG or sol.active_mask[i]
-    ]
-    keep = np.array([i for i in range(U) if i not in held], dtype=int)
+    keep = _kept(lik, sol, v, lo, hi)
+    held = [i for i in range(U) if i not in set(keep.tolist())]
     cov = np.full((U, U), np.nan)
     var = np.full(U, np.inf)
     if len(keep):
-        Hk = H[np.ix_(keep, keep)]
-        lam, V = np.linalg.eigh(Hk)
-        top = float(np.max(np.abs(lam))) if lam.size else 0.0
-        null = lam <= pem._NULL_REL * top if top > 0 else np.ones_like(lam, dtype=bool)
-        inv = np.where(null, 0.0, 1.0 / np.where(null, 1.0, lam))
-        ck = (V * inv) @ V.T
+        ck, unresolved = _pinv_sym(H[np.ix_(keep, keep)])
+        if meat is not None:
+            ck = ck + ck @ meat[np.ix_(keep, keep)] @ ck
         vk = np.diag(ck).copy()
-        if null.any():
-            load = np.abs(V[:, null]).max(axis=1)
-            vk[load > 1e-8] = np.inf
+        vk[unresolved] = np.inf
         cov[np.ix_(keep, keep)] = ck
         var[keep] = vk
     sd = np.sqrt(np.maximum(var, 0.0))
