@@ -333,6 +333,25 @@ def input_noise(structure, vehicle_data, exps) -> dict[str, list[float]]:
     return out
 
 
+def surface_offsets(structure, vehicle_data, outputs) -> dict[str, float]:
+    """For a Kalman-filter fit: the compared body temperature's constant offset relative to
+    the air sensors, estimated with the prior sd of the difference of the two groups' mean
+    calibration offsets, sqrt(u_in^2 / n_in + u_surface^2 / n_surface) (:func:`kalman.fit`'s
+    ``offsets``). A constant difference between the air and the surface readings contradicts
+    eqs. 7-8 (the body settles at the air's temperature); the filter would explain it by
+    diffusions, which move the capacities in proportion to its square. Empty without
+    surface sensors."""
+    instruments = vehicle_data["instruments"]
+    counts = sensor_counts(vehicle_data["channels"])
+    out = {}
+    for state in outputs:
+        if state != "T" and state in structure.states and counts["surface"] > 0:
+            u_in = sensor_u_K(instruments, "indoor") / math.sqrt(counts["indoor"])
+            u_surface = sensor_u_K(instruments, "surface") / math.sqrt(counts["surface"])
+            out[state] = math.sqrt(u_in**2 + u_surface**2)
+    return dict(list(out.items())[:1])
+
+
 def stage_two_options(structure, vehicle_data, kvalue, tables) -> tuple[dict, str, list]:
     """The options of the stage-two fit (:func:`estimate_parameters`: fixed, initial, bounds,
     outputs, x0, covariance, start) from the config and the k stage, with the provenance of
@@ -568,6 +587,7 @@ def identify(
     estimator = split_key(order)[1]
     if estimator == "kalman":
         options["estimator"] = "kalman"
+        options["offsets"] = surface_offsets(structure, vehicle_data, options["outputs"])
     rows = rows_used(structure, tables, outputs, vehicle_data)
     exps = experiments(structure, tables)
     options["input_noise"] = input_noise(structure, vehicle_data, exps)

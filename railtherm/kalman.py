@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
 from typing import Any
 
@@ -64,6 +64,8 @@ LOG_2PI = math.log(2.0 * math.pi)
 SIGMA_BOUNDS = (1e-9, 1.0)  # K / sqrt(s): diffusion of a state (1 K/sqrt(s): 60 K per hour)
 MEAS_VAR_BOUNDS = (1e-10, 1e4)  # K^2: measurement variance of an output
 STEADY_TOL = 1e-10  # |P_k - P| / |P| below which the filter switches to the stationary gain
+OFFSET_STEP = 1e-4  # K: central-difference step along an output offset
+OFFSET_BOUNDS = (-5.0, 5.0)  # K: an output's constant offset
 HESSIAN_STEP = 1e-5  # forward-difference step of the observed information (log units, K)
 SIGMA_START = 0.1  # default start: sigma_i^2 dt = SIGMA_START^2 x the output-error variance
 # a noise parameter this close (log) to its bound is held there for the covariance
@@ -591,6 +593,7 @@ class _Likelihood:
         meas_var_free: tuple[int, ...],
         out_idx: tuple[int, ...],
         x0_mode: str,
+        offset_sd: Mapping[int, float] | None = None,
     ):
         self.s = structure
         self.fixed = dict(fixed)
@@ -604,7 +607,12 @@ class _Likelihood:
         self.n = len(structure.states)
         self.data = [_data(structure, e, out_idx, x0_mode) for e in experiments]
         self.P = len(self.free)
-        self.Qg = self.P + len(self.sigma_free) + len(self.meas_var_free)
+        self.Qn = self.P + len(self.sigma_free) + len(self.meas_var_free)  # noise ends here
+        # constant offsets of compared outputs (K), estimated with a Gaussian prior
+        # N(0, sd^2): {output position j: sd}
+        self.offset_out = tuple(sorted(offset_sd or {}))
+        self.offset_sd = np.array([float((offset_sd or {})[j]) for j in self.offset_out])
+        self.Qg = self.Qn + len(self.offset_out)
         self.offsets = []
         k = self.Qg
         for d in self.data:
@@ -633,7 +641,7 @@ class _Likelihood:
 
     def x0s(self, v: np.ndarray) -> list[np.ndarray]:
         out = []
-        for d, off in zip(self.data, self.offsets, strict=True):
+        for d, off in zip(self.shifted(v), self.offsets, strict=True):
             x0 = d.x0_base.copy()
             x0[d.x0_free] = v[off : off + len(d.x0_free)]
             out.append(x0)
@@ -702,12 +710,32 @@ class _Likelihood:
                 dP0[: len(sysm.dS), i, i] = sysm.dS[:, j]
         return x0, dx0, P0, dP0
 
+    def offsets_of(self, v: np.ndarray) -> np.ndarray:
+        """The compared outputs' offsets (K), zero where none is estimated."""
+        b = np.zeros(len(self.out_idx))
+        b[list(self.offset_out)] = v[self.Qn : self.Qg]
+        return b
+
+    def shifted(self, v: np.ndarray) -> list[_Data]:
+        """The experiments' data with the estimated output offsets taken off the readings
+        (and off a measured initial state)."""
+        if not self.offset_out:
+            return self.data
+        b = self.offsets_of(v)
+        out = []
+        for d in self.data:
+            x0_base = d.x0_base.copy()
+            for i, j in d.x0_prior:
+                x0_base[i] -= b[j]
+            out.append(replace(d, y=d.y - b, x0_base=x0_base))
+        return out
+
     def passes(self, v: np.ndarray, order: int, steady: bool = True, series: bool = False):
         """One filter pass per experiment (list of _Pass; the x0 directions of each are its
         own, after the Qg global ones)."""
         systems: dict[float, _System] = {}
         out = []
-        for d, x0 in zip(self.data, self.x0s(v), strict=True):
+        for d, x0 in zip(self.shifted(v), self.x0s(v), strict=True):
             if d.e.dt not in systems:
                 systems[d.e.dt] = self.system(v, d.e.dt, order)
             sysm = systems[d.e.dt]
@@ -718,11 +746,47 @@ class _Likelihood:
 
     def evaluate(self, v: np.ndarray, order: int, steady: bool = True):
         """(NLL, gradient or None, Fisher information or None) at v; inf where the model
-        cannot be evaluated. The last evaluation is cached."""
+        cannot be evaluated. The last evaluation is cached.
+
+        With output offsets: their prior 1/2 sum b_j^2 / sd_j^2 is added, and their entries
+        of the gradient and of the information come from central differences (of the NLL in
+        b, of the analytic gradient along b); the filter's own derivatives cover the rest."""
         key = (v.tobytes(), steady)
         hit = self._cache.get(key)
         if hit is not None and hit[0] >= order:
             return hit[1]
+        res = self._raw(v, order, steady)
+        if self.offset_out and math.isfinite(res[0]):
+            res = self._with_offsets(v, order, steady, res)
+        self._cache = {key: (order, res)}
+        return res
+
+    def _with_offsets(self, v, order, steady, res):
+        nll, grad, fisher = res
+        B = range(self.Qn, self.Qg)
+        b = v[self.Qn : self.Qg]
+        nll = nll + 0.5 * float(np.sum((b / self.offset_sd) ** 2))
+        if order < 1:
+            return nll, None, None
+        h = OFFSET_STEP
+        for t, q in enumerate(B):
+            e = np.zeros(len(v))
+            e[q] = h
+            up, down = (
+                self._raw(v + e, max(order - 1, 0), steady),
+                self._raw(v - e, max(order - 1, 0), steady),
+            )
+            grad[q] = (up[0] - down[0]) / (2.0 * h) + b[t] / self.offset_sd[t] ** 2
+            if order >= 2:
+                column = (up[1] - down[1]) / (2.0 * h)
+                column[q] = (up[0] - 2.0 * res[0] + down[0]) / h**2
+                fisher[:, q] = column
+                fisher[q, :] = column
+                fisher[q, q] += 1.0 / self.offset_sd[t] ** 2
+        return nll, grad, fisher
+
+    def _raw(self, v: np.ndarray, order: int, steady: bool = True):
+        """evaluate() of the filter alone, without the cache and the offsets' terms."""
         U = self.n_unknowns
         try:
             with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -731,9 +795,7 @@ class _Likelihood:
             if not math.isfinite(nll):
                 raise FloatingPointError
         except (ArithmeticError, np.linalg.LinAlgError, ValueError):
-            res = (math.inf, np.zeros(U) if order >= 1 else None, None)
-            self._cache = {key: (order, res)}
-            return res
+            return (math.inf, np.zeros(U) if order >= 1 else None, None)
         grad = fisher = None
         if order >= 1:
             grad = np.zeros(U)
@@ -744,9 +806,7 @@ class _Likelihood:
                 grad[idx] += r.grad
                 if order >= 2:
                     fisher[np.ix_(idx, idx)] += r.fisher
-        res = (nll, grad, fisher)
-        self._cache = {key: (order, res)}
-        return res
+        return nll, grad, fisher
 
 
 def negative_log_likelihood(
@@ -876,6 +936,7 @@ class KalmanResult:
     start_costs: dict[str, float] = field(default_factory=dict)
     bandwidths: list[int] = field(default_factory=list)
     input_noise_sd: list[dict[str, float]] = field(default_factory=list)
+    offsets: dict[str, dict[str, float]] = field(default_factory=dict)
 
     @property
     def aic(self) -> float:
@@ -915,6 +976,9 @@ class KalmanResult:
             "parameters": params,
             "noise": noise,
             "noise_at_bound": list(self.noise_at_bound),
+            "offsets": {
+                o: {k: f(x) for k, x in entry.items()} for o, entry in self.offsets.items()
+            },
             "free": list(self.free),
             "correlation": [[f(c) for c in row] for row in np.asarray(self.correlation)],
             "information_condition": f(self.cond),
@@ -989,6 +1053,7 @@ def fit(
     start: str = "auto",
     sigma_initial: float | Mapping[str, float] | None = None,
     input_noise: Mapping[str, float | Sequence[float]] | None = None,
+    offsets: Mapping[str, float] | None = None,
 ) -> KalmanResult:
     """Maximum-likelihood fit of the stochastic model of ``structure`` to ``experiments``
     jointly (shared parameters, each experiment its own initial state).
@@ -1006,7 +1071,10 @@ def fit(
     sigma_i^2 dt = SIGMA_START^2 times the mean of those variances. input_noise: {input name:
     the standard deviation of its white measurement noise, one value or one per experiment},
     as :func:`railtherm.pem.fit` takes it: compensated in the estimate and added to the
-    covariance (:func:`_input_noise_terms`).
+    covariance (:func:`_input_noise_terms`). offsets: {compared output: sd (K)} - a constant
+    offset of that output's readings (y = x + b + v, one output at most), estimated with the
+    Gaussian prior b ~ N(0, sd^2): the calibration offset of a sensor group relative to the
+    others, which the filter would otherwise explain by diffusions (``b_<output>``).
     """
     if x0 not in ("estimated", "measured"):
         raise ValueError(f"x0 must be 'estimated' or 'measured', got {x0!r}")
@@ -1021,6 +1089,11 @@ def fit(
         raise ValueError(f"outputs {outputs} must be states of {structure.name}")
     out_idx = tuple(structure.states.index(s) for s in outputs)
     noise = noise_names(structure, outputs)
+    offsets = dict(offsets or {})
+    if len(offsets) > 1 or any(o not in outputs for o in offsets):
+        raise ValueError(f"offsets: at most one of the compared outputs {outputs}, got {offsets}")
+    if any(not (float(sd) > 0) for sd in offsets.values()):
+        raise ValueError(f"offsets: the prior sd must be > 0, got {offsets}")
     fixed_p, fixed_n = _split(fixed, structure, noise)
     initial_p, initial_n = _split(initial, structure, noise)
     bounds_p, bounds_n = _split(bounds, structure, noise)
@@ -1079,11 +1152,13 @@ def fit(
         meas_var_free,
         out_idx,
         x0,
+        {outputs.index(o): float(sd) for o, sd in offsets.items()},
     )
     names = (
         list(free)
         + [f"sigma_{structure.states[i]}" for i in sigma_free]
         + [f"s_{outputs[j]}" for j in meas_var_free]
+        + [f"b_{outputs[j]}" for j in lik.offset_out]
     )
     for d, e in zip(lik.data, experiments, strict=True):
         names += [f"x0_{structure.states[i]}[{e.name}]" for i in d.x0_free]
@@ -1092,10 +1167,12 @@ def fit(
     noise_bounds |= {f"s_{o}": MEAS_VAR_BOUNDS for o in outputs}
     noise_bounds |= {k: (float(b[0]), float(b[1])) for k, b in bounds_n.items()}
     lo, hi = [], []
-    for name in names[: lik.Qg]:
+    for name in names[: lik.Qn]:
         b = bnds[name] if name in bnds else noise_bounds[name]
         lo.append(math.log(b[0]) if b[0] > 0 else -np.inf)
         hi.append(math.log(b[1]) if np.isfinite(b[1]) else np.inf)
+    lo += [OFFSET_BOUNDS[0]] * len(lik.offset_out)
+    hi += [OFFSET_BOUNDS[1]] * len(lik.offset_out)
     for d in lik.data:
         lo += [d.x0_range[0]] * len(d.x0_free)
         hi += [d.x0_range[1]] * len(d.x0_free)
@@ -1111,6 +1188,7 @@ def fit(
             np.log([oe.theta[p] for p in free]),
             np.log(sigma[list(sigma_free)]),
             np.log(meas_var[list(meas_var_free)]),
+            np.zeros(len(lik.offset_out)),
         ]
         + [x[d.x0_free] for x, d in zip(oe.x0, lik.data, strict=True)]
     )
@@ -1201,14 +1279,14 @@ def _optimise(lik: _Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace
             for i in release:
                 del held[i]
                 v[i] = float(
-                    np.clip(v0[i] if lik.P <= i < lik.Qg else v[i], lo[i] + 1e-3, hi[i] - 1e-3)
+                    np.clip(v0[i] if lik.P <= i < lik.Qn else v[i], lo[i] + 1e-3, hi[i] - 1e-3)
                 )
             continue
         # a noise parameter left in the flat region near zero (its effect below the solver's
         # resolution) is taken at its bound when that changes the NLL by nothing
         snapped = False
         for i in idx:
-            if lik.P <= i < lik.Qg and v[i] - lo[i] < SNAP_LOG:
+            if lik.P <= i < lik.Qn and v[i] - lo[i] < SNAP_LOG:
                 w = v.copy()
                 w[i] = lo[i]
                 nll_w, g_w, _ = lik.evaluate(w, 1)
@@ -1272,7 +1350,7 @@ def _pull(lik: _Likelihood, i: int, b: float, v, v0, g, lo, hi) -> float:
     the likelihood wants s > 0): the step is measured in the natural variable instead, s_j
     or sigma_i^2, in units of its start value."""
     inward = 1.0 if b == lo[i] else -1.0
-    if lik.P <= i < lik.Qg and b == lo[i]:
+    if lik.P <= i < lik.Qn and b == lo[i]:
         power = 2.0 if i < lik.P + len(lik.sigma_free) else 1.0
         return -g[i] * math.exp(power * (v0[i] - v[i])) / power
     return -inward * g[i]
@@ -1284,7 +1362,7 @@ def _kept(lik: _Likelihood, sol, v: np.ndarray, lo, hi) -> np.ndarray:
     show), so they carry no curvature to invert."""
     held = {
         i
-        for i in range(lik.P, lik.Qg)
+        for i in range(lik.P, lik.Qn)
         if v[i] - lo[i] < _AT_BOUND_LOG or hi[i] - v[i] < _AT_BOUND_LOG or sol.active_mask[i]
     }
     return np.array([i for i in range(len(v)) if i not in held], dtype=int)
@@ -1399,13 +1477,13 @@ def _input_noise_terms(lik: _Likelihood, v, levels, lo, hi):
     # variances held at their maximum-likelihood values: c grows as 1 / s, so NLL - c has no
     # minimum in them)
     if any(v[i] > lo[i] + _AT_BOUND_LOG for i in diffusions):
-        free = [i for i in range(U) if not a <= i < lik.Qg]
+        free = [i for i in range(U) if not a <= i < lik.Qn]
         res = minimize(
             lambda w: criterion(w, 1, free)[:2],
             v,
             jac=True,
             method="L-BFGS-B",
-            bounds=[(v[i], v[i]) if a <= i < lik.Qg else (lo[i], hi[i]) for i in range(U)],
+            bounds=[(v[i], v[i]) if a <= i < lik.Qn else (lo[i], hi[i]) for i in range(U)],
             options={"maxiter": 300},
         )
         if math.isfinite(res.fun) and res.fun <= start:
@@ -1421,7 +1499,7 @@ def _input_noise_terms(lik: _Likelihood, v, levels, lo, hi):
                     v, start = w, value
     # 2. Gauss-Newton steps with the Fisher information in the parameters and initial states,
     # the noise parameters held, each step halved until the criterion falls
-    moved = [i for i in range(U) if i < P or i >= lik.Qg]
+    moved = [i for i in range(U) if i < P or i >= lik.Qn]
     for _ in range(20):
         value, g, F = criterion(v, 2, moved)
         if g is None:
@@ -1518,7 +1596,7 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
     else:
         cond = 1.0
     noise_ci, noise_sd = {}, {}
-    for i in range(P, Qg):
+    for i in range(P, lik.Qn):
         if i in held:
             continue
         with np.errstate(over="ignore"):
@@ -1548,15 +1626,24 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
     runs = lik.passes(v, 0, series=True)
     x0s = lik.x0s(v)
     simulated, residuals = [], []
+    b = lik.offsets_of(v)
     for d, x0 in zip(lik.data, x0s, strict=True):
         sim = models.simulate(structure, th, d.e.u, d.e.dt, x0)
         res = np.full_like(sim, np.nan)
-        for i in lik.out_idx:
-            res[:, i] = d.e.y[:, i] - sim[:, i]
+        for j, i in enumerate(lik.out_idx):
+            res[:, i] = d.e.y[:, i] - b[j] - sim[:, i]
         simulated.append(sim)
         residuals.append(res)
     sigma, svar = lik.sigma(v), lik.meas_var(v)
     nll = float(sol.fun)
+    offsets = {
+        outputs[j]: {
+            "value": float(v[lik.Qn + t]),
+            "sd": float(sd[lik.Qn + t]),
+            "prior_sd": float(lik.offset_sd[t]),
+        }
+        for t, j in enumerate(lik.offset_out)
+    }
     return KalmanResult(
         structure=structure.name,
         theta={p: float(th[p]) for p in structure.parameters},
@@ -1582,6 +1669,7 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         noise_ci95=noise_ci,
         noise_sd_log=noise_sd,
         noise_at_bound=tuple(names[i] for i in held),
+        offsets=offsets,
         loglik=-nll,
         n_params=U,
         innovations=[r.eps for r in runs],

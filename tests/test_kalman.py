@@ -595,3 +595,42 @@ def test_input_noise_bias_is_removed_and_its_spread_claimed():
     assert plain[:, 0].mean() > 3.0 * plain[:, 0].std(ddof=1) / math.sqrt(len(plain))
     ratio = np.sqrt((claimed**2).mean(axis=0)) / spread
     assert np.all((ratio > 0.6) & (ratio < 1.6)), ratio
+
+
+# ----------------------------------------------------------------------------------------------
+# 6. a constant offset of a compared output
+
+
+def test_an_output_offset_is_estimated_instead_of_diffusions():
+    """Both states measured, no diffusion, the body's readings offset (a calibration offset of
+    the surface sensors): without an offset the filter takes the contradiction for
+    diffusions and K_veh moves by more than 3 of its sds at 0.3 K; with ``offsets`` the
+    offset's interval holds it, the diffusions go to their bound, every parameter's interval
+    holds the truth and the estimates do not depend on the offset (0.15 K or 0.3 K). The
+    prior's sd and the offset are reported; bad requests are refused."""
+    fixed = {"kA": TRAM2["kA"]}
+    fits = {}
+    for offset in (0.15, 0.3):
+        e = sde_experiment(sigma=(0.0, 0.0), meas_var=(4e-4, 4e-4), n=2000, seed=21)
+        y = e.y.copy()
+        y[:, 1] += offset
+        e = pem.Experiment(name="e", dt=e.dt, u=e.u, y=y)
+        fits[offset] = kalman.fit(S2, [e], fixed=fixed, offsets={"T_veh": 0.1})
+    plain = kalman.fit(S2, [e], fixed=fixed)
+    assert not plain.noise_at_bound
+    assert math.log(plain.theta["K_veh"] / TRAM2["K_veh"]) < -3 * plain.sd_log["K_veh"]
+    r = fits[0.3]
+    b = r.offsets["T_veh"]
+    assert b["prior_sd"] == 0.1
+    assert abs(b["value"] - 0.3) < 1.96 * b["sd"] and b["sd"] < 0.01
+    assert set(r.noise_at_bound) == {"sigma_T", "sigma_T_veh"}
+    for p in r.free:
+        lo, hi = r.ci95[p]
+        assert lo < TRAM2[p] < hi, p
+        assert r.theta[p] == pytest.approx(fits[0.15].theta[p], rel=1e-4)
+    assert np.nanmean(r.residuals[0][:, 1]) == pytest.approx(0.0, abs=0.02)
+    assert r.to_dict()["offsets"]["T_veh"]["value"] == pytest.approx(b["value"])
+    with pytest.raises(ValueError, match="offsets"):
+        kalman.fit(S2, [e], fixed=fixed, offsets={"T": 0.1, "T_veh": 0.1})
+    with pytest.raises(ValueError, match="offsets"):
+        kalman.fit(S2, [e], fixed=fixed, offsets={"T_veh": 0.0})
