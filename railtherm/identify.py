@@ -749,7 +749,9 @@ def storage_corrected_k(
             history.append(kA_new)
             steps.append((kA, kA_new - kA))
             converged = abs(kA_new - kA) < STORAGE_TOLERANCE * u_kA
-            kA = kA_new if converged else _next_kA(steps)
+            # the next kA to hold; the balance's own where the alternation ends here
+            last = len(history) == MAX_STORAGE_ITERATIONS
+            kA = kA_new if converged or last else _next_kA(steps)
             # warm start: the next fit from this one's estimate
             fit_options["initial"] = {p: float(result.theta[p]) for p in result.free}
             fit_options["start"] = "initial"

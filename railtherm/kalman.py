@@ -1247,7 +1247,10 @@ def _optimise(lik: _Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace
             return nll, g[idx]
 
         def hess(w, full=full, idx=idx):
-            return lik.evaluate(full(w), 2)[2][np.ix_(idx, idx)]
+            F = lik.evaluate(full(w), 2)[2]
+            if F is None:  # a point the model cannot be evaluated at: a stiff stand-in
+                return np.eye(len(idx)) * scale
+            return F[np.ix_(idx, idx)]
 
         def leave(w, idx=idx):
             if np.any(w < lo[idx]) or np.any(w > hi[idx]):
