@@ -715,7 +715,7 @@ def storage_corrected_k(
     exps = experiments(structure, tables)
     options["input_noise"] = input_noise(structure, vehicle_data, exps)
     fit_options = {**options, "fixed": dict(options["fixed"])}
-    kA, history, steps = kA_eq10, [], []
+    kA, history = kA_eq10, []
     converged = False
     correction = u_storage = u_model = u_kA = None
     theta: dict[str, float] = {}
@@ -747,11 +747,8 @@ def storage_corrected_k(
             other = sum((r * kA_new) ** 2 for r in relative.values())
             u_kA = math.sqrt(other + u_storage**2)
             history.append(kA_new)
-            steps.append((kA, kA_new - kA))
             converged = abs(kA_new - kA) < STORAGE_TOLERANCE * u_kA
-            # the next kA to hold; the balance's own where the alternation ends here
-            last = len(history) == MAX_STORAGE_ITERATIONS
-            kA = kA_new if converged or last else _next_kA(steps)
+            kA = kA_new
             # warm start: the next fit from this one's estimate
             fit_options["initial"] = {p: float(result.theta[p]) for p in result.free}
             fit_options["start"] = "initial"
@@ -784,21 +781,6 @@ def storage_corrected_k(
         history_kA=[float(v) for v in history],
     )
     return record
-
-
-def _next_kA(steps: list[tuple[float, float]]) -> float:
-    """The next kA of the storage correction's iteration from its (kA, balance kA - kA) pairs:
-    the balance's kA (a fixed-point step) while the steps shrink; once a step grows - a fit
-    of T alone can move the capacities so much with kA that the fixed point repels - the
-    root of the line through the last two pairs (a secant step)."""
-    kA, h = steps[-1]
-    if len(steps) >= 2:
-        kA0, h0 = steps[-2]
-        if abs(h) > abs(h0) and kA != kA0 and h != h0:
-            root = kA - h * (kA - kA0) / (h - h0)
-            if math.isfinite(root) and root > 0:
-                return root
-    return kA + h
 
 
 def _storage_model_u(k_window: pd.DataFrame, theta: Mapping[str, float], result) -> float:

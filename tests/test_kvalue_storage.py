@@ -257,30 +257,3 @@ def test_static_kA_leaving_parameters_undetermined_gets_the_joint_fit(monkeypatc
     _, estimate = static_stage(1.0)
     assert estimate["k_source"] == f"joint estimation (PEM): {identify.STATIC_UNDETERMINED}"
     assert "left C_veh not identified" in estimate["notes"][-1]
-
-
-@pytest.mark.parametrize("slope", [0.5, -0.3, 3.2, -2.5])
-def test_storage_iteration_reaches_a_repelling_fixed_point(slope):
-    """The storage correction's kA <-> stage-two iteration, on a balance whose kA moves
-    ``slope`` times as much as the kA held in the fit (a fit of T alone can move the
-    capacities that much): a fixed point the plain iteration leaves (|slope| > 1) is reached
-    by secant steps, an attracting one as by the plain iteration, within the iteration's
-    limit."""
-    fixed_point = 463.4
-
-    def balance(kA: float) -> float:
-        return fixed_point + slope * (kA - fixed_point)
-
-    u_kA = 2.0  # W/K: stop when kA moves less than a tenth of it, as the correction does
-    kA, steps, converged = 470.0, [], False
-    for _ in range(identify.MAX_STORAGE_ITERATIONS):
-        out = balance(kA)
-        steps.append((kA, out - kA))
-        converged = abs(out - kA) < identify.STORAGE_TOLERANCE * u_kA
-        kA = out if converged else identify._next_kA(steps)
-        if converged:
-            break
-    assert converged
-    assert kA == pytest.approx(fixed_point, abs=identify.STORAGE_TOLERANCE * u_kA)
-    if abs(slope) < 1:  # while the steps shrink, the plain fixed-point step
-        assert identify._next_kA(steps[:2]) == pytest.approx(balance(steps[1][0]))
