@@ -341,15 +341,26 @@ def surface_offsets(structure, vehicle_data, outputs) -> dict[str, float]:
     eqs. 7-8 (the body settles at the air's temperature); the filter would explain it by
     diffusions, which move the capacities in proportion to its square. Empty without
     surface sensors."""
-    instruments = vehicle_data["instruments"]
+    states = surface_states(structure, vehicle_data, outputs)
+    if not states:
+        return {}
+    u = math.hypot(mean_offset_u(vehicle_data, "indoor"), mean_offset_u(vehicle_data, "surface"))
+    return {states[0]: u}
+
+
+def surface_states(structure, vehicle_data, outputs) -> list[str]:
+    """The compared states the surface sensors measure: every one but the air's, where the
+    vehicle has surface sensors."""
+    if sensor_counts(vehicle_data["channels"])["surface"] <= 0:
+        return []
+    return [s for s in structure.states if s != "T" and s in outputs]
+
+
+def mean_offset_u(vehicle_data, group: str) -> float:
+    """Standard uncertainty (K) of the mean calibration offset of a sensor group (indoor,
+    outdoor, surface): one sensor's u_K / sqrt(n_eff)."""
     counts = sensor_counts(vehicle_data["channels"])
-    out = {}
-    for state in outputs:
-        if state != "T" and state in structure.states and counts["surface"] > 0:
-            u_in = sensor_u_K(instruments, "indoor") / math.sqrt(counts["indoor"])
-            u_surface = sensor_u_K(instruments, "surface") / math.sqrt(counts["surface"])
-            out[state] = math.sqrt(u_in**2 + u_surface**2)
-    return dict(list(out.items())[:1])
+    return sensor_u_K(vehicle_data["instruments"], group) / math.sqrt(counts[group])
 
 
 def stage_two_options(structure, vehicle_data, kvalue, tables) -> tuple[dict, str, list]:
@@ -991,11 +1002,9 @@ def error_sources(structure, options, vehicle_data, kvalue, storage=None) -> lis
     eq. 10's does (dT the window's mean T - T_o); an offset of the surface sensors cancels
     in the change of T_veh. The correction's own random error (``k_storage``) then replaces
     both the k stage's storage bound and its scatter, which the regression's residuals hold."""
-    instruments = vehicle_data["instruments"]
-    counts = sensor_counts(vehicle_data["channels"])
-    u_power = float(instruments["power_u_rel"])
-    u_in = sensor_u_K(instruments, "indoor") / math.sqrt(counts["indoor"])
-    u_out = sensor_u_K(instruments, "outdoor") / math.sqrt(counts["outdoor"])
+    u_power = float(vehicle_data["instruments"]["power_u_rel"])
+    u_in = mean_offset_u(vehicle_data, "indoor")
+    u_out = mean_offset_u(vehicle_data, "outdoor")
     static = "kA" in options["fixed"] and kvalue is not None
     kA = float(options["fixed"]["kA"]) if static else math.nan
     dT = float(kvalue["delta_T"]) if static else math.nan
@@ -1026,17 +1035,16 @@ def error_sources(structure, options, vehicle_data, kvalue, storage=None) -> lis
             "calibration offset of the mean outdoor temperature (u_K / sqrt(n_eff))",
         ),
     ]
-    for i, state in enumerate(structure.states):
-        if state != "T" and state in options["outputs"] and counts["surface"] > 0:
-            sources.append(
-                ErrorSource(
-                    f"offset_{state}",
-                    sensor_u_K(instruments, "surface") / math.sqrt(counts["surface"]),
-                    i,
-                    k_stage(kA),
-                    "calibration offset of the mean surface temperature (u_K / sqrt(n))",
-                )
+    for state in surface_states(structure, vehicle_data, options["outputs"]):
+        sources.append(
+            ErrorSource(
+                f"offset_{state}",
+                mean_offset_u(vehicle_data, "surface"),
+                structure.states.index(state),
+                k_stage(kA),
+                "calibration offset of the mean surface temperature (u_K / sqrt(n))",
             )
+        )
     if static:
         # the budget is in the unit of k, or of kA where no surface is given
         budget = kvalue["budget"]

@@ -1203,11 +1203,13 @@ def fit(
     meat = None
     if any(levels):
         v = _input_noise_terms(lik, v, levels, lo, hi)
-        active = np.zeros(len(v), int)
-        active[v <= lo + 1e-9] = -1
-        active[v >= hi - 1e-9] = 1
         sol = SimpleNamespace(
-            **{**vars(sol), "x": v, "fun": float(lik.evaluate(v, 0)[0]), "active_mask": active}
+            **{
+                **vars(sol),
+                "x": v,
+                "fun": float(lik.evaluate(v, 0)[0]),
+                "active_mask": _active_mask(v, lo, hi),
+            }
         )
         # the Fisher information: the compensated point is no stationary point of the NLL, so
         # its observed information holds the residuals' second-order terms
@@ -1331,19 +1333,24 @@ def _optimise(lik: _Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace
             v = res.x
         success = bool(res.success)
         message = f"trust-exact did not converge, then L-BFGS-B: {res.message}"
-    active = np.zeros(U, int)
-    active[v <= lo + 1e-9] = -1
-    active[v >= hi - 1e-9] = 1
     return SimpleNamespace(
         x=v,
         fun=float(lik.evaluate(v, 0)[0]),
         success=success,
         status=1 if success else 0,
         message=message,
-        active_mask=active,
+        active_mask=_active_mask(v, lo, hi),
         nfev=counts["nfev"],
         njev=counts["nfev"],
     )
+
+
+def _active_mask(v: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """-1 / +1 for the unknowns at their lower / upper bound, 0 elsewhere."""
+    active = np.zeros(len(v), int)
+    active[v <= lo + 1e-9] = -1
+    active[v >= hi - 1e-9] = 1
+    return active
 
 
 def _pull(lik: _Likelihood, i: int, b: float, v, v0, g, lo, hi) -> float:
@@ -1413,7 +1420,7 @@ def _record_noise_terms(lik: _Likelihood, v: np.ndarray, i: int, level: Mapping[
     for name, sd in level.items():
         beta = np.linalg.solve(V, sysm.Bd[:, lik.s.inputs.index(name)])
         comp += 0.5 * sd**2 * float(np.real(np.sum(G * np.outer(beta, beta) * S)))
-    return SimpleNamespace(F=st.F, C=st.C, Rinv=st.Rinv, Bd=sysm.Bd, N=N, comp=comp)
+    return SimpleNamespace(F=st.F, C=st.C, Rinv=st.Rinv, Bd=sysm.Bd, comp=comp)
 
 
 def _compensation(lik: _Likelihood, v: np.ndarray, levels) -> float:
@@ -1527,7 +1534,8 @@ def _input_noise_meat(lik: _Likelihood, v: np.ndarray, keep: np.ndarray, levels)
     """The covariance's share of the input noise (:func:`_input_noise_terms`): H^-1 M H^-1
     with M = sum_j sd_j^2 sum_t w_t w_t^T, w_t = -sum_l D_{t+1+l}^T R^-1 g_l the score's
     response to the noise at row t (D_k = d eps_k / d v by forward differences), in the
-    order of v."""
+    order of v. With g_l = C F^l b, w_t = -b^T lambda_{t+1} by the backward recursion
+    lambda_k = F^T lambda_{k+1} + C^T R^-1 D_k (one pass per record for every input)."""
     U = len(v)
     h = 1e-6
     base = lik.passes(v, 0, series=True)
@@ -1542,20 +1550,13 @@ def _input_noise_meat(lik: _Likelihood, v: np.ndarray, keep: np.ndarray, levels)
         terms = _record_noise_terms(lik, v, i, level) if level else None
         if terms is None:
             continue
-        A = D[i] @ terms.Rinv  # (N, U, n_out): D_k^T R^-1
-        N = len(A)
+        forcing = (D[i] @ terms.Rinv) @ terms.C  # (N, U, n): (C^T R^-1 D_k)^T
+        N = len(forcing)
+        lam = np.zeros((N + 1, U, terms.F.shape[0]))  # lambda_k^T, lambda_N = 0
+        for k in range(N - 1, 0, -1):
+            lam[k] = lam[k + 1] @ terms.F + forcing[k]
         for name, sd in level.items():
-            x = terms.Bd[:, lik.s.inputs.index(name)].copy()
-            wt = np.zeros((N - 1, U))
-            top = 0.0
-            for lag in range(N - 1):
-                g = terms.C @ x
-                size = float(np.abs(g).max())
-                top = max(top, size)
-                if size < 1e-12 * top:
-                    break
-                wt[: N - 1 - lag] -= A[1 + lag : N] @ g
-                x = terms.F @ x
+            wt = -lam[1:N] @ terms.Bd[:, lik.s.inputs.index(name)]  # (N - 1, U)
             M += sd**2 * (wt.T @ wt)
     return M
 
