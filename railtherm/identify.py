@@ -726,10 +726,37 @@ def storage_corrected_k(
     exps = experiments(structure, tables)
     options["input_noise"] = input_noise(structure, vehicle_data, exps)
     fit_options = {**options, "fixed": dict(options["fixed"])}
-    kA, history = kA_eq10, []
-    converged = False
-    correction = u_storage = u_model = u_kA = None
-    theta: dict[str, float] = {}
+
+    def balance(kA: float, initial: Mapping[str, float] | None) -> _StorageStep:
+        """Stage two with kA fixed (warm-started from ``initial``), then the k window's
+        balance under its C, K_veh, C_veh."""
+        fit_options["fixed"]["kA"] = kA
+        if initial:
+            fit_options["initial"] = dict(initial)
+            fit_options["start"] = "initial"
+        result = pem.fit(structure, exps, **fit_options)
+        theta = {p: float(result.theta[p]) for p in ("C", "K_veh", "C_veh")}
+        correction = storage_corrected_kA(k_window, **theta)
+        u_model = _storage_model_u(k_window, theta, result)
+        u_storage = math.hypot(correction.u_kA, u_model)
+        if not math.isfinite(correction.kA):
+            raise ValueError(f"the k window's balance gives kA = {correction.kA:.4g} W/K")
+        if not math.isfinite(u_storage):
+            raise ValueError("the second-order fit does not determine C, K_veh and C_veh")
+        other = sum((r * correction.kA) ** 2 for r in relative.values())
+        return _StorageStep(
+            kA=kA,
+            kA_balance=float(correction.kA),
+            u_kA=math.sqrt(other + u_storage**2),
+            u_storage=u_storage,
+            u_model=u_model,
+            correction=correction,
+            theta=theta,
+            warm={p: float(result.theta[p]) for p in result.free},
+        )
+
+    history: list[float] = []
+    method = "alternation"
     try:
         # the capacities of the first balance come from the joint fit (kA free, started at
         # eq. 10's): with kA held at eq. 10's biased value, a fit of T alone can settle in a
@@ -737,37 +764,32 @@ def storage_corrected_k(
         # the joint fit's optimum does not depend on that bias
         joint = pem.fit(structure, exps, **kA_estimated(options, kA_eq10))
         joint_theta = {p: float(joint.theta[p]) for p in ("C", "K_veh", "C_veh")}
+        kA, initial = kA_eq10, None
         if all(math.isfinite(v) and v > 0 for v in joint_theta.values()):
             start = storage_corrected_kA(k_window, **joint_theta).kA
             if math.isfinite(start) and start > 0:
-                kA = start
-                fit_options["initial"] = joint_theta
-                fit_options["start"] = "initial"
-        for _ in range(MAX_STORAGE_ITERATIONS):
-            fit_options["fixed"]["kA"] = kA
-            result = pem.fit(structure, exps, **fit_options)
-            theta = {p: float(result.theta[p]) for p in ("C", "K_veh", "C_veh")}
-            correction = storage_corrected_kA(k_window, **theta)
-            u_model = _storage_model_u(k_window, theta, result)
-            u_storage = math.hypot(correction.u_kA, u_model)
-            kA_new = correction.kA
-            if not (math.isfinite(kA_new) and kA_new > 0):
-                raise ValueError(f"the k window's balance gives kA = {kA_new:.4g} W/K")
-            if not math.isfinite(u_storage):
-                raise ValueError("the second-order fit does not determine C, K_veh and C_veh")
-            other = sum((r * kA_new) ** 2 for r in relative.values())
-            u_kA = math.sqrt(other + u_storage**2)
-            history.append(kA_new)
-            converged = abs(kA_new - kA) < STORAGE_TOLERANCE * u_kA
-            kA = kA_new
-            # warm start: the next fit from this one's estimate
-            fit_options["initial"] = {p: float(result.theta[p]) for p in result.free}
-            fit_options["start"] = "initial"
-            if converged:
-                break
+                kA, initial = start, joint_theta
+        try:
+            step = _storage_alternation(balance, kA, initial, history)
+        except ValueError:
+            step = None
+        if step is None and initial is not None:
+            # the alternation runs away where stage two's capacities follow kA steeply (the
+            # balance's kA moves more than the kA it was given): solve kA = balance(kA) by
+            # the secant method from the joint fit instead, each fit warm-started there
+            method = "secant"
+            step = _storage_secant(balance, float(joint.theta["kA"]), kA, joint_theta, history)
+        if step is None:
+            raise ValueError(
+                "the k window's balance and stage two do not settle on one kA "
+                f"(last kA {history[-1]:.4g} W/K)"
+            )
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:
         record["reason"] = f"the correction failed ({err}); eq. 10's kA is fixed"
         return record
+    kA, u_kA, u_storage = step.kA_balance, step.u_kA, step.u_storage
+    correction, u_model, theta = step.correction, step.u_model, step.theta
+    converged = True
     corrected = {
         "power": relative["power"] * kA / per,
         "temperature": relative["temperature"] * kA / per,
@@ -789,9 +811,66 @@ def storage_corrected_k(
         theta=theta,
         iterations=len(history),
         converged=bool(converged),
+        solver=method,
         history_kA=[float(v) for v in history],
     )
     return record
+
+
+@dataclass(frozen=True)
+class _StorageStep:
+    """One stage-two fit at a fixed kA and the k window's balance under it."""
+
+    kA: float
+    kA_balance: float
+    u_kA: float
+    u_storage: float
+    u_model: float
+    correction: Any
+    theta: dict[str, float]
+    warm: dict[str, float]
+
+    @property
+    def settled(self) -> bool:
+        return abs(self.kA_balance - self.kA) < STORAGE_TOLERANCE * self.u_kA
+
+
+def _storage_alternation(balance, kA: float, initial, history: list[float]):
+    """kA <- balance(kA), each fit warm-started from the previous one, until kA moves by less
+    than ``STORAGE_TOLERANCE`` u(kA); None where it does not settle within
+    ``MAX_STORAGE_ITERATIONS`` fits or leaves positive kA."""
+    for _ in range(MAX_STORAGE_ITERATIONS):
+        step = balance(kA, initial)
+        history.append(step.kA_balance)
+        if step.kA_balance <= 0:
+            return None
+        if step.settled:
+            return step
+        kA, initial = step.kA_balance, step.warm
+    return None
+
+
+def _storage_secant(balance, kA_0: float, kA_1: float, initial, history: list[float]):
+    """The root of h(kA) = balance(kA) - kA by the secant method from kA_0 and kA_1, every fit
+    warm-started from ``initial``; None where it does not settle within
+    ``MAX_STORAGE_ITERATIONS`` fits or leaves positive kA."""
+    previous = balance(kA_0, initial)
+    history.append(previous.kA_balance)
+    if previous.settled:
+        return previous
+    kA = kA_1
+    for _ in range(MAX_STORAGE_ITERATIONS - 1):
+        if not (math.isfinite(kA) and kA > 0):
+            return None
+        step = balance(kA, initial)
+        history.append(step.kA_balance)
+        if step.settled:
+            return step
+        h_0, h_1 = previous.kA_balance - previous.kA, step.kA_balance - step.kA
+        if h_1 == h_0:
+            return None
+        kA, previous = step.kA - h_1 * (step.kA - previous.kA) / (h_1 - h_0), step
+    return None
 
 
 def _storage_model_u(k_window: pd.DataFrame, theta: Mapping[str, float], result) -> float:

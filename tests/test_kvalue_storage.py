@@ -1,6 +1,8 @@
 """The storage-corrected k: eq. 10 books the heat a lagging car body takes up as loss; the k
 window's energy balance under the identified second-order model (eqs. 7-8) does not."""
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -257,3 +259,33 @@ def test_static_kA_leaving_parameters_undetermined_gets_the_joint_fit(monkeypatc
     _, estimate = static_stage(1.0)
     assert estimate["k_source"] == f"joint estimation (PEM): {identify.STATIC_UNDETERMINED}"
     assert "left C_veh not identified" in estimate["notes"][-1]
+
+
+def test_a_runaway_alternation_is_solved_by_the_secant_method(monkeypatch):
+    """Where stage two's capacities follow kA steeply, the balance moves kA further than it
+    was moved (the alternation kA <- balance(kA) runs away); the correction then solves
+    kA = balance(kA) from the joint fit instead, and ends where the two agree. Here the
+    balance's answer is amplified about the truth to make the map steep (on records without
+    surface sensors, where the capacities follow kA most)."""
+    real = identify.storage_corrected_kA
+    gain = 40.0
+
+    def steep(window, C, K_veh, C_veh):
+        result = real(window, C, K_veh, C_veh)
+        return dataclasses.replace(result, kA=TRUTH["kA"] + gain * (result.kA - TRUTH["kA"]))
+
+    monkeypatch.setattr(identify, "storage_corrected_kA", steep)
+    data, window = vehicle(), k_window(0.3)
+    k = k_stage(window, data)
+    storage = identify.storage_corrected_k(WITHOUT_SURFACE, window, data, k)
+    data["model"] = {**data["model"], "two_stage_check": False}
+    estimate, _ = identify.identify(WITHOUT_SURFACE, data, k, 2, storage)
+    assert storage["applied"] and storage["solver"] == "secant"
+    # the plain alternation ran away first (a settled one takes at most 4 fits here)
+    assert storage["iterations"] > 4
+    # the end is a fixed point of the steep map: stage two at the corrected kA gives
+    # capacities whose balance returns that kA
+    assert estimate["kA_fixed"] == pytest.approx(storage["kA_corrected"])
+    theta = {p: estimate["fit"]["parameters"][p]["value"] for p in ("C", "K_veh", "C_veh")}
+    again = steep(k_window(0.3), **theta).kA
+    assert abs(again - storage["kA_corrected"]) < storage["u_kA_corrected"]
