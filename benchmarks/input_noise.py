@@ -25,23 +25,20 @@ import numpy as np
 import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from calibration import collect  # noqa: E402
+from records import S2, noisy_power_record  # noqa: E402
+from records import TRAM2 as TRUTH  # noqa: E402
 
-from railtherm import kalman, models, pem  # noqa: E402
+from railtherm import kalman, pem  # noqa: E402
 
-S2 = models.STRUCTURES["second_order"]
-TRUTH = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
 NAMES = ("C", "K_veh", "C_veh")
 N = 1800
 
 
 def one(job: tuple) -> list[dict]:
     seed, sd = job
-    u0 = np.column_stack([np.full(N, -10.0), np.where(np.arange(N) < 120, 20_000.0, 29_000.0)])
-    x = models.simulate(S2, TRUTH, u0, 60.0, models.steady_state(*S2.matrices(TRUTH), u0[0]))
-    rng = np.random.default_rng(seed)
-    y = np.column_stack([x[:, 0] + rng.normal(0.0, 0.02, N), np.full(N, np.nan)])
-    u = u0 + np.column_stack([np.zeros(N), rng.normal(0.0, sd, N)])
+    _, u, y = noisy_power_record(seed, sd, N)
     e = pem.Experiment(name="step", dt=60.0, u=u, y=y)
     options = {
         "fixed": {"kA": TRUTH["kA"]},

@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from records import noisy_power_record
 from scipy.integrate import quad_vec
 from scipy.linalg import expm
 
@@ -526,17 +527,6 @@ def test_fixed_noise_parameters_and_sigma_initial():
 
 # ----------------------------------------------------------------------------------------------
 # 5. declared noise on the measured inputs (errors in variables)
-
-
-def noisy_power_record(seed: int, sd: float = 1000.0, n: int = 1800):
-    """A 30 h step record of the second-order model without process noise (T measured with
-    0.02 K white noise, T_veh not), whose measured Q_H carries white noise of ``sd`` W."""
-    u0 = np.column_stack([np.full(n, -10.0), np.where(np.arange(n) < 120, 20_000.0, 29_000.0)])
-    x = models.simulate(S2, TRAM2, u0, 60.0, models.steady_state(*S2.matrices(TRAM2), u0[0]))
-    rng = np.random.default_rng(seed)
-    y = np.column_stack([x[:, 0] + rng.normal(0.0, 0.02, n), np.full(n, np.nan)])
-    u = u0 + np.column_stack([np.zeros(n), rng.normal(0.0, sd, n)])
-    return u0, u, y
 
 
 @pytest.mark.parametrize("sigma_T", [0.0, 4e-4])

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 import yaml
+from records import noisy_power_record
 
 from railtherm import models, pem
 
@@ -359,16 +360,11 @@ def test_input_noise_bias_is_removed():
     to T (a larger C); over 40 realisations of the noise on one step record (T measured
     with white noise, T_veh not) the plain fit's mean log error of C is several standard
     errors above 0, the compensated fit's within two of it, for every parameter."""
-    n = 1800
-    u0 = np.column_stack([np.full(n, -10.0), np.where(np.arange(n) < 120, 20_000.0, 29_000.0)])
-    x = models.simulate(S2, TRAM2, u0, 60.0, models.steady_state(*S2.matrices(TRAM2), u0[0]))
     names = ("C", "K_veh", "C_veh")
     options = {"fixed": {"kA": 979.2}, "x0": "estimated", "start": "initial", "initial": TRAM2}
     compensated, plain = [], []
     for seed in range(40):
-        rng = np.random.default_rng(seed)
-        y = np.column_stack([x[:, 0] + rng.normal(0.0, 0.02, n), np.full(n, np.nan)])
-        u = u0 + np.column_stack([np.zeros(n), rng.normal(0.0, 1000.0, n)])
+        _, u, y = noisy_power_record(seed, 1000.0)
         e = pem.Experiment(name="step", dt=60.0, u=u, y=y)
         for out, extra in ((compensated, {"input_noise": {"Q_H": 1000.0}}), (plain, {})):
             r = pem.fit(S2, [e], **options, **extra)
