@@ -838,6 +838,11 @@ def test_the_paper_audit_finds_what_a_reader_can_verify_by_hand(paper_findings):
     assert set(f.loc[(f.check == "coupling") & (f.severity == "warning"), "subject"]) == {"Main1"}
     (metro3,) = f.loc[(f.check == "coupling") & (f.subject == "Metro3"), "message"]
     assert "1.16 min" in metro3
+    # implied masses outside the named data sheets' spans: regional 40-206 t (Regio-Shuttle
+    # RS1, FLIRT), main-line 42-86 t (Bpmz coach, Taurus)
+    implied = f[(f.check == "implied_mass") & (f.severity == "warning")]
+    assert set(implied.subject) == {"Regio1", "Regio3", "Main1"}
+    assert implied.message.str.contains("(datasheet source)", regex=False).all()
     # no warning rests on an assumption
     assert not f.loc[f.severity != "info", "message"].str.contains("assum").any()
     # every delta of Table 3 is consistent with Table 2 within the printed rounding
