@@ -365,8 +365,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="one vehicle through clean, static k, fit and check, without the workflow",
         description=(
             "Clean the windows of VEHICLE.yaml, compute the static k (eq. 10), fit each model "
-            "by simulation-error PEM and judge it, as the workflow's rules do; print the "
-            "parameters with their 95 %% intervals and the verdict. With --out, write the "
+            "(by simulation-error PEM, or a _kalman model by the Kalman filter's likelihood) "
+            "and judge it, as the workflow's rules do; print the parameters with their 95 % "
+            "intervals and the verdict. With --out, write the "
             "rules' files under DIR/vehicles/<id>/."
         ),
     )
@@ -400,7 +401,7 @@ def build_parser() -> argparse.ArgumentParser:
             "Build the second-order model of a vehicle nobody measured from its class, mass "
             "and outer surface: C_veh = c_veh m (eq. 24), C = C_veh / delta (eq. 25), "
             "K_veh = kappa_veh A, kA = k A, each generalised parameter from the class's usable "
-            "second-order fits (acceptable, every parameter identified), with 95 %% "
+            "second-order fits (acceptable, every parameter identified), with 95 % "
             "prediction intervals for one new vehicle of the class. Prints a summary and "
             "writes the YAML to --out (without --out, prints the YAML)."
         ),
@@ -456,7 +457,7 @@ def build_parser() -> argparse.ArgumentParser:
             "Run each scenario (outdoor temperature, heating or its controller, gains, initial "
             "state; config/scenarios/) through PARAMS: a checked fit (fit_<model>.yaml) or a "
             "class reference model (railtherm reference). Prints the heat-up and cool-down "
-            "times, energy, peak power and final temperature with 95 %% bands from parameter "
+            "times, energy, peak power and final temperature with 95 % bands from parameter "
             "draws. With --out, writes DIR/<scenario name>.csv (the series) and "
             "DIR/<scenario name>.yaml (the outcomes), nothing if any scenario fails."
         ),

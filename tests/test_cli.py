@@ -129,3 +129,21 @@ def test_console_script_prints_no_traceback(tmp_path):
 def test_no_command_prints_usage(capsys):
     assert main([]) == 2
     assert "validate" in capsys.readouterr().err
+
+
+def test_every_help_text_reads_as_written():
+    """argparse %-formats help strings but not descriptions: a "%%" written into a
+    description is printed as it stands. No command's help shows one, and the fit command
+    names both estimators."""
+    import argparse
+
+    from railtherm.cli import build_parser
+
+    parser = build_parser()
+    (commands,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    texts = {"railtherm": parser.format_help()}
+    texts.update({name: sub.format_help() for name, sub in commands.choices.items()})
+    for name, text in texts.items():
+        assert "%%" not in text, name
+    fit = " ".join(texts["fit"].split())
+    assert "simulation-error PEM" in fit and "Kalman filter" in fit
