@@ -482,11 +482,31 @@ def one_vehicle(job: tuple) -> list[dict]:
         rows = []
         for setting in settings:
             path = write_yaml_file(truth, csv, setting, x0, generator)
-            rows += [
-                {**run, **r, **{f"true_{k}": v for k, v in errors.items()}}
-                for r in fit_rows(truth, path, setting)
-            ]
+            try:
+                fitted = fit_rows(truth, path, setting)
+            except Exception as err:  # a fit that stops is a miss, reported, not the run's end
+                fitted = failed_rows(truth, setting, f"{type(err).__name__}: {err}")
+            rows += [{**run, **r, **{f"true_{k}": v for k, v in errors.items()}} for r in fitted]
     return rows
+
+
+def failed_rows(truth: Truth, setting: str, error: str) -> list[dict]:
+    """The rows of a fit that raised: every parameter not identified and not covered."""
+    print(f"{truth.vehicle} {setting}: {error}", file=sys.stderr, flush=True)
+    common = {"setting": setting, "vehicle": truth.vehicle, "k_source": "failed", "lag": truth.lag}
+    return [
+        {
+            **common,
+            "parameter": p,
+            "estimate": math.nan,
+            "truth": truth.k if p == "k" else getattr(truth, p),
+            "identified": False,
+            "covered": False,
+            "z": math.nan,
+            "error": error,
+        }
+        for p in PARAMETERS
+    ]
 
 
 def wilson(k: int, n: int) -> tuple[float, float]:
@@ -617,6 +637,11 @@ def report(df: pd.DataFrame) -> None:
     fmt = {c: "{:.3f}".format for c in ("coverage", "wilson_lo", "wilson_hi")}
     fmt |= {"mean_z": "{:+.2f}".format, "rms_z": "{:.2f}".format}
     print(summary(df).to_string(index=False, formatters=fmt))
+    if "error" in df.columns:
+        failed = df.loc[df["error"].notna(), ["setting", "vehicle", "error"]].drop_duplicates()
+        print()
+        print(f"fits that stopped with an error ({len(failed)}; counted as not identified):")
+        print(failed.to_string(index=False))
     print()
     print("CPU seconds per fit (k test + identification):")
     print(timings(df).to_string(float_format="{:.1f}".format))
