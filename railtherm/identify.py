@@ -736,10 +736,17 @@ def storage_corrected_k(
             fit_options["start"] = "initial"
         result = pem.fit(structure, exps, **fit_options)
         theta = {p: float(result.theta[p]) for p in ("C", "K_veh", "C_veh")}
+        bounded = sorted(
+            {q for f in result.flags if f.code == "at_bound" for q in f.parameters} & set(theta)
+        )
+        if bounded:  # a balance under a capacity the search bound holds means nothing
+            raise ValueError(
+                f"stage two at kA = {kA:.4g} W/K leaves {', '.join(bounded)} at a search bound"
+            )
         correction = storage_corrected_kA(k_window, **theta)
         u_model = _storage_model_u(k_window, theta, result)
         u_storage = math.hypot(correction.u_kA, u_model)
-        if not math.isfinite(correction.kA):
+        if not (math.isfinite(correction.kA) and correction.kA > 0):
             raise ValueError(f"the k window's balance gives kA = {correction.kA:.4g} W/K")
         if not math.isfinite(u_storage):
             raise ValueError("the second-order fit does not determine C, K_veh and C_veh")
@@ -838,12 +845,11 @@ class _StorageStep:
 def _storage_alternation(balance, kA: float, initial, history: list[float]):
     """kA <- balance(kA), each fit warm-started from the previous one, until kA moves by less
     than ``STORAGE_TOLERANCE`` u(kA); None where it does not settle within
-    ``MAX_STORAGE_ITERATIONS`` fits or leaves positive kA."""
+    ``MAX_STORAGE_ITERATIONS`` fits. ``balance`` raises ValueError where a step cannot be
+    used (a capacity at a search bound, a balance that is not a positive kA)."""
     for _ in range(MAX_STORAGE_ITERATIONS):
         step = balance(kA, initial)
         history.append(step.kA_balance)
-        if step.kA_balance <= 0:
-            return None
         if step.settled:
             return step
         kA, initial = step.kA_balance, step.warm
@@ -853,7 +859,8 @@ def _storage_alternation(balance, kA: float, initial, history: list[float]):
 def _storage_secant(balance, kA_0: float, kA_1: float, initial, history: list[float]):
     """The root of h(kA) = balance(kA) - kA by the secant method from kA_0 and kA_1, every fit
     warm-started from ``initial``; None where it does not settle within
-    ``MAX_STORAGE_ITERATIONS`` fits or leaves positive kA."""
+    ``MAX_STORAGE_ITERATIONS`` fits or leaves positive kA (ValueError from ``balance``
+    where a step cannot be used)."""
     previous = balance(kA_0, initial)
     history.append(previous.kA_balance)
     if previous.settled:

@@ -9,7 +9,7 @@ import pytest
 from test_identify import TRUTH, A
 from test_identify import vehicle as identify_vehicle
 
-from railtherm import identify, kvalue, models
+from railtherm import identify, kvalue, models, pem
 from railtherm.config import section_defaults
 
 STEP = 120.0
@@ -289,3 +289,25 @@ def test_a_runaway_alternation_is_solved_by_the_secant_method(monkeypatch):
     theta = {p: estimate["fit"]["parameters"][p]["value"] for p in ("C", "K_veh", "C_veh")}
     again = steep(k_window(0.3), **theta).kA
     assert abs(again - storage["kA_corrected"]) < storage["u_kA_corrected"]
+
+
+def test_a_balance_under_a_capacity_at_its_search_bound_is_not_used(monkeypatch):
+    """Where a stage-two fit leaves a capacity at a search bound, the balance under it means
+    nothing (a negative kA with a huge u once ran as "settled"): the correction is not made,
+    eq. 10's kA is fixed, and the reason names the parameter."""
+    real = identify.pem.fit
+
+    def bounded(structure, exps, **options):
+        result = real(structure, exps, **options)
+        if "kA" in options.get("fixed", {}):  # stage two
+            flag = pem.Flag("at_bound", ("C_veh",), "C_veh at its upper search bound")
+            result.flags.append(flag)
+        return result
+
+    monkeypatch.setattr(identify.pem, "fit", bounded)
+    data, window = vehicle(), k_window(0.3)
+    k = k_stage(window, data)
+    storage = identify.storage_corrected_k(IDENTIFICATION, window, data, k)
+    assert storage["applied"] is False
+    assert "leaves C_veh at a search bound" in storage["reason"]
+    assert "eq. 10's kA is fixed" in storage["reason"]
