@@ -189,6 +189,7 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
             "vehicle": fit["vehicle"],
             "order": fit["order"],
             "verdict": fit["verdict"],
+            "judged_by": fit.get("judged_by", ""),
             "R2": fit["R2"],
             "nrmse_fit": fit["nrmse_fit"],
             "k_source": fit["k_source"],
@@ -239,13 +240,24 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
     return table
 
 
+# the level at which an output-error fit's residuals count as coloured (check.whiteness_alpha's
+# default): its AIC / BIC are then indicative only
+WHITENESS_ALPHA = packaged_schema("vehicle")["properties"]["check"]["properties"][
+    "whiteness_alpha"
+]["default"]
+
+
 def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
     """Every fitted model of every vehicle side by side (rule compare_models): the overall
     heat-loss coefficient kA with its 95 % interval and how it was obtained, and the measures of
     the simulated T (the one output every structure shares): R^2 (eq. 21), NRMSE fit, RMSE,
     AIC and BIC (with the model's unknowns, initial states included), the Ljung-Box whiteness
-    p-value and the residuals' effective sample count; ``best_aic``/``best_bic`` mark each
-    vehicle's preferred model."""
+    p-value and the residuals' effective sample count; the verdict with the criteria that
+    judged it (``judged_by``) and whether the solver converged. ``best_aic``/``best_bic`` mark
+    each vehicle's preferred model per estimator among the fits that are acceptable and
+    converged (none where no fit is); ``ic_indicative`` marks an output-error fit whose
+    residuals are coloured (Ljung-Box p < :data:`WHITENESS_ALPHA`): its AIC and BIC count
+    dependent residuals as independent samples."""
     rows = []
     for fit in fits:
         T = dict(fit["measures"]["T"]["overall"])
@@ -282,15 +294,32 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
                 "ljung_box_p": T["ljung_box_p"],
                 "effective_samples": T["effective_samples"],
                 "verdict": fit["verdict"],
+                "judged_by": fit.get("judged_by", ""),
+                "converged": converged(fit),
                 "source": source,
             }
         )
     df = pd.DataFrame(rows)
+    # only a fit that is acceptable and converged is a candidate for the lowest AIC / BIC
+    eligible = (df["verdict"] == ACCEPTABLE) & df["converged"]
     for criterion in ("aic", "bic"):
         # the criteria of the two estimators rest on different likelihoods: compared apart
-        best = df.groupby(["vehicle", "estimator"], sort=False)[criterion].transform("min")
-        df.insert(df.columns.get_loc("ljung_box_p"), f"best_{criterion}", df[criterion] == best)
+        score = df[criterion].where(eligible)
+        best = score.groupby([df["vehicle"], df["estimator"]], sort=False).transform("min")
+        df.insert(df.columns.get_loc("ljung_box_p"), f"best_{criterion}", score == best)
+    # an output-error AIC / BIC counts the residuals as independent samples: with coloured
+    # residuals it is indicative only (the Kalman fit's rest on its innovations' likelihood)
+    df.insert(
+        df.columns.get_loc("ljung_box_p"),
+        "ic_indicative",
+        (df["estimator"] != "kalman") & (df["ljung_box_p"] < WHITENESS_ALPHA),
+    )
     return df
+
+
+def converged(fit: Mapping[str, Any]) -> bool:
+    """Whether the fit's solver ended at a clean optimum (no ``not_converged`` flag)."""
+    return not any(f["code"] == "not_converged" for f in fit.get("flags", ()))
 
 
 # ----------------------------------------------------------------------------------------------

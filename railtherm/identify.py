@@ -30,7 +30,19 @@ MODEL_STRUCTURE = {
     "order2": "second_order",
     "interior_envelope": "interior_envelope",
 }
-KA_BOUNDS = (1.0, 1.0e5)  # W/K, for joint estimation when the config gives none
+KA_BOUNDS = (1.0, 1.0e5)  # W/K, for joint estimation when the config gives none nor a scale
+# the default search range of a conductance estimated jointly: this factor either side of the
+# record's own scale (the static kA, 2 W/(m^2 K) on the surface, or the windows' energy
+# balance), so a 4 W/K test box and a 2000 W/K coach both start well inside their bounds
+CONDUCTANCE_SPAN = 1.0e3
+
+
+def conductance_bounds(kA_start: float | None) -> tuple[float, float]:
+    """The default bounds (W/K) of kA, K_i and K_o estimated jointly: ``CONDUCTANCE_SPAN``
+    either side of ``kA_start``, or :data:`KA_BOUNDS` where the record gives no scale."""
+    if kA_start is None or not (math.isfinite(kA_start) and kA_start > 0):
+        return KA_BOUNDS
+    return (kA_start / CONDUCTANCE_SPAN, kA_start * CONDUCTANCE_SPAN)
 
 
 # the estimators of model.estimator: the paper's simulation-error PEM (K = 0, railtherm.pem)
@@ -232,6 +244,11 @@ def energy_balance_kA(tables: Mapping[str, pd.DataFrame] | None) -> float | None
     return kA if math.isfinite(kA) and kA > 0 else None
 
 
+# how a jointly estimated kA is labelled (k_source), per estimator
+JOINT_PEM = "joint estimation (PEM)"
+JOINT_KALMAN = "joint estimation (Kalman ML)"
+
+
 def _settings(
     structure,
     vehicle_data,
@@ -255,7 +272,8 @@ def _settings(
         for p in ("K_i", "K_o"):
             if kA_start is not None:
                 initial.setdefault(p, 2.0 * kA_start)
-        k_source = "joint estimation (PEM), kA = K_i K_o / (K_i + K_o)"
+                bounds.setdefault(p, conductance_bounds(kA_start))
+        k_source = f"{JOINT_PEM}, kA = K_i K_o / (K_i + K_o)"
         if mode == "static":
             notes.append(
                 f"{structure.name}: the static k cannot be imposed (kA is derived from K_i and "
@@ -268,10 +286,10 @@ def _settings(
         if mode == "static":
             why = "no k window" if kvalue is None else "its window failed the steady-state test"
             notes.append(f"static k not usable ({why}): kA estimated jointly")
-        k_source = "joint estimation (PEM)"
+        k_source = JOINT_PEM
         if kA_start is not None:
             initial.setdefault("kA", kA_start)
-        bounds.setdefault("kA", KA_BOUNDS)
+        bounds.setdefault("kA", conductance_bounds(kA_start))
     for p, (floor, _) in physical_bounds(structure, vehicle_data).items():
         # physics over an arbitrary lower bound: a configured one below the air's is raised
         lo, hi = bounds.get(p, structure.bounds[p])
@@ -614,7 +632,7 @@ def identify(
         if joint is not None:
             result, fitted, budget, options = joint
             fixed = options["fixed"]
-            k_source = f"joint estimation (PEM): {check['reason']}"
+            k_source = f"{JOINT_PEM}: {check['reason']}"
         if check.get("note"):
             notes.append(check["note"])
         fitted["static_kA_check"] = check
@@ -625,7 +643,10 @@ def identify(
         "model": model_key(order),
         "estimator": estimator,
         "structure": structure.name,
-        "k_source": k_source,
+        # a joint estimate names its estimator: the paper's simulation-error PEM, or Kalman ML
+        "k_source": k_source.replace(JOINT_PEM, JOINT_KALMAN)
+        if estimator == "kalman"
+        else k_source,
         **k_stage_fields(fixed.get("kA"), kvalue, storage, vehicle_data),
         "A": surface(vehicle_data),
         "mass_kg": float(vehicle_data["mass_kg"]) if "mass_kg" in vehicle_data else None,
@@ -1380,7 +1401,8 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
       declared seconds divides every capacity by 60;
     - the air node's capacity (C, or C_bar) at least ``min_air_capacity_ratio`` (default half)
       that of the air in ``volume_m3`` (rho c_p = 1206 J/(m^3 K)): the node holds the air and
-      what is in equilibrium with it.
+      what is in equilibrium with it;
+    - an effective solar aperture a_<name> at most the whole outer surface A.
 
     ``thresholds``: the ``check`` section (defaults filled in by :func:`check_thresholds`).
     A check whose quantity the config does not give (no surface, mass or volume) is skipped
@@ -1407,6 +1429,14 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
             f"{lo:g}-{hi:g} W/(m² K) (check.k_range_W_m2K): are the units of the power and "
             "temperature channels right (W or kW, degC or K), and A the whole surface?"
         )
+    for p in sorted(par):  # an effective solar aperture cannot exceed the whole surface
+        a = value(p) if p.startswith("a_") else None
+        if a is not None and A is not None and a > A:
+            out.append(
+                f"the effective aperture {p} = {a:.4g} m² exceeds the whole outer surface "
+                f"A = {A:g} m²: the irradiance channel's unit (W/m² or kW/m²), or a gain the "
+                "model lacks taken for sunshine"
+            )
     total = (estimate["fit"].get("totals") or {}).get("C_total")
     if total is not None and not pem.parameter_identification(total)["identified"]:
         total = None
@@ -1471,6 +1501,26 @@ RMSE_DEFAULT_K = packaged_schema("vehicle")["properties"]["check"]["properties"]
 NOTE_ONLY_FLAGS = ("high_correlation",)
 
 
+# the verdict's criteria, in the order they are checked and shown (check.criteria; the
+# "judged by" column of models.md and identification.csv)
+CRITERIA = {
+    "r2": "R²",
+    "rmse": "RMSE",
+    "innovations_white": "innovations white",
+    "residuals_white": "residuals white",
+    "flags": "flags",
+    "plausibility": "plausibility",
+    "k_stage": "k two-stage",
+}
+
+
+def judged_by(criteria: Sequence[Mapping[str, Any]]) -> str:
+    """The criteria that judged a fit, those it failed marked: "R², RMSE ✗, flags, ..."."""
+    return ", ".join(
+        CRITERIA[c["criterion"]] + ("" if c["passed"] else " ✗") for c in criteria if c["applies"]
+    )
+
+
 def check(
     estimate: Mapping[str, Any], series: pd.DataFrame, thresholds: Mapping[str, Any]
 ) -> dict[str, Any]:
@@ -1478,18 +1528,26 @@ def check(
     whiteness and AIC/BIC per compared output, overall and per window; cross-validation R^2;
     the identifiability flags.
 
-    A fit of the kalman estimator is judged by the whiteness of its one-step innovations
-    (:func:`innovation_reasons`) instead of the RMSE and residual-colour limits, which are
-    about simulation residuals; R^2, the flags and the plausibility apply to it as well.
+    One verdict policy for every estimator (:data:`CRITERIA`, each recorded in ``criteria``
+    with whether it applied and passed): "assumptions in doubt" when
 
-    Verdict "assumptions in doubt" when: R^2 of T (or a cross-validation R^2) is below
-    ``r2_min``; a simulated temperature misses its measurement by more than ``max_rmse_K``
-    (then also when its residuals are strongly coloured, fewer than ``min_effective_samples``
-    independent samples: a missing slow dynamic); with ``require_white``, a compared
-    temperature's residuals fail the Ljung-Box test at ``whiteness_alpha``; a flag other than
-    a high correlation; a number physically implausible (:func:`plausibility`); or k not
-    obtained by the two-stage approach. Residuals within the sensors' accuracy are not judged
-    by their colour: constant calibration offsets colour them by nature.
+    - ``r2``: R^2 of the simulated T (or a cross-validation R^2) is below ``r2_min``;
+    - ``rmse``: a simulated temperature misses its measurement by more than ``max_rmse_K``
+      (then also naming strongly coloured residuals, fewer than ``min_effective_samples``
+      independent samples: a missing slow dynamic). A Kalman fit is judged by the simulation
+      of its parameters as well: white one-step innovations show that the stochastic model
+      explains the record one step ahead, not that the deterministic model - what a
+      prediction uses - reproduces it;
+    - ``innovations_white`` (Kalman fits): a compared output's one-step innovations are not
+      white (:func:`innovation_reasons`);
+    - ``residuals_white`` (output-error fits, only with ``require_white``): a compared
+      temperature's simulation residuals fail the Ljung-Box test at ``whiteness_alpha``;
+      residuals within the sensors' accuracy are not judged by their colour otherwise:
+      constant calibration offsets colour them by nature;
+    - ``flags``: a flag other than a high correlation (a solver exit that is not a clean
+      optimum is one: ``not_converged``);
+    - ``plausibility``: a number physically implausible (:func:`plausibility`);
+    - ``k_stage``: k not obtained by the two-stage approach.
 
     ``thresholds``: the vehicle's ``check`` section; what it leaves out takes the schema's
     default (:func:`check_thresholds`). The notes list what does not put the fit in doubt:
@@ -1506,32 +1564,38 @@ def check(
             for name, w in series.groupby("window", sort=False)
         }
         measures[state] = {"overall": overall, "windows": windows}
+    kalman = estimate.get("estimator") == "kalman"
+    criteria: list[dict[str, Any]] = []
+    reasons: list[str] = []
+
+    def judge(name: str, failed: list[str], applies: bool = True) -> None:
+        criteria.append({"criterion": name, "applies": applies, "passed": not failed})
+        reasons.extend(failed)
+
     r2 = {"T": measures["T"]["overall"]["r2"]}
     r2 |= {f"{cv['train']} -> {cv['test']}": cv["r2_T"] for cv in estimate["cross_validation"]}
-    severe = [f for f in fit["flags"] if f["code"] not in NOTE_ONLY_FLAGS]
-    # R^2 of the simulation of the fitted parameters (for a kalman fit: its simulation
-    # performance beside the one-step performance its innovations show)
-    _, reasons = metrics.verdict(r2, severe, thresholds={"r2_min": thresholds["r2_min"]})
-    kalman = estimate.get("estimator") == "kalman"
-    if kalman:  # judged by its one-step innovations, not by a wind tunnel's RMSE limit
-        reasons += innovation_reasons(estimate, thresholds)
-    for state, m in () if kalman else measures.items():
+    judge("r2", metrics.verdict(r2, thresholds={"r2_min": thresholds["r2_min"]})[1])
+    missed = []
+    for state, m in measures.items():
         rmse = m["overall"]["rmse"]
         if rmse > thresholds["max_rmse_K"]:
             limit = thresholds["max_rmse_K"]
             why = "twice a sensor's accuracy" if limit == RMSE_DEFAULT_K else "check.max_rmse_K"
-            reasons.append(
+            missed.append(
                 f"The simulated {state} misses the measurement by RMSE {rmse:.3g} K (more than "
                 f"{limit:g} K, {why}): the model lacks a dynamic or a heat path."
             )
-            _, coloured = metrics.verdict(
+            missed += metrics.verdict(
                 1.0,
                 whiteness={f"{state}, {w}": v for w, v in m["windows"].items()},
                 thresholds={"min_effective_samples": thresholds["min_effective_samples"]},
-            )
-            reasons += coloured
-    if thresholds["require_white"] and not kalman:  # the colour alone, not the effective samples
-        _, not_white = metrics.verdict(
+            )[1]
+    judge("rmse", missed)
+    judge("innovations_white", innovation_reasons(estimate, thresholds) if kalman else [], kalman)
+    white = not kalman and bool(thresholds["require_white"])
+    not_white = []
+    if white:  # the colour alone, not the effective samples
+        not_white = metrics.verdict(
             1.0,
             whiteness={state: m["overall"] for state, m in measures.items()},
             thresholds={
@@ -1539,10 +1603,12 @@ def check(
                 "whiteness_alpha": thresholds["whiteness_alpha"],
                 "min_effective_samples": 0.0,
             },
-        )
-        reasons += not_white
-    reasons += plausibility(estimate, thresholds)
-    reasons += estimate["notes"]
+        )[1]
+    judge("residuals_white", not_white, white)
+    severe = [f for f in fit["flags"] if f["code"] not in NOTE_ONLY_FLAGS]
+    judge("flags", metrics.verdict(1.0, severe)[1])
+    judge("plausibility", plausibility(estimate, thresholds))
+    judge("k_stage", list(estimate["notes"]))
     notes = [f["message"] for f in fit["flags"] if f["code"] in NOTE_ONLY_FLAGS]
     notes += skipped_checks(estimate)
     return {
@@ -1556,6 +1622,8 @@ def check(
         **{key: estimate.get(key) for key in K_STAGE_FIELDS},
         "verdict": metrics.IN_DOUBT if reasons else metrics.ACCEPTABLE,
         "reasons": reasons,
+        "criteria": criteria,
+        "judged_by": judged_by(criteria),
         "notes": notes,
         "parameters": fit["parameters"],
         # combinations the data determine however the capacity splits (C_total = C + C_veh)

@@ -1310,8 +1310,13 @@ def _optimise(lik: _Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace
         except np.linalg.LinAlgError:
             decrement = math.inf
         success = decrement <= 1e-8 * max(len(idx), 1)
-        message = f"trust-exact: {message}" + (
-            f" ({len(held)} unknowns at a bound)" if held else ""
+        # scipy's own exit message may read as a failure ("A bad approximation caused
+        # failure to predict improvement") at a point whose scoring step is negligible: the
+        # message says what decided
+        message = (
+            f"{'converged' if success else 'not converged'}: Newton decrement "
+            f"{decrement:.3g} (tolerance {1e-8 * max(len(idx), 1):.3g}; trust-exact: {message})"
+            + (f"; {len(held)} unknowns at a bound" if held else "")
         )
         break
     if not success:  # the bounded quasi-Newton solve from the best point reached

@@ -16,7 +16,8 @@ from typing import Any
 import pandas as pd
 
 from railtherm import pem
-from railtherm.aggregate import ESTIMATED, NOT_GIVEN, is_not_given
+from railtherm.aggregate import ESTIMATED, NOT_GIVEN, converged, is_not_given
+from railtherm.metrics import ACCEPTABLE
 from railtherm.tables import round_significant, write_csv
 
 ESTIMATOR_LABEL = {"output_error": "output error", "kalman": "Kalman ML"}
@@ -27,15 +28,16 @@ NESTING = (("order1", "order2", 1), ("order1", "interior_envelope", 1))
 
 
 def model_selection_markdown(fits: Sequence[Mapping[str, Any]], alpha: float = 0.05) -> str:
-    """Per vehicle with two or more kalman fits: the forward selection of its nested
+    """Per vehicle with two or more kalman fits that are acceptable and converged (a fit in
+    doubt or unconverged is no candidate): the forward selection of its nested
     structures by likelihood-ratio tests (:func:`railtherm.diagnostics.forward_selection`,
     :data:`NESTING`); empty when no vehicle has them."""
     from railtherm import diagnostics
     from railtherm.identify import split_key
 
     by_vehicle: dict[str, list] = {}
-    for fit in fits:
-        if fit.get("estimator") == "kalman":
+    for fit in fits:  # only the acceptable, converged fits are candidates
+        if fit.get("estimator") == "kalman" and fit["verdict"] == ACCEPTABLE and converged(fit):
             by_vehicle.setdefault(fit["vehicle"], []).append(fit)
     parts = []
     for vehicle, kfits in by_vehicle.items():
@@ -77,15 +79,19 @@ def model_markdown(df: pd.DataFrame, source: str, selection: str = "") -> str:
             "NRMSE fit (1)": [f"{x:.3f}" for x in df["nrmse_fit"]],
             "RMSE (K)": [f"{x:.3f}" for x in df["rmse_K"]],
             "AIC": [
-                f"{x:.1f}" + (" ◀" if b else "")
-                for x, b in zip(df["aic"], df["best_aic"], strict=True)
+                f"{x:.1f}" + ("*" if c else "") + (" ◀" if b else "")
+                for x, c, b in zip(df["aic"], df["ic_indicative"], df["best_aic"], strict=True)
             ],
             "BIC": [
-                f"{x:.1f}" + (" ◀" if b else "")
-                for x, b in zip(df["bic"], df["best_bic"], strict=True)
+                f"{x:.1f}" + ("*" if c else "") + (" ◀" if b else "")
+                for x, c, b in zip(df["bic"], df["ic_indicative"], df["best_bic"], strict=True)
             ],
             "Ljung-Box p": [f"{x:.3g}" for x in df["ljung_box_p"]],
-            "verdict": df["verdict"],
+            "verdict": [
+                v + ("" if c else " (not converged)")
+                for v, c in zip(df["verdict"], df["converged"], strict=True)
+            ],
+            "judged by": df["judged_by"],
         }
     )
     return "\n".join(
@@ -94,7 +100,11 @@ def model_markdown(df: pd.DataFrame, source: str, selection: str = "") -> str:
             "",
             view.to_markdown(index=False, disable_numparse=True),
             "",
-            "- ◀: the vehicle's lowest AIC / BIC (per estimator). NRMSE fit = 1 - ||y - ŷ|| / "
+            "- ◀: the vehicle's lowest AIC / BIC (per estimator) among its fits that are "
+            "acceptable and converged. *: an output-error fit whose residuals are coloured "
+            "(Ljung-Box p below the check's level): its AIC / BIC count dependent residuals as "
+            "independent samples and are indicative only. Judged by: the verdict's criteria "
+            "(docs/checks.md), ✗ the ones the fit failed. NRMSE fit = 1 - ||y - ŷ|| / "
             "||y - mean(y)|| (MATLAB's compare, pySIP), not R^2 (eq. 21). kA of the "
             "interior-envelope model is K_i K_o / (K_i + K_o), its interval by the delta method.",
             *(
