@@ -1510,7 +1510,7 @@ CRITERIA = {
     "residuals_white": "residuals white",
     "flags": "flags",
     "plausibility": "plausibility",
-    "k_stage": "k two-stage",
+    "k_stage": "k method",
 }
 
 

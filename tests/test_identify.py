@@ -213,6 +213,32 @@ def test_capacities_that_store_more_than_water_are_implausible():
 
 
 @pytest.mark.bad_input
+def test_an_aperture_larger_than_the_whole_surface_is_implausible():
+    """An effective solar aperture of 1000 m² on a body of 8.64 m² outer surface is named;
+    one of 2 m² is not judged."""
+    estimate, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
+    par = estimate["fit"]["parameters"]
+
+    def with_aperture(a: float) -> dict:
+        entry = {"value": a, "ci95": [0.9 * a, 1.1 * a], "estimated": True}
+        fit = {**estimate["fit"], "parameters": {**par, "a_I_sol": entry}}
+        return {**estimate, "A": 8.64, "fit": fit}
+
+    thresholds = {**section_defaults("check"), "k_range_W_m2K": [0.01, 1000.0]}
+    (reason,) = identify.plausibility(with_aperture(1000.0), thresholds)
+    assert "a_I_sol = 1000 m²" in reason and "A = 8.64 m²" in reason
+    assert identify.plausibility(with_aperture(2.0), thresholds) == []
+
+
+def test_joint_conductance_bounds_follow_the_records_scale():
+    """A 4 W/K test box and a 2000 W/K coach both start well inside their default bounds."""
+    for kA in (4.0, 2000.0):
+        lo, hi = identify.conductance_bounds(kA)
+        assert lo <= kA / 100 and hi >= kA * 100
+    assert identify.conductance_bounds(None) == identify.KA_BOUNDS
+
+
+@pytest.mark.bad_input
 def test_time_in_minutes_declared_seconds_is_never_fit_acceptable():
     """Minutes read as seconds compress every window 60-fold: the fit is as good as ever and
     every capacity is 60 times too small (k, from means, is unchanged)."""
