@@ -300,11 +300,10 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
             }
         )
     df = pd.DataFrame(rows)
-    # only a fit that is acceptable and converged is a candidate for the lowest AIC / BIC
-    eligible = (df["verdict"] == ACCEPTABLE) & df["converged"]
     for criterion in ("aic", "bic"):
-        # the criteria of the two estimators rest on different likelihoods: compared apart
-        score = df[criterion].where(eligible)
+        # the criteria of the two estimators rest on different likelihoods: compared apart;
+        # only a selectable fit is a candidate
+        score = df[criterion].where(pd.Series([selectable(f) for f in fits], index=df.index))
         best = score.groupby([df["vehicle"], df["estimator"]], sort=False).transform("min")
         df.insert(df.columns.get_loc("ljung_box_p"), f"best_{criterion}", score == best)
     # an output-error AIC / BIC counts the residuals as independent samples: with coloured
@@ -320,6 +319,12 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
 def converged(fit: Mapping[str, Any]) -> bool:
     """Whether the fit's solver ended at a clean optimum (no ``not_converged`` flag)."""
     return not any(f["code"] == "not_converged" for f in fit.get("flags", ()))
+
+
+def selectable(fit: Mapping[str, Any]) -> bool:
+    """Whether a fit is a candidate of model selection (the lowest AIC / BIC, the forward
+    selection): acceptable and converged."""
+    return fit["verdict"] == ACCEPTABLE and converged(fit)
 
 
 # ----------------------------------------------------------------------------------------------

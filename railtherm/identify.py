@@ -245,8 +245,7 @@ def energy_balance_kA(tables: Mapping[str, pd.DataFrame] | None) -> float | None
 
 
 # how a jointly estimated kA is labelled (k_source), per estimator
-JOINT_PEM = "joint estimation (PEM)"
-JOINT_KALMAN = "joint estimation (Kalman ML)"
+JOINT = {"output_error": "joint estimation (PEM)", "kalman": "joint estimation (Kalman ML)"}
 
 
 def _settings(
@@ -254,8 +253,10 @@ def _settings(
     vehicle_data,
     kvalue: Mapping[str, Any] | None,
     tables: Mapping[str, pd.DataFrame] | None = None,
+    estimator: str = "output_error",
 ):
-    """fixed, initial, bounds and the provenance of kA from the config and the k stage."""
+    """fixed, initial, bounds and the provenance of kA from the config and the k stage (a
+    joint estimate labelled by its ``estimator``, :data:`JOINT`)."""
     model = vehicle_data["model"]
     A = surface(vehicle_data)
     usable = bool(kvalue and kvalue["usable"])
@@ -273,7 +274,7 @@ def _settings(
             if kA_start is not None:
                 initial.setdefault(p, 2.0 * kA_start)
                 bounds.setdefault(p, conductance_bounds(kA_start))
-        k_source = f"{JOINT_PEM}, kA = K_i K_o / (K_i + K_o)"
+        k_source = f"{JOINT[estimator]}, kA = K_i K_o / (K_i + K_o)"
         if mode == "static":
             notes.append(
                 f"{structure.name}: the static k cannot be imposed (kA is derived from K_i and "
@@ -286,7 +287,7 @@ def _settings(
         if mode == "static":
             why = "no k window" if kvalue is None else "its window failed the steady-state test"
             notes.append(f"static k not usable ({why}): kA estimated jointly")
-        k_source = JOINT_PEM
+        k_source = JOINT[estimator]
         if kA_start is not None:
             initial.setdefault("kA", kA_start)
         bounds.setdefault("kA", conductance_bounds(kA_start))
@@ -381,11 +382,15 @@ def mean_offset_u(vehicle_data, group: str) -> float:
     return sensor_u_K(vehicle_data["instruments"], group) / math.sqrt(counts[group])
 
 
-def stage_two_options(structure, vehicle_data, kvalue, tables) -> tuple[dict, str, list]:
+def stage_two_options(
+    structure, vehicle_data, kvalue, tables, estimator: str = "output_error"
+) -> tuple[dict, str, list]:
     """The options of the stage-two fit (:func:`estimate_parameters`: fixed, initial, bounds,
     outputs, x0, covariance, start) from the config and the k stage, with the provenance of
     kA and the notes of :func:`_settings`. ``tables``: the windows as the fit sees them."""
-    fixed, initial, bounds, k_source, notes = _settings(structure, vehicle_data, kvalue, tables)
+    fixed, initial, bounds, k_source, notes = _settings(
+        structure, vehicle_data, kvalue, tables, estimator
+    )
     model = vehicle_data["model"]
     options = {
         "fixed": fixed,
@@ -607,13 +612,13 @@ def identify(
     structure = model_structure(order, vehicle_data)
     tables = envelope_tables(structure, vehicle_data, tables)
     outputs = _outputs(structure, vehicle_data, tables)
-    options, k_source, notes = stage_two_options(structure, vehicle_data, kvalue, tables)
+    estimator = split_key(order)[1]
+    options, k_source, notes = stage_two_options(structure, vehicle_data, kvalue, tables, estimator)
     fixed = options["fixed"]
     applied = bool(storage and storage.get("applied")) and "kA" in fixed
     if applied:
         fixed["kA"] = float(storage["kA_corrected"])
         k_source += ", storage-corrected"
-    estimator = split_key(order)[1]
     if estimator == "kalman":
         options["estimator"] = "kalman"
         options["offsets"] = surface_offsets(structure, vehicle_data, options["outputs"])
@@ -632,7 +637,7 @@ def identify(
         if joint is not None:
             result, fitted, budget, options = joint
             fixed = options["fixed"]
-            k_source = f"{JOINT_PEM}: {check['reason']}"
+            k_source = f"{JOINT[estimator]}: {check['reason']}"
         if check.get("note"):
             notes.append(check["note"])
         fitted["static_kA_check"] = check
@@ -643,10 +648,7 @@ def identify(
         "model": model_key(order),
         "estimator": estimator,
         "structure": structure.name,
-        # a joint estimate names its estimator: the paper's simulation-error PEM, or Kalman ML
-        "k_source": k_source.replace(JOINT_PEM, JOINT_KALMAN)
-        if estimator == "kalman"
-        else k_source,
+        "k_source": k_source,
         **k_stage_fields(fixed.get("kA"), kvalue, storage, vehicle_data),
         "A": surface(vehicle_data),
         "mass_kg": float(vehicle_data["mass_kg"]) if "mass_kg" in vehicle_data else None,
@@ -815,9 +817,7 @@ def storage_corrected_k(
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:
         record["reason"] = f"the correction failed ({err}); eq. 10's kA is fixed"
         return record
-    kA, u_kA, u_storage = step.kA_balance, step.u_kA, step.u_storage
-    correction, u_model, theta = step.correction, step.u_model, step.theta
-    converged = True
+    kA, u_storage = step.kA_balance, step.u_storage
     corrected = {
         "power": relative["power"] * kA / per,
         "temperature": relative["temperature"] * kA / per,
@@ -829,16 +829,16 @@ def storage_corrected_k(
     record.update(
         applied=True,
         kA_corrected=float(kA),
-        u_kA_corrected=float(u_kA),
+        u_kA_corrected=float(step.u_kA),
         u_storage_kA=float(u_storage),
-        u_storage_regression_kA=float(correction.u_kA),
-        u_storage_model_kA=float(u_model),
+        u_storage_regression_kA=float(step.correction.u_kA),
+        u_storage_model_kA=float(step.u_model),
         budget=corrected,
         budget_unit="W/(m2 K)" if A is not None else "W/K",
-        window=correction.to_dict(),
-        theta=theta,
+        window=step.correction.to_dict(),
+        theta=step.theta,
         iterations=len(history),
-        converged=bool(converged),
+        converged=True,  # a step that did not settle ends the correction above
         solver=method,
         history_kA=[float(v) for v in history],
     )

@@ -639,9 +639,11 @@ class _Likelihood:
         out[list(self.meas_var_free)] = np.exp(v[a : a + len(self.meas_var_free)])
         return out
 
-    def x0s(self, v: np.ndarray) -> list[np.ndarray]:
+    def x0s(self, v: np.ndarray, data: list[_Data] | None = None) -> list[np.ndarray]:
+        """The experiments' initial states; ``data``: :meth:`shifted` at v, when the caller
+        has it already."""
         out = []
-        for d, off in zip(self.shifted(v), self.offsets, strict=True):
+        for d, off in zip(data or self.shifted(v), self.offsets, strict=True):
             x0 = d.x0_base.copy()
             x0[d.x0_free] = v[off : off + len(d.x0_free)]
             out.append(x0)
@@ -735,7 +737,8 @@ class _Likelihood:
         own, after the Qg global ones)."""
         systems: dict[float, _System] = {}
         out = []
-        for d, x0 in zip(self.shifted(v), self.x0s(v), strict=True):
+        data = self.shifted(v)
+        for d, x0 in zip(data, self.x0s(v, data), strict=True):
             if d.e.dt not in systems:
                 systems[d.e.dt] = self.system(v, d.e.dt, order)
             sysm = systems[d.e.dt]

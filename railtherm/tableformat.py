@@ -16,8 +16,7 @@ from typing import Any
 import pandas as pd
 
 from railtherm import pem
-from railtherm.aggregate import ESTIMATED, NOT_GIVEN, converged, is_not_given
-from railtherm.metrics import ACCEPTABLE
+from railtherm.aggregate import ESTIMATED, NOT_GIVEN, is_not_given, selectable
 from railtherm.tables import round_significant, write_csv
 
 ESTIMATOR_LABEL = {"output_error": "output error", "kalman": "Kalman ML"}
@@ -36,8 +35,8 @@ def model_selection_markdown(fits: Sequence[Mapping[str, Any]], alpha: float = 0
     from railtherm.identify import split_key
 
     by_vehicle: dict[str, list] = {}
-    for fit in fits:  # only the acceptable, converged fits are candidates
-        if fit.get("estimator") == "kalman" and fit["verdict"] == ACCEPTABLE and converged(fit):
+    for fit in fits:
+        if fit.get("estimator") == "kalman" and selectable(fit):
             by_vehicle.setdefault(fit["vehicle"], []).append(fit)
     parts = []
     for vehicle, kfits in by_vehicle.items():
