@@ -448,6 +448,28 @@ def _check_envelope(file: str, data: dict[str, Any], model: dict[str, Any]) -> N
                 "the first-order model (model.orders 1) has one node, no envelope: declare "
                 "node air, or fit only order 2 and interior_envelope",
             )
+    timing = data["format"].get("power_timing", "instant")
+    if model.get("input_hold") == "first_order" and timing != "instant":
+        raise ConfigError(
+            file,
+            "model.input_hold",
+            "first_order",
+            f"the first-order hold takes each power sample as the power at its time, linear "
+            f"to the next; format.power_timing {timing} says a sample is the mean over a "
+            "logger interval (a piecewise-constant power): use input_hold zero_order, or "
+            "power_timing instant if the samples are instantaneous",
+        )
+    instruments = data.get("instruments") or {}
+    noisy = [k for k in ("outdoor_noise_K", "power_noise_rel") if instruments.get(k)]
+    if model.get("input_hold") == "first_order" and noisy:
+        raise ConfigError(
+            file,
+            f"instruments.{noisy[0]}",
+            instruments[noisy[0]],
+            "the input noise is modelled for the zero-order hold (white noise on each held "
+            "step); under model.input_hold first_order a noisy sample drives two steps: "
+            "remove the key or use input_hold zero_order",
+        )
     sensors = model.get("envelope_sensors")
     if sensors and not data["channels"].get(sensors):
         raise ConfigError(

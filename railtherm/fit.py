@@ -129,6 +129,12 @@ class Fit:
         return {p: Parameter.from_entry(p, e) for p, e in self.data["parameters"].items()}
 
     @property
+    def hold(self) -> str:
+        """How the inputs ran between samples in the fit ("zero_order": eq. 15, or
+        "first_order"); a simulation of the model uses the same discretisation."""
+        return str(self.data.get("input_hold", "zero_order"))
+
+    @property
     def theta(self) -> dict[str, float]:
         """Every parameter's value by name (identified or not: the model as fitted)."""
         return {p: float(e["value"]) for p, e in self.data["parameters"].items()}
@@ -163,8 +169,9 @@ class Fit:
         x0: Sequence[float] | None = None,
     ) -> pd.DataFrame:
         """The states for inputs ``u`` (rows every ``dt`` s; columns T_o, Q_H and any
-        irradiance, by name if a DataFrame) held over each step (exact ZOH, eq. 15), from
-        ``x0`` (default: the steady state of the first input row). Returns time and states."""
+        irradiance, by name if a DataFrame) under the fit's input hold (:attr:`hold`: held
+        over each step, eq. 15, or linear between rows), from ``x0`` (default: the steady
+        state of the first input row). Returns time and states."""
         s = self.structure
         if isinstance(u, pd.DataFrame):
             missing = [c for c in s.inputs if c not in u.columns]
@@ -182,7 +189,7 @@ class Fit:
         if x0 is None:
             A, B = s.matrices(theta)
             x0 = models.steady_state(A, B, u[0])
-        x = models.simulate(s, theta, u, dt, np.asarray(x0, dtype=float))
+        x = models.simulate(s, theta, u, dt, np.asarray(x0, dtype=float), self.hold)
         out = pd.DataFrame(x, columns=list(s.states))
         out.insert(0, "time", np.arange(len(u)) * dt)
         return out

@@ -13,7 +13,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -152,13 +152,20 @@ def _outputs(structure: models.Structure, vehicle_data: Mapping[str, Any], table
     return tuple(measured)
 
 
-def experiments(structure: models.Structure, tables: Mapping[str, pd.DataFrame]) -> list:
+def input_hold(vehicle_data: Mapping[str, Any]) -> str:
+    """The declared input hold (``model.input_hold``; the paper's zero-order hold by default)."""
+    return str((vehicle_data.get("model") or {}).get("input_hold", "zero_order"))
+
+
+def experiments(
+    structure: models.Structure, tables: Mapping[str, pd.DataFrame], hold: str = "zero_order"
+) -> list:
     """pem.Experiment per tidy window (inputs T_o, Q_H and any irradiance I_<name>; the
     structure's states as measured, NaN where a state has no sensor; x0 the first row, the
-    measured initial state)."""
+    measured initial state), under the input ``hold`` the tables were cleaned for."""
     return [
         pem.experiment_from_table(
-            table, name, states=structure.states, inputs=tuple(structure.inputs)
+            table, name, states=structure.states, inputs=tuple(structure.inputs), hold=hold
         )
         for name, table in tables.items()
     ]
@@ -623,7 +630,7 @@ def identify(
         options["estimator"] = "kalman"
         options["offsets"] = surface_offsets(structure, vehicle_data, options["outputs"])
     rows = rows_used(structure, tables, outputs, vehicle_data)
-    exps = experiments(structure, tables)
+    exps = experiments(structure, tables, input_hold(vehicle_data))
     options["input_noise"] = input_noise(structure, vehicle_data, exps)
     storage_used = storage if applied else None
     result, fitted, budget = _judged_fit(
@@ -648,6 +655,7 @@ def identify(
         "model": model_key(order),
         "estimator": estimator,
         "structure": structure.name,
+        "input_hold": input_hold(vehicle_data),
         "k_source": k_source,
         **k_stage_fields(fixed.get("kA"), kvalue, storage, vehicle_data),
         "A": surface(vehicle_data),
@@ -746,7 +754,7 @@ def storage_corrected_k(
             "the apertures; eq. 10's kA is fixed"
         )
         return record
-    exps = experiments(structure, tables)
+    exps = experiments(structure, tables, input_hold(vehicle_data))
     options["input_noise"] = input_noise(structure, vehicle_data, exps)
     fit_options = {**options, "fixed": dict(options["fixed"])}
 
@@ -1069,7 +1077,7 @@ def _perturbed(exps, column: Any, u: float) -> list:
         elif column is not None:
             y[:, column] += u
         x0 = None if e.x0 is None else y[0].copy()
-        out.append(pem.Experiment(name=e.name, dt=e.dt, u=inputs, y=y, x0=x0))
+        out.append(replace(e, u=inputs, y=y, x0=x0))
     return out
 
 
@@ -1336,7 +1344,7 @@ def _cross_validate(structure, exps, options) -> list[dict[str, Any]]:
             if test is train:
                 continue
             if np.all(np.isfinite(test.x0)):
-                sim = models.simulate(structure, fitted.theta, test.u, test.dt, test.x0)
+                sim = models.simulate(structure, fitted.theta, test.u, test.dt, test.x0, test.hold)
             else:  # an unmeasured initial state: estimate only it, theta held
                 held = {**options, "fixed": dict(fitted.theta), "initial": {}, "bounds": {}}
                 held["input_noise"] = {}
@@ -1618,6 +1626,7 @@ def check(
         "model": estimate["model"],
         "estimator": estimate.get("estimator", "output_error"),
         "structure": estimate["structure"],
+        "input_hold": estimate.get("input_hold", "zero_order"),
         "k_source": estimate["k_source"],
         **{key: estimate.get(key) for key in K_STAGE_FIELDS},
         "verdict": metrics.IN_DOUBT if reasons else metrics.ACCEPTABLE,

@@ -54,6 +54,10 @@ integral of the power signal the samples describe, by ``format.power_timing``:
   samples (so a switch between two samples counts half of the interval on either side, the
   unbiased guess when the switching time is unknown).
 
+With ``model.input_hold: first_order`` (inputs linear between samples, which needs
+``power_timing: instant``) every power and irradiance column is instead the value at ``t_n``,
+binned like a temperature (the sample itself when step = ``dt_log``).
+
 Data after the window end are used when the file has them. Where the power signal ends before
 ``t_N + step`` (the last row of a window that reaches the end of the data), the last row's
 power is the mean over the part of ``[t_N, t_N + step)`` that the data cover, and where they
@@ -587,6 +591,7 @@ def tidy(
     time_column = fmt["time"]["column"]
     tf = timeaxis.declared(file, fmt["time"])
     timing = fmt.get("power_timing", "instant")
+    hold = (vehicle_data.get("model") or {}).get("input_hold", "zero_order")
     cleaning = vehicle_data.get("cleaning") or {}
     max_gap = float(cleaning.get("max_gap_s", 900.0))
     key = window_key or _window_key(vehicle_data, window)
@@ -719,9 +724,12 @@ def tidy(
             extra[name] = len(sums)
             sums.append(values[:, i])
         p_flags |= flags.any(axis=1)
-    q, q_filled = _power_means(
-        t_full, np.column_stack(sums), p_flags, grid, step, dt_log, timing, tol
-    )
+    if hold == "first_order":  # values at t_n, linear between (config: instant timing)
+        q, q_filled = _bin_means(t_full, np.column_stack(sums), p_flags, grid, step, tol)
+    else:
+        q, q_filled = _power_means(
+            t_full, np.column_stack(sums), p_flags, grid, step, dt_log, timing, tol
+        )
     Q_H = q[:, 0] + q[:, 1]
     if "Q_known" in extra:
         Q_H = Q_H + q[:, extra["Q_known"]]
@@ -748,6 +756,7 @@ def tidy(
         "step_s": step,
         "logger_step_s": dt_log,
         "power_timing": timing,
+        "input_hold": hold,
     }
     return out
 

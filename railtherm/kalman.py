@@ -310,10 +310,12 @@ def _pad(a: np.ndarray, Q: int) -> np.ndarray:
 
 @dataclass
 class _Data:
-    """An experiment's compared outputs (N x n_out, NaN = skipped), the measurement pattern
-    per row (bit j: output j measured) and the runs of equal patterns."""
+    """An experiment's compared outputs (N x n_out, NaN = skipped), the rows its inputs drive
+    the model by (``u``: :attr:`Experiment.forcing`, the hold's), the measurement pattern per
+    row (bit j: output j measured) and the runs of equal patterns."""
 
     e: Experiment
+    u: np.ndarray
     y: np.ndarray
     codes: np.ndarray
     runs: list[tuple[int, int, int]]
@@ -360,6 +362,7 @@ def _data(structure: Structure, e: Experiment, out_idx: Sequence[int], x0_mode: 
     prior_code = int(np.bincount(used).argmax()) if used.size else 0
     return _Data(
         e=e,
+        u=np.ascontiguousarray(e.forcing),
         y=y,
         codes=codes,
         runs=runs,
@@ -412,7 +415,7 @@ def _filter(
 
     differentiated term by term. Where P has reached the stationary P of the run's pattern
     (``steady``, relative STEADY_TOL), the rest of the run is :func:`_steady_run`."""
-    y, u = d.y, d.e.u
+    y, u = d.y, d.u
     N, n_out = y.shape
     n = len(x0)
     Q = len(dx0)
@@ -517,7 +520,7 @@ def _steady_run(
     o, Co = st.o, st.C
     Lr = k1 - k
     n, no = len(x), len(o)
-    u = d.e.u
+    u = d.u
     # Z = [x; u; y] of rows k..k1 (the forcing of row k1 is not used: any value)
     m_in = u.shape[1]
     Z = np.zeros((n + m_in + no, Lr + 1))
@@ -605,6 +608,7 @@ class _Likelihood:
         self.out_idx = tuple(out_idx)
         self.x0_mode = x0_mode
         self.n = len(structure.states)
+        self.hold = pem.one_hold(experiments)
         self.data = [_data(structure, e, out_idx, x0_mode) for e in experiments]
         self.P = len(self.free)
         self.Qn = self.P + len(self.sigma_free) + len(self.meas_var_free)  # noise ends here
@@ -655,7 +659,7 @@ class _Likelihood:
         sigma, svar = self.sigma(v), self.meas_var(v)
         n, P = self.n, self.P
         A, _ = self.s.matrices(th)
-        disc = models.discretize(self.s, th, dt, self.free if order >= 1 else ())
+        disc = models.discretize(self.s, th, dt, self.free if order >= 1 else (), self.hold)
         W = np.diag(sigma**2)
         C = np.eye(n)[list(self.out_idx)]
         if order < 1:
@@ -1202,7 +1206,7 @@ def fit(
     sol = _optimise(lik, v0, lo, hi, clip)
     v = sol.x
     H = _hessian(lik, v, lik.evaluate(v, 1)[1])
-    levels = pem._noise_levels(structure, input_noise or {}, len(experiments))
+    levels = pem._noise_levels(structure, input_noise or {}, experiments)
     meat = None
     if any(levels):
         v = _input_noise_terms(lik, v, levels, lo, hi)
@@ -1640,7 +1644,7 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
     simulated, residuals = [], []
     b = lik.offsets_of(v)
     for d, x0 in zip(lik.data, x0s, strict=True):
-        sim = models.simulate(structure, th, d.e.u, d.e.dt, x0)
+        sim = models.simulate(structure, th, d.e.u, d.e.dt, x0, lik.hold)
         res = np.full_like(sim, np.nan)
         for j, i in enumerate(lik.out_idx):
             res[:, i] = d.e.y[:, i] - b[j] - sim[:, i]

@@ -9,9 +9,20 @@ Structures are data (:class:`Structure`, :data:`STRUCTURES`): a name, the parame
 names, and functions giving the continuous (A, B) and their analytic derivatives with respect
 to each parameter. Nothing downstream knows how many states a structure has.
 
-Discrete model (eq. 15 with K = 0), input held over each step (zero-order hold)::
+Discrete model (eq. 15 with K = 0), input held over each step (zero-order hold, the paper's
+choice)::
 
     x[n+1] = Ad x[n] + Bd u[n],   [[Ad, Bd], [0, I]] = expm([[A, B], [0, 0]] dt)
+
+or, with the first-order hold (inputs linear between their samples, as pySIP and CTSM-R offer),
+the exact discretisation of the system augmented by the input and its slope::
+
+    x[n+1] = Ad x[n] + (G0 - G1) u[n] + G1 u[n+1],
+    expm([[A, B, 0], [0, 0, I], [0, 0, 0]] dt) = [[Ad, G0, G1], [0, I, I], [0, 0, I]]
+
+(G0 = int_0^dt e^{A s} ds B, G1 = int_0^dt e^{A (dt - s)} B s/dt ds). It is written as the
+zero-order form with the doubled input [u[n]; u[n+1]] (:func:`forcing`) and Bd = [G0 - G1, G1],
+so every recursion below serves both holds unchanged.
 
 Simulation (:func:`simulate`) propagates the recursion without a Python loop over samples:
 Ad = V diag(lambda) V^-1 (the thermal networks here have real, distinct, stable eigenvalues),
@@ -44,12 +55,16 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "HOLDS",
     "STRUCTURES",
     "Discretisation",
     "Structure",
     "discretize",
     "discretize_noise",
+    "discretize_ramp",
     "discretize_zoh",
+    "check_hold",
+    "forcing",
     "first_order",
     "free_response",
     "free_response_head",
@@ -61,11 +76,13 @@ __all__ = [
     "sensitivities",
     "simulate",
     "steady_state",
+    "step_means",
     "steady_state_kA",
     "structure_for",
     "with_irradiance",
 ]
 
+HOLDS = ("zero_order", "first_order")  # how an input varies between its samples
 FREE_RESPONSE_CUT = 1e-30  # |lambda|^n below this (relative to 1) is taken as 0
 _MODAL_COND_MAX = 1e8  # cond(V) above this: use the Schur form instead of eigenvectors
 
@@ -500,14 +517,27 @@ def structure_for(name: str, irradiance: Sequence[str] = ()) -> Structure:
 
 def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact zero-order-hold discretisation: expm([[A, B], [0, 0]] dt) = [[Ad, Bd], [0, I]]."""
+    Ad, G0, _ = discretize_ramp(A, B, dt, ramp=False)
+    return Ad, G0
+
+
+def discretize_ramp(
+    A: np.ndarray, B: np.ndarray, dt: float, ramp: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(Ad, G0, G1) of the module docstring from continuous (A, B): a held input u adds G0 u
+    over a step, a ramp from 0 to v over the step adds G1 v (so inputs linear between samples
+    add G0 u[n] + G1 (u[n+1] - u[n])). G1 is None when ``ramp`` is False."""
     A = np.atleast_2d(np.asarray(A, dtype=float))
     B = np.atleast_2d(np.asarray(B, dtype=float))
     n, m = B.shape
-    M = np.zeros((n + m, n + m))
-    M[:n, :n] = A
-    M[:n, n:] = B
-    E = expm(M * dt)
-    return E[:n, :n], E[:n, n:]
+    k = n + (2 * m if ramp else m)
+    M = np.zeros((k, k))
+    M[:n, :n] = A * dt
+    M[:n, n : n + m] = B * dt
+    if ramp:
+        M[n : n + m, n + m :] = np.eye(m)
+    E = expm(M)
+    return E[:n, :n], E[:n, n : n + m], (E[:n, n + m :] if ramp else None)
 
 
 def discretize_noise(
@@ -568,10 +598,12 @@ def steady_state(A: np.ndarray, B: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Discretisation:
-    """Ad, Bd of eq. 15 (ZOH), their derivatives along ``params``, and a modal form of Ad.
+    """Ad, Bd of eq. 15, their derivatives along ``params``, and a modal form of Ad.
 
-    ``Q``, ``Qinv``, ``T``: Ad = Q T Qinv with T diagonal (eigenvectors) or upper triangular
-    (complex Schur, Qinv = Q^H); ``lam`` the diagonal of T.
+    ``hold``: "zero_order" (Bd is n x m, acting on u[n]) or "first_order" (Bd is n x 2m,
+    acting on [u[n]; u[n+1]], :func:`forcing`). ``Q``, ``Qinv``, ``T``: Ad = Q T Qinv with T
+    diagonal (eigenvectors) or upper triangular (complex Schur, Qinv = Q^H); ``lam`` the
+    diagonal of T.
     """
 
     Ad: np.ndarray
@@ -583,6 +615,33 @@ class Discretisation:
     T: np.ndarray
     lam: np.ndarray
     diagonal: bool
+    hold: str = "zero_order"
+
+
+def check_hold(hold: str) -> str:
+    if hold not in HOLDS:
+        raise ValueError(f"hold must be one of {', '.join(HOLDS)}, got {hold!r}")
+    return hold
+
+
+def forcing(u: np.ndarray, hold: str = "zero_order") -> np.ndarray:
+    """The rows the discrete recursion multiplies by Bd: u itself (N x m) for the zero-order
+    hold; [u[n], u[n+1]] (N x 2m, the last row repeating u[N-1]; it drives no later sample)
+    for the first-order hold."""
+    u = np.asarray(u, dtype=float)
+    if check_hold(hold) == "zero_order":
+        return u
+    nxt = np.concatenate([u[1:], u[-1:]], axis=0)
+    return np.concatenate([u, nxt], axis=1)
+
+
+def step_means(u: np.ndarray, hold: str = "zero_order") -> np.ndarray:
+    """The mean of each input over [t_n, t_n+1): u[n] (zero-order hold), (u[n] + u[n+1]) / 2
+    (first-order hold; the last row keeps u[N-1])."""
+    u = np.asarray(u, dtype=float)
+    if check_hold(hold) == "zero_order":
+        return u
+    return np.concatenate([(u[:-1] + u[1:]) / 2.0, u[-1:]], axis=0)
 
 
 def _modal(Ad: np.ndarray):
@@ -613,16 +672,21 @@ def discretize(
     theta: Mapping[str, float],
     dt: float,
     params: tuple[str, ...] = (),
+    hold: str = "zero_order",
 ) -> Discretisation:
-    """Ad, Bd (exact ZOH) and, for each name in ``params``, the exact dAd, dBd (Frechet
-    derivative of expm along [[dA, dB], [0, 0]] dt; one block expm for all of them)."""
+    """Ad, Bd (exact for the ``hold``, module docstring) and, for each name in ``params``, the
+    exact dAd, dBd (Frechet derivative of the same exponential along [[dA, dB, ..], 0] dt;
+    one block expm for all of them)."""
+    first = check_hold(hold) == "first_order"
     A, B = structure.matrices(theta)
     n, m = B.shape
-    k = n + m
+    k = n + (2 * m if first else m)
     M = np.zeros((k, k))
     M[:n, :n] = A
-    M[:n, n:] = B
+    M[:n, n : n + m] = B
     M *= dt
+    if first:
+        M[n : n + m, n + m :] = np.eye(m)  # d(input)/dt = slope, over dt: the ramp s/dt
     P = len(params)
     if P:
         der = structure.derivatives(theta)
@@ -632,17 +696,24 @@ def discretize(
         for i, p in enumerate(params):
             dA, dB = der[p]
             big[:n, (i + 1) * k : (i + 1) * k + n] = dA * dt
-            big[:n, (i + 1) * k + n : (i + 2) * k] = dB * dt
+            big[:n, (i + 1) * k + n : (i + 1) * k + n + m] = dB * dt
         E = expm(big)[:k]
     else:
         E = expm(M)
     if not np.all(np.isfinite(E)):
         raise FloatingPointError(f"exp(A dt) is not finite for {dict(theta)}")
-    Ad, Bd = E[:n, :n].copy(), E[:n, n:k].copy()
+
+    def inputs(G: np.ndarray) -> np.ndarray:  # the columns acting on u (and u[n+1])
+        if not first:
+            return G.copy()
+        G0, G1 = G[:, :m], G[:, m:]
+        return np.concatenate([G0 - G1, G1], axis=1)
+
+    Ad, Bd = E[:n, :n].copy(), inputs(E[:n, n:k])
     dAd = {p: E[:n, (i + 1) * k : (i + 1) * k + n].copy() for i, p in enumerate(params)}
-    dBd = {p: E[:n, (i + 1) * k + n : (i + 2) * k].copy() for i, p in enumerate(params)}
+    dBd = {p: inputs(E[:n, (i + 1) * k + n : (i + 2) * k]) for i, p in enumerate(params)}
     Q, Qinv, T, lam, diagonal = _modal(Ad)
-    return Discretisation(Ad, Bd, dAd, dBd, Q, Qinv, T, lam, diagonal)
+    return Discretisation(Ad, Bd, dAd, dBd, Q, Qinv, T, lam, diagonal, hold)
 
 
 def modal_form(F: np.ndarray) -> Discretisation:
@@ -725,13 +796,15 @@ def simulate(
     u: np.ndarray,
     dt: float,
     x0,
+    hold: str = "zero_order",
 ) -> np.ndarray:
-    """Exact ZOH simulation (eq. 15, K = 0): x (N x n) with x[0] = x0 and
-    x[n+1] = Ad x[n] + Bd u[n]; u is N x m in the order of ``structure.inputs`` ([T_o, Q_H],
-    then any irradiance; the last row is not used)."""
+    """Exact simulation (eq. 15, K = 0) under the input ``hold``: x (N x n) with x[0] = x0 and
+    x[n+1] = Ad x[n] + Bd u[n] (zero-order: the last row of u is not used) or
+    x[n+1] = Ad x[n] + Bd [u[n]; u[n+1]] (first-order); u is N x m in the order of
+    ``structure.inputs`` ([T_o, Q_H], then any irradiance)."""
     u = _input_array(u, len(structure.inputs))
-    d = discretize(structure, theta, dt)
-    return _run(d, u, _initial_array(x0, structure))
+    d = discretize(structure, theta, dt, hold=hold)
+    return _run(d, forcing(u, hold), _initial_array(x0, structure))
 
 
 def free_response(d: Discretisation, N: int) -> np.ndarray:
@@ -778,14 +851,15 @@ def sensitivities(
     dt: float,
     x0,
     params: tuple[str, ...] | None = None,
+    hold: str = "zero_order",
 ) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
     """x (N x n), {param: dx/dparam (N x n)} and dx/dx0 (N x n x n), all exact for the
-    discrete recursion (see the module docstring)."""
+    discrete recursion under the input ``hold`` (see the module docstring)."""
     params = structure.parameters if params is None else tuple(params)
     u = _input_array(u, len(structure.inputs))
     x0 = _initial_array(x0, structure)
-    d = discretize(structure, theta, dt, params)
-    uT = np.ascontiguousarray(u.T)
+    d = discretize(structure, theta, dt, params, hold)
+    uT = np.ascontiguousarray(forcing(u, hold).T)
     xT = _run_T(d, uT, x0)
     S = parameter_sensitivities(d, xT, uT, params)  # (P, n, N)
     sens = {p: S[i].T.copy() for i, p in enumerate(params)}

@@ -84,17 +84,31 @@ COARSE_SAMPLES = 2000  # ... and of the copy the best grid points are refined on
 @dataclass
 class Experiment:
     """One record: ``u`` N x m in the structure's input order, [T_o, Q_H] then any further
-    inputs such as irradiance (u[n] held over [t_n, t_n + dt), eq. 15), ``y`` N x n_states in
-    the structure's state order (NaN = not measured / not used), ``x0`` the measured initial
-    state (NaN entries are estimated) or None (the first row of ``y``)."""
+    inputs such as irradiance, ``y`` N x n_states in the structure's state order (NaN = not
+    measured / not used), ``x0`` the measured initial state (NaN entries are estimated) or
+    None (the first row of ``y``). ``hold``: how the inputs run between samples,
+    "zero_order" (u[n] held over [t_n, t_n + dt), eq. 15) or "first_order" (u[n] the value
+    at t_n, linear to u[n+1]; :mod:`railtherm.models`)."""
 
     name: str
     dt: float
     u: np.ndarray
     y: np.ndarray
     x0: np.ndarray | None = None
+    hold: str = "zero_order"
+
+    @property
+    def forcing(self) -> np.ndarray:
+        """The rows the discrete model multiplies by Bd (:func:`railtherm.models.forcing`)."""
+        return models.forcing(self.u, self.hold)
+
+    @property
+    def step_u(self) -> np.ndarray:
+        """Each input's mean over [t_n, t_n + dt) (:func:`railtherm.models.step_means`)."""
+        return models.step_means(self.u, self.hold)
 
     def __post_init__(self):
+        models.check_hold(self.hold)
         self.u = np.asarray(self.u, dtype=float)
         self.y = np.asarray(self.y, dtype=float)
         if self.y.ndim == 1:
@@ -130,14 +144,17 @@ def experiment_from_table(
     states=("T", "T_veh"),
     T_o_hold: str = "mean",
     inputs: Sequence[str] = ("T_o", "Q_H"),
+    hold: str = "zero_order",
 ):
     """An :class:`Experiment` from a tidy table (railtherm.ingest.read_tidy).
 
     ``inputs``: the structure's inputs, "T_o" and "Q_H" first, then any further tidy columns
-    (irradiance, e.g. "I_sol"). Q_H[n] is already the mean power over [t_n, t_n + step), and
-    so is every further input (taken as it is). T_o is a point sample: with
-    ``T_o_hold="mean"`` (default) the input over the step is (T_o[n] + T_o[n+1]) / 2 (the
-    trapezoidal mean; the last row keeps T_o[N-1]), with ``"zoh"`` T_o[n] is held.
+    (irradiance, e.g. "I_sol"). Zero-order ``hold`` (eq. 15): Q_H[n] is already the mean
+    power over [t_n, t_n + step), and so is every further input (taken as it is). T_o is a
+    point sample: with ``T_o_hold="mean"`` (default) the input over the step is
+    (T_o[n] + T_o[n+1]) / 2 (the trapezoidal mean; the last row keeps T_o[N-1]), with
+    ``"zoh"`` T_o[n] is held. First-order ``hold``: every input of the table is its value at
+    t_n (the table was cleaned for that hold) and is taken as it is.
     """
     inputs = tuple(inputs)
     if inputs[:2] != ("T_o", "Q_H"):
@@ -148,7 +165,9 @@ def experiment_from_table(
     t = table["time"].to_numpy(float)
     dt = float(np.median(np.diff(t)))
     To = table["T_o"].to_numpy(float)
-    if T_o_hold == "mean":
+    if models.check_hold(hold) == "first_order":
+        pass  # point values, linear between samples
+    elif T_o_hold == "mean":
         To = np.concatenate([(To[:-1] + To[1:]) / 2.0, To[-1:]])
     elif T_o_hold != "zoh":
         raise ValueError(f"T_o_hold must be 'mean' or 'zoh', got {T_o_hold!r}")
@@ -159,7 +178,7 @@ def experiment_from_table(
             for s in states
         ]
     )
-    return Experiment(name=name, dt=dt, u=u, y=y, x0=y[0].copy())
+    return Experiment(name=name, dt=dt, u=u, y=y, x0=y[0].copy(), hold=hold)
 
 
 @dataclass(frozen=True)
@@ -322,7 +341,7 @@ class _Problem:
         )
         self._key = None
         self._jac_key = None
-        self.uT = [np.ascontiguousarray(e.u.T) for e in self.exps]
+        self.uT = [np.ascontiguousarray(e.forcing.T) for e in self.exps]
         self.yT = [np.ascontiguousarray(e.y.T) for e in self.exps]
 
     def theta(self, v) -> dict:
@@ -358,7 +377,7 @@ class _Problem:
             with np.errstate(over="ignore", invalid="ignore"):
                 for e, uT, x0 in zip(self.exps, self.uT, self.x0s(v), strict=True):
                     if e.dt not in cache:
-                        cache[e.dt] = models.discretize(self.s, th, e.dt, params)
+                        cache[e.dt] = models.discretize(self.s, th, e.dt, params, e.hold)
                     d = cache[e.dt]
                     sims.append((d, models._run_T(d, uT, x0)))
         except (ArithmeticError, np.linalg.LinAlgError, ValueError):
@@ -684,7 +703,7 @@ def equation_error_start(
         ZD = np.empty((k + n, len(ok)))
         np.add(yT[:, 1:], yT[:, :-1], out=ZD[:n])
         ZD[:n] *= 0.5
-        ZD[n:k] = e.u[:-1].T
+        ZD[n:k] = e.step_u[:-1].T
         np.subtract(yT[:, 1:], yT[:, :-1], out=ZD[k:])
         ZD[k:] *= 1.0 / e.dt
         if n_ok < len(ok):
@@ -763,7 +782,7 @@ def _block_average(e: Experiment, factor: int) -> Experiment:
     """A coarser copy for cheap cost ranking: inputs averaged over blocks of ``factor``
     samples, outputs sampled at the block starts."""
     N = (len(e.u) // factor) * factor
-    u = e.u[:N].reshape(-1, factor, e.u.shape[1]).mean(axis=1)
+    u = e.step_u[:N].reshape(-1, factor, e.u.shape[1]).mean(axis=1)
     return Experiment(name=e.name, dt=e.dt * factor, u=u, y=e.y[:N:factor], x0=e.x0)
 
 
@@ -813,8 +832,20 @@ def _andrews_bandwidth(e: np.ndarray) -> int:
     return max(0, min(L, T // 2))
 
 
-def _noise_levels(structure, input_noise, n_experiments: int) -> list[dict[str, float]]:
+def one_hold(experiments: Sequence[Experiment]) -> str:
+    """The input hold every experiment of a fit shares (one discretisation per step length)."""
+    holds = sorted({e.hold for e in experiments})
+    if len(holds) > 1:
+        raise ValueError(
+            "the experiments of one fit must share one input hold, got "
+            + ", ".join(f"{e.name!r}: {e.hold}" for e in experiments)
+        )
+    return holds[0] if holds else "zero_order"
+
+
+def _noise_levels(structure, input_noise, experiments) -> list[dict[str, float]]:
     """Per experiment, {input name: sd} of the declared white input noise (those > 0)."""
+    n_experiments = len(experiments)
     unknown = [n for n in input_noise if n not in structure.inputs]
     if unknown:
         raise ValueError(f"input_noise {unknown} not in the inputs {structure.inputs}")
@@ -830,6 +861,13 @@ def _noise_levels(structure, input_noise, n_experiments: int) -> list[dict[str, 
                 raise ValueError(f"input_noise {name!r}: an sd must be >= 0, got {value}")
             if float(value) > 0:
                 level[name] = float(value)
+    held = [e.name for e, level in zip(experiments, levels, strict=True) if level]
+    if held and one_hold(experiments) != "zero_order":
+        raise ValueError(
+            f"input_noise is modelled for the zero-order hold (white noise on each held step "
+            f"input); experiments {held} use the first-order hold, where a noisy sample enters "
+            f"two steps: fit them with hold zero_order, or without input_noise"
+        )
     return levels
 
 
@@ -881,7 +919,7 @@ def _noise_energy(structure, prob, theta, levels) -> float:
             continue
         N = len(e.u)
         if (e.dt, N) not in impulse:
-            d = models.discretize(structure, theta, e.dt)
+            d = models.discretize(structure, theta, e.dt, hold=e.hold)
             impulse[e.dt, N] = models.free_response_head(d, N - 1) @ d.Bd  # (lags, n, m)
         H = impulse[e.dt, N]
         lags = np.arange(len(H))
@@ -976,7 +1014,8 @@ def fit(
     experiments = list(experiments)
     if not experiments:
         raise ValueError("fit needs at least one experiment")
-    noisy = _noise_levels(structure, input_noise or {}, len(experiments))
+    one_hold(experiments)
+    noisy = _noise_levels(structure, input_noise or {}, experiments)
     m_in = len(structure.inputs)
     wrong = [f"{e.name!r} ({e.u.shape[1]})" for e in experiments if e.u.shape[1] != m_in]
     if wrong:
@@ -1114,8 +1153,9 @@ def heat_balance_kA(experiments: Sequence[Experiment]) -> float:
         if ok.sum() < 3:
             continue
         T = np.interp(np.arange(len(T)), np.flatnonzero(ok), T[ok])
-        losses = (T[1:] + T[:-1]) / 2.0 - e.u[:-1, 0]  # over each step, as eq. 15 holds u
-        heat = np.concatenate([[0.0], np.cumsum(e.u[:-1, 1] * e.dt)])
+        u = e.step_u
+        losses = (T[1:] + T[:-1]) / 2.0 - u[:-1, 0]  # over each step, as the model holds u
+        heat = np.concatenate([[0.0], np.cumsum(u[:-1, 1] * e.dt)])
         loss = np.concatenate([[0.0], np.cumsum(losses * e.dt)])
         rows.append(np.column_stack([loss, T - T[0], heat]))
     if not rows:
@@ -1141,7 +1181,8 @@ def lumped_capacity(experiments: Sequence[Experiment], kA: float) -> float:
     for e in experiments:
         T = e.y[:, 0]
         d = (T[1:] - T[:-1]) / e.dt
-        z = e.u[:-1, 1] - kA * ((T[1:] + T[:-1]) / 2.0 - e.u[:-1, 0])
+        u = e.step_u
+        z = u[:-1, 1] - kA * ((T[1:] + T[:-1]) / 2.0 - u[:-1, 0])
         ok = np.isfinite(d) & np.isfinite(z)
         szz += float(z[ok] @ z[ok])
         szd += float(z[ok] @ d[ok])

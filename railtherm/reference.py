@@ -118,7 +118,7 @@ def simulate_published(
     if any(p not in theta for p in structure.parameters):
         return None
     theta = {p: theta[p] for p in structure.parameters}
-    exps = identify.experiments(structure, tables)
+    exps = identify.experiments(structure, tables, identify.input_hold(vehicle_data))
     result = pem.fit(structure, exps, fixed=theta, outputs=("T",), x0="estimated")
     y = np.concatenate([e.y[:, 0] for e in exps])
     yhat = np.concatenate([x[:, 0] for x in result.simulated])
@@ -198,9 +198,16 @@ def compare(
         rows.append(_row(q, label, printed.get(q), {"value": overall[q]}, simulated.get(q)))
     table = pd.DataFrame(rows)
     table["k_source"] = fit["k_source"]
+    table["input_hold"] = fit.get("input_hold", "zero_order")
     table.insert(0, "model", reference["model"])
     table.insert(0, "vehicle", reference["vehicle"])
     return table
+
+
+HOLD_WORDS = {
+    "zero_order": "zero-order hold (each step's mean held, eq. 15)",
+    "first_order": "first-order hold (linear between samples)",
+}
 
 
 def _number(value: float, quantity: str) -> str:
@@ -227,7 +234,8 @@ def markdown(table: pd.DataFrame, references: list[Mapping[str, Any]], source: s
             "",
             f"Published: {' '.join(ref['source'].split())} ({ref['location']}).",
             "",
-            f"railtherm's kA: {rows['k_source'].iloc[0]}.",
+            f"railtherm's kA: {rows['k_source'].iloc[0]}. Inputs between samples: "
+            f"{HOLD_WORDS[rows['input_hold'].iloc[0]]}.",
             "",
             f"| quantity | unit | published | railtherm ({estimator}) | 95 % interval | "
             "railtherm / published | published parameters, simulated by railtherm |",
@@ -252,8 +260,8 @@ def markdown(table: pd.DataFrame, references: list[Mapping[str, Any]], source: s
     parts += [
         "- railtherm (PEM): simulation-error PEM (eqs. 17-18, K = 0) of the same structure, "
         "intervals with the systematic budget. Published parameters, simulated by railtherm: "
-        "the published values run through railtherm's simulator (eq. 15) on the same cleaned "
-        "data, only the initial states estimated.",
+        "the published values run through railtherm's simulator (eq. 15, the fit's input "
+        "hold) on the same cleaned data, only the initial states estimated.",
         *(
             [
                 "- railtherm (Kalman ML): the Kalman-filter prediction error method of the "

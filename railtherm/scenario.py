@@ -29,6 +29,9 @@ the next. A ``file`` profile is interpolated linearly onto the grid points (it m
 the whole duration; time 0 is time 0 of an elapsed-time column and the first row of a column
 of instants). Door openings, which may be shorter than a step, enter as their mean over each
 step: the share of the step the doors are open times the flow while open (exact in energy).
+With ``input_hold: first_order`` the outdoor temperature and the irradiance run linear between
+grid points instead (their samples are then point values); the heating and the heat flows stay
+held over each step.
 Air exchanged with the outside (doors, ventilation) enters ``air_exchange_W_K`` as
 rho c_p Vdot (:data:`RHO_AIR_KG_M3`, :data:`CP_AIR_J_KG_K`).
 
@@ -120,6 +123,8 @@ class Scenario:
     heat_up_to_C: float | None  # report: first time T reaches this (rising)
     cool_down_to_C: float | None  # report: first time T falls to this
     files: tuple[str, ...] = ()  # the profile files read (paths as resolved from the scenario's)
+    # T_o and irradiance between grid points: held (zero_order) or linear (first_order)
+    input_hold: str = "zero_order"
 
     @property
     def gains_W(self) -> np.ndarray:
@@ -196,6 +201,7 @@ def load_scenario(path: str | os.PathLike[str], display: str | None = None) -> S
         heat_up_to_C=_float_or_none(report.get("heat_up_to_C")),
         cool_down_to_C=_float_or_none(report.get("cool_down_to_C")),
         files=tuple(dict.fromkeys(ctx.files)),
+        input_hold=str(data.get("input_hold", "zero_order")),
     )
     for array in (t_s, T_o, heating_W, air_exchange, *gains.values(), *irradiance.values()):
         if array is not None:

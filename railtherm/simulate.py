@@ -451,12 +451,15 @@ def load_parameters(path: str | os.PathLike[str]) -> ParameterSet:
 @dataclass
 class _Steps:
     """Per draw (S) and per distinct air-exchange conductance: the continuous matrices of
-    the air-exchange-augmented model, their ZOH discretisation and eigen-decomposition."""
+    the air-exchange-augmented model, their exact discretisation (Bd: an input held over the
+    step; Bd1: a ramp over the step, for the scenario's first-order hold, else None) and
+    eigen-decomposition."""
 
     A: np.ndarray  # (G, S, n, n)
     B: np.ndarray  # (G, S, n, m)
     Ad: np.ndarray
     Bd: np.ndarray
+    Bd1: np.ndarray | None
     lam: np.ndarray  # (G, S, n) eigenvalues (complex)
     V: np.ndarray  # (G, S, n, n)
     Vinv: np.ndarray
@@ -485,17 +488,22 @@ def _prepare(
     G_values: np.ndarray,
     dt: float,
     sigma: np.ndarray | None,
+    hold: str = "zero_order",
 ) -> _Steps:
     A0, B0 = _matrices(structure, thetas)
     C_air = np.array([t[structure.air] for t in thetas])
-    As, Bs, Ads, Bds, lams, Vs, Vinvs, Qs = [], [], [], [], [], [], [], []
+    ramp = models.check_hold(hold) == "first_order"
+    As, Bs, Ads, Bds, Bd1s, lams, Vs, Vinvs, Qs = [], [], [], [], [], [], [], [], []
     for G in G_values:
         A, B = _with_exchange(structure, A0, B0, C_air, float(G))
         Ad = np.empty_like(A)
         Bd = np.empty_like(B)
+        Bd1 = np.empty_like(B) if ramp else None
         Q = np.empty_like(A) if sigma is not None else None
         for s in range(len(thetas)):
-            Ad[s], Bd[s] = models.discretize_zoh(A[s], B[s], dt)
+            Ad[s], Bd[s], G1 = models.discretize_ramp(A[s], B[s], dt, ramp)
+            if ramp:
+                Bd1[s] = G1
             if Q is not None:
                 Qd, _ = models.discretize_noise(A[s], np.diag(sigma**2), dt)
                 w, v = np.linalg.eigh(Qd)
@@ -505,6 +513,7 @@ def _prepare(
         Bs.append(B)
         Ads.append(Ad)
         Bds.append(Bd)
+        Bd1s.append(Bd1)
         lams.append(lam)
         Vs.append(V)
         Vinvs.append(np.linalg.inv(V))
@@ -514,6 +523,7 @@ def _prepare(
         B=np.array(Bs),
         Ad=np.array(Ads),
         Bd=np.array(Bds),
+        Bd1=np.array(Bd1s) if ramp else None,
         lam=np.array(lams),
         V=np.array(Vs),
         Vinv=np.array(Vinvs),
@@ -661,6 +671,10 @@ def _run(
         x = np.einsum("sij,sj->si", steps.Ad[g], X[:, k]) + np.einsum(
             "sij,sj->si", steps.Bd[g], U[:, k]
         )
+        if steps.Bd1 is not None:  # T_o and irradiance linear to the next grid point
+            slope = U[:, k + 1] - U[:, k]
+            slope[:, 1] = 0.0  # Q_H (heating and the step profiles of gains) stays held
+            x += np.einsum("sij,sj->si", steps.Bd1[g], slope)
         if noise is not None:
             x = x + np.einsum("sij,sj->si", steps.Qchol[g], noise[:, k])
         X[:, k + 1] = x
@@ -825,7 +839,7 @@ def simulate(
             ]
     noise_on = ps.sigma is not None and len(thetas) > 1 and np.any(ps.sigma > 0)
     sigma = ps.sigma if noise_on else None
-    steps = _prepare(structure, thetas, G_values, scenario.dt_s, sigma)
+    steps = _prepare(structure, thetas, G_values, scenario.dt_s, sigma, scenario.input_hold)
     if zero_irradiance:
         notes.append(f"irradiance {zero_irradiance} not in the scenario: taken as 0 W/m²")
 

@@ -100,7 +100,7 @@ def test_adding_a_vehicle_doc_quotes_the_committed_reference_table():
     # the model comparison is quoted with fewer columns: every quoted cell as committed
     committed = _markdown_rows((VALIDATION / "tables" / "models.md").read_text(encoding="utf-8"))
     quoted = _markdown_rows(doc.split("### Which model?", 1)[1].split("###", 1)[0])
-    assert len(quoted) == len(committed) == 9
+    assert len(quoted) == len(committed) >= 9
     for key, cells in quoted.items():
         for header, cell in cells.items():
             assert committed[key][header] == cell, (key, header)

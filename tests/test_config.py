@@ -449,6 +449,28 @@ BAD_VEHICLES = [
         0.00001,
         "rows at this step, more than 5,000,000",
     ),
+    (
+        "first-order-hold-of-interval-means",
+        lambda d: (
+            d["format"].update(power_timing="mean_preceding"),
+            d.setdefault("model", {}).update(input_hold="first_order"),
+        ),
+        None,
+        "model.input_hold",
+        "first_order",
+        "power_timing mean_preceding says a sample is the mean over a logger interval",
+    ),
+    (
+        "first-order-hold-with-input-noise",
+        lambda d: (
+            d.setdefault("model", {}).update(input_hold="first_order"),
+            d.update(instruments={"power_noise_rel": 0.01}),
+        ),
+        None,
+        "instruments.power_noise_rel",
+        0.01,
+        "a noisy sample drives two steps",
+    ),
     (  # once a 16.5 GiB allocation: the last row's year mistyped
         "year-typo-in-the-last-row",
         lambda d: None,

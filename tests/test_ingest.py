@@ -198,6 +198,24 @@ def test_power_step_gives_exact_interval_means(tmp_path, timing, ratio):
     assert out["Q_heater"].to_numpy() == pytest.approx(expected)
 
 
+@pytest.mark.parametrize("ratio", [1, 2])
+def test_first_order_hold_takes_the_power_at_each_time(tmp_path, ratio):
+    """model.input_hold first_order: a power column holds the value at t_n (binned like a
+    temperature), not the mean over the step that follows."""
+    t = np.arange(11) * 60.0
+    P = 100.0 * np.arange(11) ** 2
+    data = _vehicle(SIMPLE, cleaning={"max_gap_s": 900, "step_s": 60.0 * ratio})
+    data["model"] = {"input_hold": "first_order"}
+    out = _clean(tmp_path, _simple_frame(t, P=P), data)
+    n = np.arange(0, 11, ratio)
+    expected = 100.0 * n**2.0
+    if ratio == 2:  # centred bins [t_n - 60, t_n + 60]: the ends count half
+        inner = (100.0 * (n - 1) ** 2 / 2 + 100.0 * n**2 + 100.0 * (n + 1) ** 2 / 2) / 2
+        expected[1:-1] = inner[1:-1]
+    assert out["Q_H"].to_numpy() == pytest.approx(expected)
+    assert out.attrs["input_hold"] == "first_order"
+
+
 def test_mean_preceding_at_the_logger_step_is_the_next_sample(tmp_path):
     t = np.arange(6) * 60.0
     P = np.array([100.0, 200.0, 300.0, 400.0, 500.0, 600.0])

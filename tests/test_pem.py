@@ -375,3 +375,16 @@ def test_input_noise_bias_is_removed():
     shift = (plain - compensated).mean(axis=0)
     assert shift[0] > 0.005  # the plain fit's C is biased up by about 1 %
     assert plain[:, 0].mean() > 2.0 * se[0]
+
+
+def test_input_noise_is_refused_under_the_first_order_hold():
+    """The input-noise model is white noise on each held step input; under the first-order
+    hold a sample drives two steps: refused by name rather than mis-modelled."""
+    u, y = np.tile([[0.0, 1000.0]], (20, 1)), np.column_stack([np.linspace(20, 21, 20)])
+    e = pem.Experiment("e", 60.0, u, y, hold="first_order")
+    s = models.STRUCTURES["first_order"]
+    with pytest.raises(ValueError, match="input_noise is modelled for the zero-order hold"):
+        pem.fit(s, [e], input_noise={"Q_H": 1.0})
+    z = pem.Experiment("z", 60.0, u, y)
+    with pytest.raises(ValueError, match="share one input hold"):
+        pem.fit(s, [e, z])

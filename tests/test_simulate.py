@@ -5,6 +5,7 @@ unreachable set point and the bands."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -130,6 +131,23 @@ def test_energy_is_the_integral_of_the_power_and_closes_the_heat_balance():
     lost = kA * np.sum(integral - T_o[:-1] * dt)
     stored = C_bar * (T[-1] - T[0])
     assert (stored + lost) / 3.6e6 == pytest.approx(held, rel=1e-9)
+
+
+def test_first_order_hold_follows_an_outdoor_ramp_exactly():
+    """input_hold first_order: T_o linear between grid points. For eq. 9 under a ramp
+    T_o = a + b t and a fixed power P the solution is T = T_p + (T_0 - T_p(0)) e^(-t/tau),
+    T_p = a + b t + P / kA - b tau: matched to rounding at an hourly step, where the
+    zero-order hold of the same grid lags by about b dt / 2."""
+    kA, C_bar, P, a, b, dt = 800.0, 3.0e7, 20_000.0, -20.0, 10.0 / 86_400, 3600.0
+    t = np.arange(25) * dt
+    sc = scenario(24 * dt, dt, a + b * t, heating_W=P, initial=Initial("given", {"T": 5.0}))
+    tau = C_bar / kA
+    T_p = a + b * t + P / kA - b * tau
+    exact = T_p + (5.0 - T_p[0]) * np.exp(-t / tau)
+    linear = sim.simulate(first_order_fit(kA, C_bar), replace(sc, input_hold="first_order"))
+    held = sim.simulate(first_order_fit(kA, C_bar), sc, draws=0)
+    np.testing.assert_allclose(linear.series["T"].to_numpy(), exact, rtol=0, atol=1e-9)
+    assert np.abs(held.series["T"].to_numpy() - exact).max() > 0.1 * b * dt / 2
 
 
 @pytest.mark.parametrize("dt", [60.0, 600.0, 3600.0])

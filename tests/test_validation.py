@@ -128,6 +128,7 @@ def test_irradiance_and_known_heat_flows_are_declared_channels(tmp_path):
     data["channels"]["heat_flows"] = [{"column": "Personen_kW", "unit": "kW"}]
     data["channels"]["irradiance"] = [{"column": "Strahlung", "unit": "W/m2", "name": "south"}]
     data["format"]["power_timing"] = "mean_following"  # each sample the step's mean
+    data["model"]["input_hold"] = "zero_order"  # a mean is held over its step
     path = tmp_path / "Renamed.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     vehicle = config.load_vehicle(path)
@@ -324,7 +325,7 @@ def test_validate_checks_the_reference_files_as_the_run_would(tmp_path, capsys):
 
     study = validation_copy(tmp_path)
     assert main(["validate", "-d", str(study)]) == 0
-    assert "2 reference files" in capsys.readouterr().out
+    assert "3 reference files" in capsys.readouterr().out
     vehicle = study / "config" / "vehicles" / "Armadillo.yaml"
     data = yaml.safe_load(vehicle.read_text())
     del data["model"]["structures"]
