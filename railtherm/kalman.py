@@ -7,9 +7,10 @@ Model (continuous-discrete, any :class:`railtherm.models.Structure`)::
     y_k = C x_k + v_k,                              v_k ~ N(0, S), S = diag(s_j)
 
 C selects the compared outputs (states). The input is held over each step (zero-order hold,
-as :mod:`railtherm.pem`), so the exact discrete model is x_{k+1} = Ad x_k + Bd u_k + w_k with
-(Ad, Bd) of :func:`railtherm.models.discretize` and w_k ~ N(0, Qd), Qd by Van Loan's method
-(:func:`railtherm.models.discretize_noise`).
+as :mod:`railtherm.pem`) or linear between samples (first-order hold: u_k below is then
+[u_k; u_{k+1}], :func:`railtherm.models.forcing`), so the exact discrete model is
+x_{k+1} = Ad x_k + Bd u_k + w_k with (Ad, Bd) of :func:`railtherm.models.discretize` and
+w_k ~ N(0, Qd), Qd by Van Loan's method (:func:`railtherm.models.discretize_noise`).
 
 Likelihood: the Kalman filter's innovations eps_k = y_k - C x_{k|k-1} and their covariances
 R_k = C P_{k|k-1} C^T + S give the exact negative log-likelihood
@@ -23,7 +24,18 @@ measurement pattern (``scipy.linalg.solve_discrete_are``; relative 1e-10), the f
 time-invariant recursion x_{k+1} = F x_k + Bd u_k + L y_k (F = Ad - L C, L = Ad P C^T R^-1),
 run without a Python loop by the modal ``lfilter`` machinery of :mod:`railtherm.models`. An
 estimated initial state starts with the stationary prior covariance P_0 = P (no transient at
-all); a measured one with the measurement variances.
+all); a measured one with the measurement variances. A run that starts off the stationary
+covariance (a measured initial state, the first rows after a gap) is filtered with the
+stationary gain too, and its NLL corrected exactly for the difference Delta of its prior by
+de Jong's augmentation of the initial state: the stationary innovations respond to the first
+state's deviation as G_j = C F^j, so with X_N = sum_j G_j^T R^-1 G_j (a Lyapunov equation) and
+s = sum_j G_j^T R^-1 eps_j,
+
+    NLL = NLL_stationary + 1/2 log det(I + X_N Delta) - 1/2 s^T Delta (I + X_N Delta)^-1 s,
+
+with its exact gradient from the same adjoint sums (:func:`_prior_correction`). This holds for
+the record's last run whatever its length, and for an earlier run whose transient dies out
+within it (the next run then starts as the time-varying filter's would).
 
 Gradient: exact, by forward sensitivities of the filter recursions (the derivatives of Ad, Bd
 from the block exponential of :func:`railtherm.models.discretize`, of Qd from Van Loan's
@@ -64,6 +76,11 @@ LOG_2PI = math.log(2.0 * math.pi)
 SIGMA_BOUNDS = (1e-9, 1.0)  # K / sqrt(s): diffusion of a state (1 K/sqrt(s): 60 K per hour)
 MEAS_VAR_BOUNDS = (1e-10, 1e4)  # K^2: measurement variance of an output
 STEADY_TOL = 1e-10  # |P_k - P| / |P| below which the filter switches to the stationary gain
+# a run that starts off the stationary covariance is done by the stationary filter with the
+# exact correction for its prior (:func:`_prior_correction`) instead of row by row when it is
+# the record's last run, or when its transient |F|^rows decays below this before a later run
+JUMP_DECAY = 1e-18
+PRIOR_CORRECTION = True  # False: every transient row by row (the reference the tests compare)
 OFFSET_STEP = 1e-4  # K: central-difference step along an output offset
 OFFSET_BOUNDS = (-5.0, 5.0)  # K: an output's constant offset
 HESSIAN_STEP = 1e-5  # forward-difference step of the observed information (log units, K)
@@ -414,7 +431,9 @@ def _filter(
         x <- Ad (x + K eps) + Bd u,  P <- Ad (P - K R K^T) Ad^T + Qd,
 
     differentiated term by term. Where P has reached the stationary P of the run's pattern
-    (``steady``, relative STEADY_TOL), the rest of the run is :func:`_steady_run`."""
+    (``steady``, relative STEADY_TOL), the rest of the run is :func:`_steady_run`; where it has
+    not, but the run is the last or long enough to forget its prior, too, with the exact
+    correction for the prior (module docstring)."""
     y, u = d.y, d.u
     N, n_out = y.shape
     n = len(x0)
@@ -439,11 +458,25 @@ def _filter(
             dSo = _diag_stack(dS[:, o]) if order >= 1 else None
         k = k0
         while k < k1:
-            if st is not None and float(np.abs(P - st.P).max()) <= STEADY_TOL * float(
+            steady_now = st is not None and float(np.abs(P - st.P).max()) <= STEADY_TOL * float(
                 np.abs(st.P).max()
-            ):
+            )
+            jump = (
+                PRIOR_CORRECTION
+                and st is not None
+                and not steady_now
+                and not series
+                and k1 - k >= 2
+                and (k1 == N or _decays(st, k1 - k))  # the last run, or the prior forgotten
+            )
+            if steady_now or jump:
                 out.steady_from.append(k)
-                nll_run, x, dx = _steady_run(sysm, st, d, k, k1, x, dx, dBd, order, out)
+                prior = None
+                if jump:  # the prior P's difference from the stationary one, corrected exactly
+                    prior = (P - st.P, dP - _pad(st.dP, Q) if order >= 1 else None)
+                nll_run, x, dx = _steady_run(
+                    sysm, st, d, k, k1, x, dx, dBd, order, out, prior=prior
+                )
                 nll += nll_run
                 P = st.P.copy()
                 if order >= 1:
@@ -496,6 +529,124 @@ def _filter(
     return out
 
 
+def _decays(st: _Steady, rows: int) -> bool:
+    """Whether the stationary predictor's transient dies out within ``rows``: |F|^rows below
+    JUMP_DECAY for the slowest mode (the prior's trace on the run's end state is then
+    rounding, so a later run starts as the exact filter would)."""
+    r = float(np.max(np.abs(np.linalg.eigvals(st.F))))
+    return r <= 0.0 or rows * math.log(r) < math.log(JUMP_DECAY)
+
+
+def _power_sum(modes: _Modes, w: np.ndarray) -> np.ndarray:
+    """sum_i G^i w[..., i] for channels w (C, n, L), G the matrix of ``modes`` (F for
+    ``st.modes``, F^T for ``st.modes_T``): one pass of the recursion nu_(i) = G nu_(i+1) + w_i
+    backwards in i, read at i = 0. Returns (C, n)."""
+    C, n, L = w.shape
+    H = np.zeros((n, C, C * n))
+    for c in range(C):
+        H[:, c, c * n : (c + 1) * n] = np.eye(n)
+    Z = np.zeros((C * n, L + 1))
+    Z[:, :L] = w.reshape(C * n, L)[:, ::-1]
+    return _column(modes.run(H, Z, np.zeros((n, C))), L).T
+
+
+def _matrix_power(F: np.ndarray, dF: np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray]:
+    """F^N and its derivatives along dF (Q, n, n), by squaring the block matrices
+    [[F, dF_q], [0, F]] (whose N-th power is [[F^N, d(F^N)_q], [0, F^N]])."""
+    n, Q = len(F), len(dF)
+    B = np.zeros((max(Q, 1), 2 * n, 2 * n))
+    B[:, :n, :n] = F
+    B[:, n:, n:] = F
+    if Q:
+        B[:, :n, n:] = dF
+    out = np.broadcast_to(np.eye(2 * n), B.shape).copy()
+    e = N
+    while e:
+        if e & 1:
+            out = out @ B
+        e >>= 1
+        if e:
+            B = B @ B
+    return out[0, :n, :n], out[:Q, :n, n:]
+
+
+@dataclass
+class _PriorCorrection:
+    """The exact change of a run's NLL when its first predicted covariance is P + Delta
+    instead of the stationary P (:func:`_prior_correction`)."""
+
+    nll: float
+    N: int
+    X: np.ndarray  # the infinite sum (the Lyapunov solution)
+    XN: np.ndarray  # the run's sum, X - F^(N T) X F^N
+    Delta: np.ndarray
+    Minv: np.ndarray
+    s: np.ndarray
+
+    def gradient(self, st, Q, dDelta, dx0, mu, Hq, Z, a, Co) -> np.ndarray:
+        """dNLL along the Q directions: dDelta (Q, n, n), dx0 (Q, n) the run's first state
+        sensitivities, mu (n, N + 1) the innovations' adjoint, Hq (Q, n, k) and Z (k, N) the
+        sensitivities' forcing f_i = Hq Z_i, a = R^-1 eps (n_o, N)."""
+        n, N = len(self.s), self.N
+        F, X = st.F, self.X
+        dF, dR = _pad(st.dF, Q), _pad(st.dR, Q)
+        RC = st.Rinv @ Co  # (n_o, n)
+        # dX = F^T dX F + dF^T X F + F^T X dF - C^T R^-1 dR R^-1 C (Kronecker solve), then
+        # the run's dX_N = d(X - F^(N T) X F^N)
+        XF = X @ F
+        rhs = dF.transpose(0, 2, 1) @ XF
+        rhs = rhs + rhs.transpose(0, 2, 1) - RC.T @ dR @ RC
+        kron = np.eye(n * n) - np.kron(F.T, F.T)
+        dX = np.linalg.solve(kron, rhs.reshape(Q, -1).T).T.reshape(Q, n, n)
+        FN, dFN = _matrix_power(F, dF, N)
+        tail = dFN.transpose(0, 2, 1) @ (X @ FN)
+        dXN = dX - tail - tail.transpose(0, 2, 1) - FN.T @ dX @ FN
+        # ds = sum_i F^(i T) w_i - X_N dx_0 + F^(N T) X sum_i F^(N-1-i) f_i, with
+        # w_i = dF^T mu_(i+1) - C^T R^-1 dR a_i - F^T X f_i (docs/identification.md)
+        f = Hq @ Z  # (Q, n, N)
+        w = np.einsum("qji,jl->qil", dF, mu[:, 1 : N + 1])
+        w -= np.einsum("ij,qjk,kl->qil", Co.T @ st.Rinv, dR, a)
+        w -= np.einsum("ij,qjl->qil", XF.T, f)
+        ds = _power_sum(st.modes_T, w) - dx0 @ self.XN
+        ds += _power_sum(st.modes, f[:, :, ::-1]) @ (X @ FN)
+        # c = 1/2 log det M - 1/2 s^T W s, M = I + X_N Delta, W = Delta M^-1
+        dM = dXN @ self.Delta + self.XN @ dDelta
+        W = self.Delta @ self.Minv
+        r = self.Minv @ self.s
+        left = W.T @ self.s
+        g = 0.5 * np.einsum("ij,qji->q", self.Minv, dM)
+        g -= 0.5 * (ds @ (left + W @ self.s))
+        g -= 0.5 * (
+            np.einsum("i,qij,j->q", self.s, dDelta, r) - np.einsum("i,qij,j->q", left, dM, r)
+        )
+        return g
+
+
+def _prior_correction(st: _Steady, Delta: np.ndarray, s: np.ndarray, N: int) -> _PriorCorrection:
+    """A run of N rows filtered from the predicted covariance P + Delta has the stationary
+    filter's innovations e_j plus the response G_j = C_o F^j to its first state's deviation
+    (de Jong's augmentation of the initial state, exact for any Delta that keeps the joint
+    covariance positive): with X_N = sum_(j<N) G_j^T R^-1 G_j = X - F^(N T) X F^N (X the
+    Lyapunov solution of X = F^T X F + C_o^T R^-1 C_o) and s = sum_j G_j^T R^-1 e_j,
+
+        NLL = NLL_stationary + 1/2 log det(I + X_N Delta) - 1/2 s^T Delta (I + X_N Delta)^-1 s.
+    """
+    n = len(s)
+    H = st.C.T @ st.Rinv @ st.C
+    X = solve_discrete_lyapunov(st.F.T, H)
+    X = (X + X.T) / 2.0
+    FN = np.linalg.matrix_power(st.F, N)
+    XN = X - FN.T @ X @ FN
+    XN = (XN + XN.T) / 2.0
+    M = np.eye(n) + XN @ Delta
+    sign, logdet = np.linalg.slogdet(M)
+    if not sign > 0:
+        raise np.linalg.LinAlgError("the prior's innovation covariance is not positive")
+    Minv = np.linalg.inv(M)
+    nll = 0.5 * (logdet - float(s @ (Delta @ Minv) @ s))
+    return _PriorCorrection(nll=nll, N=N, X=X, XN=XN, Delta=Delta, Minv=Minv, s=s)
+
+
 def _steady_run(
     sysm: _System,
     st: _Steady,
@@ -507,6 +658,7 @@ def _steady_run(
     dBd: np.ndarray | None,
     order: int,
     out: _Pass,
+    prior: tuple[np.ndarray, np.ndarray | None] | None = None,
 ) -> tuple[float, np.ndarray, np.ndarray]:
     """Rows k..k1-1 with the stationary filter: x_{j+1} = F x_j + Bd u_j + L y_j and its
     sensitivities dx_{j+1} = F dx_j + dF x_j + dBd u_j + dL y_j, each one modal lfilter per
@@ -516,7 +668,11 @@ def _steady_run(
         dNLL = 1/2 n_rows tr(R^-1 dR) - 1/2 tr(R^-1 dR R^-1 E) + sum (R^-1 eps)^T deps,
 
     E = sum eps eps^T, deps = -C_o dx. Returns the NLL of the rows and the prediction (x, dx)
-    for row k1; adds to out's gradient, Fisher information and series."""
+    for row k1; adds to out's gradient, Fisher information and series.
+
+    ``prior`` (Delta, dDelta): row k's predicted covariance is P + Delta, not the stationary
+    P; the NLL and gradient then get the exact correction of :func:`_prior_correction` (the
+    Fisher information stays the stationary filter's: the optimiser's curvature only)."""
     o, Co = st.o, st.C
     Lr = k1 - k
     n, no = len(x), len(o)
@@ -533,6 +689,16 @@ def _steady_run(
     eps = Z[n + m_in :, :Lr] - Co @ xs[:, :Lr]  # (no, Lr)
     a = st.Rinv @ eps
     nll = 0.5 * (Lr * (st.logdet + no * LOG_2PI) + float(np.einsum("ij,ij->", eps, a)))
+    mu = None
+    if prior is not None or (order == 1 and k1 == len(u)):
+        # mu_l = sum_{j >= l} F^(j-l)T C_o^T a_j, mu_Lr = 0: the adjoint of the innovations
+        b = np.zeros((n, Lr + 1))
+        b[:, :Lr] = (Co.T @ a)[:, ::-1]
+        rev = _states(st.modes_T.run(np.eye(n)[:, None, :], b, np.zeros((n, 1))), np.eye(n))
+        mu = rev[:, 0, ::-1]  # mu_l, l = 0..Lr
+    if prior is not None:
+        correction = _prior_correction(st, prior[0], mu[:, 0], Lr)
+        nll += correction.nll
     if out.xp is not None:
         out.xp[k:k1] = xs[:, :Lr].T
         rows = np.arange(k, k1)[:, None]
@@ -548,14 +714,12 @@ def _steady_run(
     RdR = st.Rinv @ dR
     g = 0.5 * Lr * np.trace(RdR, axis1=1, axis2=2)
     g -= 0.5 * np.einsum("qij,ji->q", RdR, st.Rinv @ (eps @ eps.T))
+    if prior is not None:
+        g += correction.gradient(st, Q, prior[1], dx, mu, Hq, Z[:, :Lr], a, Co)
     if order == 1 and k1 == len(u):
         # the experiment's last run, gradient only: sum_l deps_l^T a_l = -sum_l b_l^T dx_l
         # (b_l = C_o^T a_l) by the adjoint mu_l = F^T mu_{l+1} + b_l, mu_Lr = 0:
         # = -(mu_0^T dx_0 + sum_l mu_{l+1}^T H_q Z_l), one recursion for every direction
-        b = np.zeros((n, Lr + 1))
-        b[:, :Lr] = (Co.T @ a)[:, ::-1]
-        rev = _states(st.modes_T.run(np.eye(n)[:, None, :], b, np.zeros((n, 1))), np.eye(n))
-        mu = rev[:, 0, ::-1]  # mu_l, l = 0..Lr
         g -= dx @ mu[:, 0] + np.einsum("qij,ij->q", Hq, mu[:, 1:Lr] @ Z[:, : Lr - 1].T)
         out.grad += g
         return nll, x_next, dx  # no later row needs the sensitivities

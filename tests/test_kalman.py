@@ -190,9 +190,10 @@ def test_gradient_with_gaps_several_experiments_and_joint_kA():
 
 
 def test_stationary_gain_equals_the_time_varying_filter():
-    """The switch to the stationary gain (once P is within 1e-10 of the Riccati solution) and
-    the time-varying filter on every row give the same NLL: with gaps and a measured initial
-    state (transients), and with the stationary prior (no transient at all)."""
+    """The stationary gain (from the first row with the stationary prior; from the first row
+    of a run with any other prior, its difference corrected exactly) and the time-varying
+    filter on every row give the same NLL and gradient: with gaps, a measured initial state
+    (transients), both holds and runs far shorter than the transient."""
     e = sde_experiment(n=1500, seed=6)
     e.y[700:730] = np.nan
     for x0 in ("measured", "estimated"):
@@ -202,17 +203,25 @@ def test_stationary_gain_equals_the_time_varying_filter():
         exact = lik.evaluate(v, 0, steady=False)[0]
         assert fast == pytest.approx(exact, rel=1e-12, abs=1e-8)
         steady_rows = lik.passes(v, 0)[0].steady_from
-        assert (
-            steady_rows[0] == (0 if x0 == "estimated" else steady_rows[0]) and len(steady_rows) == 2
-        )
+        assert steady_rows == ([0, 730] if x0 == "estimated" else [1, 730])
+    for n, hold in ((6, "zero_order"), (40, "first_order"), (300, "first_order")):
+        short = pem.Experiment("s", e.dt, e.u[:n], e.y[:n], hold=hold)
+        short.y[n // 2 : n // 2 + 3, 1] = np.nan
+        lik = likelihood([short], x0="measured")
+        v = random_point(lik, [short])
+        fast, exact = lik.evaluate(v, 1), lik.evaluate(v, 1, steady=False)
+        assert fast[0] == pytest.approx(exact[0], rel=1e-12, abs=1e-9)
+        np.testing.assert_allclose(fast[1], exact[1], rtol=1e-9, atol=1e-9 * np.abs(exact[1]).max())
 
 
 def test_stationary_switch_leaves_the_estimate_unchanged(monkeypatch):
-    """A whole fit with the switch and without it (STEADY_TOL < 0: the time-varying filter
-    on every row), measured initial state: the same optimum and intervals."""
+    """A whole fit with the switch and without it (STEADY_TOL < 0 and no prior correction: the
+    time-varying filter on every row), measured initial state: the same optimum and
+    intervals."""
     e = sde_experiment(n=500, seed=8)
     fast = kalman.fit(S2, [e], fixed={"kA": TRAM2["kA"]}, x0="measured")
     monkeypatch.setattr(kalman, "STEADY_TOL", -1.0)
+    monkeypatch.setattr(kalman, "PRIOR_CORRECTION", False)
     slow = kalman.fit(S2, [e], fixed={"kA": TRAM2["kA"]}, x0="measured")
     assert fast.cost == pytest.approx(slow.cost, rel=1e-10)
     for p in fast.free:
