@@ -1395,6 +1395,9 @@ def skipped_checks(estimate: Mapping[str, Any]) -> list[str]:
     return out
 
 
+CONDUCTANCES = ("K_veh", "K_i", "K_o")  # between two nodes: judged per m2 of the outer surface
+
+
 def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
     """Physical plausibility of a fit's numbers, each failure a sentence for the verdict
     (a unit mistake in a channel leaves every other check silent):
@@ -1410,7 +1413,12 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
     - the air node's capacity (C, or C_bar) at least ``min_air_capacity_ratio`` (default half)
       that of the air in ``volume_m3`` (rho c_p = 1206 J/(m^3 K)): the node holds the air and
       what is in equilibrium with it;
-    - an effective solar aperture a_<name> at most the whole outer surface A.
+    - an effective solar aperture a_<name> at most the whole outer surface A;
+    - a conductance between two nodes (K_veh, K_i, K_o) at most
+      ``max_conductance_per_area_W_m2K`` (default 200 W/(m^2 K)) of the outer surface A:
+      more than forced convection in the tunnel's wind carries over the whole surface. (kA
+      is judged by k; in the interior-envelope structure K_i and K_o are at least kA by
+      construction, kA = K_i K_o / (K_i + K_o).)
 
     ``thresholds``: the ``check`` section (defaults filled in by :func:`check_thresholds`).
     A check whose quantity the config does not give (no surface, mass or volume) is skipped
@@ -1444,6 +1452,17 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 f"the effective aperture {p} = {a:.4g} m² exceeds the whole outer surface "
                 f"A = {A:g} m²: the irradiance channel's unit (W/m² or kW/m²), or a gain the "
                 "model lacks taken for sunshine"
+            )
+    ceiling = float(thresholds["max_conductance_per_area_W_m2K"])
+    for p in CONDUCTANCES:
+        K = value(p) if p in par else None
+        if K is not None and A is not None and K / A > ceiling:
+            out.append(
+                f"the conductance {p} = {K:.4g} W/K is {K / A:.4g} W/(m² K) of the outer surface "
+                f"A = {A:g} m², more than {ceiling:g} W/(m² K) "
+                "(check.max_conductance_per_area_W_m2K, forced convection over the whole "
+                "surface): a unit mistake, or a fast dynamic the logger step cannot resolve "
+                "taken up by the conductance"
             )
     total = (estimate["fit"].get("totals") or {}).get("C_total")
     if total is not None and not pem.parameter_identification(total)["identified"]:

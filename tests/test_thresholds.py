@@ -222,6 +222,11 @@ def test_plausibility_thresholds(exact):
         "below 200 times (check.min_air_capacity_ratio)" in r
         for r in reasons(estimate, series, min_air_capacity_ratio=200)
     )
+    # K_veh = 974 W/K on 306 m2: 3.2 W/(m2 K), far below the default ceiling of 200
+    assert any(
+        "the conductance K_veh = 974 W/K is 3.183 W/(m² K)" in r and "more than 3 W/(m² K)" in r
+        for r in reasons(estimate, series, max_conductance_per_area_W_m2K=3.0)
+    )
 
 
 def test_min_used_share():
