@@ -6,7 +6,10 @@ side by side on one machine, interleaved round by round.
 
 pySIP (github.com/locie/pySIP, 1.0.0) runs in its own environment (the pins of its
 poetry.lock: numpy 1.24.4, scipy 1.9.3, numba 0.57.1, pandas 1.5.3, pydantic 1.10.12), so it
-is driven as a worker process that fits on request and reports its CPU time. The set-up is its
+is driven as a worker process that fits on request and reports its CPU time. One way to build
+that environment (Python 3.11): ``python3.11 -m venv V``, then ``V/bin/pip install`` of the
+runtime dependencies of pySIP's pyproject.toml with its poetry.lock's versions as constraints
+(``-c``), then ``V/bin/pip install --no-deps -e PYSIP_SOURCE``. The set-up is its
 regression test ``tests/data/test_armadillo.py``: TwTi_RoRi with the first-order hold, the 232
 rows of the record (the last dropped), the indoor state fixed at its first reading, diffusion
 on the wall state only; its warm fit (after numba's first compilation) is ``Regressor.fit``,

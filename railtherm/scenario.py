@@ -29,9 +29,9 @@ the next. A ``file`` profile is interpolated linearly onto the grid points (it m
 the whole duration; time 0 is time 0 of an elapsed-time column and the first row of a column
 of instants). Door openings, which may be shorter than a step, enter as their mean over each
 step: the share of the step the doors are open times the flow while open (exact in energy).
-With ``input_hold: first_order`` the outdoor temperature and the irradiance run linear between
-grid points instead (their samples are then point values); the heating and the heat flows stay
-held over each step.
+With ``input_hold: first_order`` every array runs linear between grid points instead (its
+values are then point values, a ``steps`` change a ramp over one step); only the power of a
+controller, decided at each grid point, stays held over the step.
 Air exchanged with the outside (doors, ventilation) enters ``air_exchange_W_K`` as
 rho c_p Vdot (:data:`RHO_AIR_KG_M3`, :data:`CP_AIR_J_KG_K`).
 

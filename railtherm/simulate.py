@@ -671,10 +671,13 @@ def _run(
         x = np.einsum("sij,sj->si", steps.Ad[g], X[:, k]) + np.einsum(
             "sij,sj->si", steps.Bd[g], U[:, k]
         )
-        if steps.Bd1 is not None:  # T_o and irradiance linear to the next grid point
-            slope = U[:, k + 1] - U[:, k]
-            slope[:, 1] = 0.0  # Q_H (heating and the step profiles of gains) stays held
-            x += np.einsum("sij,sj->si", steps.Bd1[g], slope)
+        if steps.Bd1 is not None:  # the scenario's inputs linear to the next grid point
+            slope = u[k + 1] - u[k]  # T_o, heat flows, irradiance (without the heating)
+            if ctl is None:  # a fixed heating power is a profile too; a controller's is held
+                slope = slope + np.eye(len(slope))[1] * (
+                    scenario.heating_W[k + 1] - scenario.heating_W[k]
+                )
+            x += np.einsum("sij,j->si", steps.Bd1[g], slope)
         if noise is not None:
             x = x + np.einsum("sij,sj->si", steps.Qchol[g], noise[:, k])
         X[:, k + 1] = x

@@ -30,6 +30,7 @@ def scenario(
     air_exchange_W_K: float | np.ndarray = 0.0,
     heat_up_to_C: float | None = None,
     cool_down_to_C: float | None = None,
+    input_hold: str = "zero_order",
 ) -> Scenario:
     """A scenario built in code (the YAML form is tested in test_scenario.py)."""
     t = np.arange(round(duration_s / dt_s) + 1) * dt_s
@@ -54,6 +55,7 @@ def scenario(
         initial=initial or Initial(kind="soaked"),
         heat_up_to_C=heat_up_to_C,
         cool_down_to_C=cool_down_to_C,
+        input_hold=input_hold,
     )
 
 
@@ -87,7 +89,8 @@ def first_order_fit(kA: float = 800.0, C_bar: float = 3.0e7) -> Fit:
 )
 def test_fitted_window_reproduces_the_fits_own_simulation(fitted, vehicle: str, model: str):
     """A fitted model run over its own identification window with the measured inputs (the
-    held T_o and Q_H) from the fit's initial state reproduces the fit's simulated series."""
+    held T_o and Q_H, or their samples under the fit's first-order hold) from the fit's
+    initial state reproduces the fit's simulated series."""
     path, series_path = fitted(vehicle, model)
     fit = read_fit(path)
     series = pd.read_csv(series_path)
@@ -103,6 +106,7 @@ def test_fitted_window_reproduces_the_fits_own_simulation(fitted, vehicle: str, 
         T_o=w["T_o"].to_numpy(),
         heating_W=w["Q_H"].to_numpy(),
         initial=Initial(kind="given", states_C=x0),
+        input_hold=fit.hold,
     )
     out = sim.simulate(fit, sc, draws=0)
     for s in states:
