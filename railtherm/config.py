@@ -39,7 +39,7 @@ from typing import Any
 
 import pandas as pd
 
-from railtherm import codedigest, timeaxis
+from railtherm import codedigest, timeaxis, units
 from railtherm.errors import ConfigError, DataError
 from railtherm.ingest import irradiance_names
 from railtherm.rawfile import (
@@ -408,6 +408,33 @@ def _missing_column(file: str, key: str, column: str, raw: str, layout: RawLayou
     )
 
 
+UNIT_KINDS = {
+    **dict.fromkeys(("indoor_air", "surface", "outdoor_air"), ("temperature", "degC")),
+    **dict.fromkeys(("heater_power", "fan_power", "heat_flows"), ("power", None)),
+    "irradiance": ("irradiance", None),
+}
+
+
+def _check_stated_unit(file: str, key: str, group: str, channel: Mapping[str, Any]) -> None:
+    """A column whose name states a unit (``T [°F]``, ``P_kW``) declared in another one is
+    refused, naming both; a channel with its own scale or offset is taken as declared."""
+    if "scale" in channel or "offset" in channel:
+        return
+    kind, default = UNIT_KINDS[group]
+    stated = units.stated_unit(channel["column"], kind)
+    declared = channel.get("unit", default)
+    if stated is None or stated == declared:
+        return
+    raise ConfigError(
+        file,
+        f"{key}.unit",
+        declared,
+        f"the column '{channel['column']}' says {units.WORDS.get(stated, stated)}: declare "
+        f"unit: {stated} (a value read in the wrong unit moves every parameter), or give the "
+        "channel's scale and offset if its name is wrong",
+    )
+
+
 def _check_channels(file: str, data: dict[str, Any], layouts: dict[str, RawLayout]) -> None:
     """Every channel column is in every raw file; no column (nor the time column) used twice."""
     time_column = data["format"]["time"]["column"]
@@ -424,6 +451,7 @@ def _check_channels(file: str, data: dict[str, Any], layouts: dict[str, RawLayou
             for name, layout in layouts.items():
                 if column not in layout.columns:
                     raise _missing_column(file, key, column, layout.path or name, layout)
+            _check_stated_unit(file, f"channels.{group}[{i}]", group, channel)
     inputs: dict[str, str] = {}
     for i, name in enumerate(irradiance_names(data)):
         key = f"channels.irradiance[{i}].name"

@@ -75,8 +75,8 @@ its last value are held) and the rows they touch are flagged in ``filled``. A ga
 into the rows of the window is a :class:`~railtherm.errors.DataError` naming the file, the
 column and the time of the gap. Gaps elsewhere in the file do not matter.
 
-Units: temperature channels in K are converted to degC (minus 273.15), power channels in kW to
-W. Raw-data problems raise :class:`~railtherm.errors.DataError`; a window that does not fit the
+Units: each channel's ``scale * raw + offset`` (when declared) in its declared unit, converted
+to degC (from K or degF), W (from kW) or W/m2 (from kW/m2) by :func:`railtherm.units.to_si`. Raw-data problems raise :class:`~railtherm.errors.DataError`; a window that does not fit the
 data (outside it, empty, unknown name) raises :class:`~railtherm.errors.ConfigError` naming the
 raw file and the window's key.
 """
@@ -92,7 +92,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import timeaxis
+from railtherm import timeaxis, units
 from railtherm.errors import ConfigError, DataError
 from railtherm.rawfile import parse_times, read_columns, separator_hint
 from railtherm.readers import read_table, reader_kind
@@ -121,12 +121,10 @@ TIDY_COLUMNS = (
     "T_spread",
     "filled",
 )
-KELVIN = 273.15
 TEMPERATURE_GROUPS = ("indoor_air", "surface", "outdoor_air")
 POWER_GROUPS = ("heater_power", "fan_power")
 KNOWN_HEAT = "heat_flows"  # eq. 1's known heat flows (W), summed into Q_H
 IRRADIANCE = "irradiance"  # W/m2, one model input per channel
-_UNIT_FACTOR = {"W": 1.0, "kW": 1000.0, "W/m2": 1.0, "kW/m2": 1000.0}
 
 
 def irradiance_names(vehicle_data: Mapping[str, Any]) -> list[str]:
@@ -627,11 +625,8 @@ def tidy(
                     f"(columns: {', '.join(map(str, shown))})",
                 )
             values = _numeric(file, raw, column)
-            unit = channel.get("unit", "degC" if group in TEMPERATURE_GROUPS else "W")
-            if unit == "K":
-                values = values - KELVIN
-            elif _UNIT_FACTOR.get(unit, 1.0) != 1.0:
-                values = values * _UNIT_FACTOR[unit]
+            default = "degC" if group in TEMPERATURE_GROUPS else "W"
+            values = units.to_si(values, channel, default)
             found.append((column, float(channel.get("weight", 1.0)), values))
         groups[group] = found
 

@@ -17,8 +17,9 @@ The file format is detected, the rest is guessed or left as an explicit TODO:
   instants a commented ``timezone``/``dst`` line says how to declare a logger clock on local
   time;
 - **channel groups** from the column names (English and German, case-insensitive), each guess
-  marked ``# guessed from the column name: check``; temperatures whose values are above 200
-  get ``unit: K``, power columns named with ``kW`` get ``unit: kW`` (else ``W``);
+  marked ``# guessed from the column name: check``; temperatures named in °F (``[°F]``, degF,
+  Fahrenheit) get ``unit: degF``, those named in K or with values above 200 ``unit: K``, power
+  columns named with ``kW`` get ``unit: kW`` (else ``W``);
 - **windows**: one identification window over the whole file, in the file's own notation (its
   first and last time as written); the static k window stays a commented-out TODO, as only
   the engineer can choose the steady part.
@@ -43,7 +44,7 @@ from typing import Any
 import pandas as pd
 import yaml
 
-from railtherm import timeaxis
+from railtherm import timeaxis, units
 from railtherm.config import CHANNEL_GROUPS
 from railtherm.errors import ConfigError, DataError
 from railtherm.rawfile import (
@@ -305,8 +306,11 @@ def guess_channels(found: Detected) -> tuple[dict[str, list[Channel]], list[str]
         values = _values(found.sample, column)
         kw = bool(_KW.search(column.lower()))
         if group in TEMPERATURE_GROUPS:
-            if not values.empty and values.median() > 200:
-                channel = Channel(column, "K", f"{_range(values)}, above 200: kelvin")
+            stated = units.stated_unit(column, "temperature")
+            if stated == "degF":
+                channel = Channel(column, "degF", f"{_range(values)} °F, as the name says")
+            elif stated == "K" or (not values.empty and values.median() > 200):
+                channel = Channel(column, "K", f"{_range(values)}, above 200 or named: kelvin")
             else:
                 channel = Channel(column, None, f"{_range(values)} °C")
         elif group in POWER_GROUPS:

@@ -813,3 +813,22 @@ def test_mixed_utc_offsets_are_compared_in_utc(tmp_path):
     path.write_text(path.read_text().replace("03:01:00+02:00", "03:01:00"))
     with pytest.raises(DataError, match="line 5: no UTC offset"):
         ingest.read_raw(path, _vehicle(SIMPLE)["format"])
+
+
+def test_fahrenheit_and_a_channels_scale_and_offset_are_converted(tmp_path):
+    """°F is a temperature unit; any channel's scale * raw + offset is taken in its unit
+    before the conversion: the raw file is read as it is."""
+    t = np.arange(5) * 60.0
+    frame = _simple_frame(t, Ti=68.0, To=14.0, P=2.5)
+    frame["P1"] = [2.5, 2.5, 3.0, 3.0, 3.0]  # logged in volts: 400 W per volt, 100 W offset
+    data = _vehicle(
+        {
+            "indoor_air": [{"column": "Ti1", "unit": "degF"}],
+            "outdoor_air": [{"column": "To1", "unit": "degF", "offset": -1.8}],
+            "heater_power": [{"column": "P1", "unit": "W", "scale": 400.0, "offset": 100.0}],
+        }
+    )
+    out = _clean(tmp_path, frame, data)
+    assert out["T"].to_numpy() == pytest.approx(20.0)
+    assert out["T_o"].to_numpy() == pytest.approx(-11.0)  # (14 - 1.8 - 32) * 5 / 9
+    assert out["Q_heater"].iloc[0] == pytest.approx(1100.0)  # instant: [0, 60) at 1100 W
