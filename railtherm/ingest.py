@@ -76,7 +76,8 @@ into the rows of the window is a :class:`~railtherm.errors.DataError` naming the
 column and the time of the gap. Gaps elsewhere in the file do not matter.
 
 Units: each channel's ``scale * raw + offset`` (when declared) in its declared unit, converted
-to degC (from K or degF), W (from kW) or W/m2 (from kW/m2) by :func:`railtherm.units.to_si`. Raw-data problems raise :class:`~railtherm.errors.DataError`; a window that does not fit the
+to degC (from K or degF), W (from kW) or W/m2 (from kW/m2) by :func:`railtherm.units.to_si`.
+Raw-data problems raise :class:`~railtherm.errors.DataError`; a window that does not fit the
 data (outside it, empty, unknown name) raises :class:`~railtherm.errors.ConfigError` naming the
 raw file and the window's key.
 """

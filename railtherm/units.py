@@ -37,7 +37,7 @@ _STATED = {
     "temperature": (
         ("degF", re.compile(rf"°\s*F{_A}|{_B}deg\s*F{_A}|fahrenheit|\[\s*F\s*\]", re.I)),
         ("degC", re.compile(rf"°\s*C{_A}|{_B}deg\s*C{_A}|celsius|\[\s*C\s*\]", re.I)),
-        ("K", re.compile(rf"kelvin|\[\s*K\s*\]|\(\s*K\s*\)", re.I)),
+        ("K", re.compile(r"kelvin|\[\s*K\s*\]|\(\s*K\s*\)", re.I)),
     ),
     "power": (
         ("kW", re.compile(rf"{_B}kW{_A}(?!\s*/\s*m)", re.I)),
