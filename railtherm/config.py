@@ -83,6 +83,7 @@ CHANNEL_GROUPS = (
     "heat_flows",
     "irradiance",
 )
+DEFAULT_ORDERS = (1, 2)  # the paper's two models, when model.orders is not given
 # Parameters model.initial and model.bounds name, besides the solar ones of the vehicle's
 # irradiance inputs I_<name>: a_I_<name> and, for a gain on both nodes, f_I_<name>.
 PARAMETERS = ("kA", "C_bar", "C", "K_veh", "C_veh", "K_i", "C_e", "K_o")
@@ -298,6 +299,14 @@ def load_vehicle(
     _check_channels(file, data, found)
     _check_windows(file, data, found)
     model = deep_merge((defaults or {}).get("model") or {}, data.get("model") or {})
+    model.setdefault("orders", list(DEFAULT_ORDERS))
+    if not model["orders"] and not model.get("structures"):
+        raise ConfigError(
+            file,
+            "model.orders",
+            [],
+            "nothing to fit: list an order (1: eq. 9, 2: eqs. 7-8) or a model.structures entry",
+        )
     _check_model(file, model, data.get("model") or {}, solar=_solar_parameters(data))
     _check_envelope(file, data, model)
     data["model"] = model  # data is self-contained: the workflow passes it as params

@@ -43,12 +43,15 @@ def model_selection_markdown(fits: Sequence[Mapping[str, Any]], alpha: float = 0
         keys = {split_key(f["model"])[0]: f for f in kfits}
         if len(keys) < 2:
             continue
-        candidates = [(k, f["loglik"], f["n_params"]) for k, f in keys.items()]
         nesting = [
             (small, large, boundary)
             for small, large, boundary in NESTING
             if small in keys and large in keys and keys[large]["n_params"] > keys[small]["n_params"]
         ]
+        if not nesting:  # e.g. order2 and interior_envelope without order1: not nested
+            continue
+        nested = {name for link in nesting for name in link[:2]}
+        candidates = [(k, f["loglik"], f["n_params"]) for k, f in keys.items() if k in nested]
         selection = diagnostics.forward_selection(candidates, nesting, alpha)
         parts.append(diagnostics.selection_markdown(vehicle, selection))
     return "\n".join(parts)

@@ -471,6 +471,14 @@ BAD_VEHICLES = [
         0.01,
         "a noisy sample drives two steps",
     ),
+    (
+        "nothing-to-fit",
+        lambda d: d["model"].update(orders=[], structures=[]),
+        None,
+        "model.orders",
+        [],
+        "nothing to fit: list an order (1: eq. 9, 2: eqs. 7-8) or a model.structures entry",
+    ),
     (  # °F data declared °C gives k -44 % and every parameter x 5/9, with a good fit
         "fahrenheit-column-read-as-celsius",
         lambda d: d["channels"]["indoor_air"][0].update(column="T_in_1 [°F]"),
@@ -713,7 +721,8 @@ def test_defaults_model_merged_under_vehicle_model(repo):
         "bounds": {"C_bar": [1.0e4, 1.0e10], "K_veh": [1.0e-2, 1.0e7], "C": [1.0e4, 1.0e10]},
     }
     assert DEFAULTS["model"]["initial"]["C"] == 120480  # the defaults are not modified
-    assert load_vehicle(VEHICLE_FILE).model == VEHICLE["model"]
+    # without the study's defaults: the vehicle's own model, and the paper's two orders
+    assert load_vehicle(VEHICLE_FILE).model == {**VEHICLE["model"], "orders": [1, 2]}
 
 
 def test_raw_paths_relative_to_vehicle_file_and_normalised_to_workdir(repo):

@@ -336,3 +336,46 @@ def test_validate_checks_the_reference_files_as_the_run_would(tmp_path, capsys):
         "config/published/pysip_armadillo.yaml: key 'model' = 'interior_envelope'"
     )
     assert "no such fit in the study" in err
+
+
+def test_every_model_combination_that_validates_runs_to_the_end(tmp_path):
+    """Model sections a user may write - no model.orders (the paper's two), the Kalman
+    estimator alone, order 2 with interior_envelope but no order 1, no order at all beside a
+    structure - each validate and run to the tables (a day of the Armadillo record each)."""
+    study = validation_copy(tmp_path)
+    base = yaml.safe_load((study / "config" / "vehicles" / "Armadillo.yaml").read_text())
+    base["windows"]["identification"][0]["end"] = 86_400
+    variants = {
+        "NoOrders": {"structures": [], "mode": "joint"},
+        "KalmanOnly": {"orders": [1], "structures": [], "estimator": "kalman", "mode": "joint"},
+        "Order2Envelope": {"orders": [2], "structures": ["interior_envelope"], "mode": "joint"},
+        "EnvelopeOnly": {"orders": [], "structures": ["interior_envelope"], "mode": "joint"},
+    }
+    paths = []
+    for name, model in variants.items():
+        data = {**base, "id": name, "model": {"x0": "estimated", **model}}
+        path = study / "config" / "vehicles" / f"{name}.yaml"
+        path.write_text(yaml.safe_dump(data, sort_keys=False))
+        paths.append(f"config/vehicles/{name}.yaml")
+    cfg_path = study / "config" / "config.yaml"
+    cfg = yaml.safe_load(cfg_path.read_text())
+    cfg["vehicles"] = paths
+    cfg["study"]["references"] = []
+    cfg_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    from railtherm.cli import main
+
+    assert main(["validate", "-d", str(study)]) == 0
+    run = snakemake(study)
+    assert run.returncode == 0, run.stderr[-3000:]
+    models = pd.read_csv(study / "results" / "tables" / "models.csv")
+    got = {(r.vehicle, r.model) for r in models.itertuples()}
+    assert got == {
+        ("NoOrders", "order1"),
+        ("NoOrders", "order2"),
+        ("KalmanOnly", "order1_kalman"),
+        ("Order2Envelope", "order2"),
+        ("Order2Envelope", "interior_envelope"),
+        ("EnvelopeOnly", "interior_envelope"),
+    }
+    fits = pd.read_csv(study / "results" / "tables" / "identification.csv")
+    assert sorted(fits["vehicle"]) == ["KalmanOnly", "NoOrders", "NoOrders", "Order2Envelope"]

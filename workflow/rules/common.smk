@@ -273,6 +273,23 @@ def fit_targets():
     return list(_fit_targets())
 
 
+def table_key(vehicle, order):
+    """The model key of a vehicle's order-``order`` fit in the study's tables and figures: by
+    the study's estimator (study.estimator) where the vehicle fits with it, else by the
+    vehicle's own (a vehicle declaring model.estimator: kalman alone)."""
+    key = f"order{order}{TABLE_KEY_SUFFIX}"
+    if key in model_keys(vehicle):
+        return key
+    return f"order{order}" if TABLE_KEY_SUFFIX else f"order{order}{rt_identify.KALMAN_SUFFIX}"
+
+
+def table_series(vehicle, order):
+    """The simulated series of the fit :func:`table_key` names (the figures' input); any
+    path when no vehicle is chosen (``vehicle`` None: the figure is not made)."""
+    key = table_key(vehicle, order) if vehicle else f"order{order}"
+    return f"results/vehicles/{vehicle}/identify/{key}_series.csv"
+
+
 def has_fit(vehicle, order):
     """Whether a vehicle of the study fits the model of this order."""
     return order in STUDY.vehicles[vehicle].model["orders"]

@@ -65,7 +65,7 @@ for _rule, _keys, _constraint in rule_groups("check", model_keys):
 rule fit_table:
     input:
         fits=[
-            f"results/vehicles/{vid}/fit_order{n}{TABLE_KEY_SUFFIX}.yaml"
+            f"results/vehicles/{vid}/fit_{table_key(vid, n)}.yaml"
             for vid, n in fit_targets()
         ],
         truth="results/campaign/ground_truth.csv" if CAMPAIGN else [],

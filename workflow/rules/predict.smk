@@ -5,7 +5,7 @@
 rule simulate:
     input:
         fits=[
-            f"results/vehicles/{vid}/fit_order2{TABLE_KEY_SUFFIX}.yaml"
+            f"results/vehicles/{vid}/fit_{table_key(vid, 2)}.yaml"
             for vid in second_order_vehicles()
         ],
         scenarios=scenario_files(),
@@ -48,11 +48,11 @@ rule reference_validation:
     input:
         table2="results/tables/table2.csv",
         fits=[
-            f"results/vehicles/{vid}/fit_order2{TABLE_KEY_SUFFIX}.yaml"
+            f"results/vehicles/{vid}/fit_{table_key(vid, 2)}.yaml"
             for vid in second_order_vehicles()
         ],
         series=[
-            f"results/vehicles/{vid}/identify/order2{TABLE_KEY_SUFFIX}_series.csv"
+            table_series(vid, 2)
             for vid in second_order_vehicles()
         ],
         scenario=getattr(figure_scenario(), "file", []),

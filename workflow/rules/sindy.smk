@@ -14,7 +14,7 @@ for _rule, _batch in sindy_batches():
                 for vid in _batch
             },
             **{
-                f"fit_{vid}": f"results/vehicles/{vid}/fit_order2.yaml"
+                f"fit_{vid}": f"results/vehicles/{vid}/fit_{table_key(vid, 2)}.yaml"
                 for vid in _batch
                 if has_fit(vid, 2)
             },

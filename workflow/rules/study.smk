@@ -89,7 +89,7 @@ for _rule, (_has_k, _keys), _constraint in rule_groups("vehicle_figures", figure
 rule aggregate:
     input:
         fits=[
-            f"results/vehicles/{vid}/fit_order2{TABLE_KEY_SUFFIX}.yaml"
+            f"results/vehicles/{vid}/fit_{table_key(vid, 2)}.yaml"
             for vid in second_order_vehicles()
         ],
         kvalues=[
@@ -99,7 +99,7 @@ rule aggregate:
         ],
         # C_bar (eq. 9) beside C_total = C + C_veh in Table 2
         first_order=[
-            f"results/vehicles/{vid}/fit_order1{TABLE_KEY_SUFFIX}.yaml"
+            f"results/vehicles/{vid}/fit_{table_key(vid, 1)}.yaml"
             for vid in second_order_vehicles()
             if has_fit(vid, 1)
         ],
@@ -139,8 +139,8 @@ rule aggregate:
 
 rule figure3:
     input:
-        order1=f"results/vehicles/{figure3_vehicle()}/identify/order1_series.csv",
-        order2=f"results/vehicles/{figure3_vehicle()}/identify/order2_series.csv",
+        order1=table_series(figure3_vehicle(), 1),
+        order2=table_series(figure3_vehicle(), 2),
     output:
         png=report(
             "results/figures/figure3.png",
@@ -168,7 +168,7 @@ rule figure3:
 
 rule figure4:
     input:
-        series=[f"results/vehicles/{vid}/identify/order2_series.csv" for vid in figure4_vehicles()],
+        series=[table_series(vid, 2) for vid in figure4_vehicles()],
     output:
         png=report(
             "results/figures/figure4.png",
