@@ -1,8 +1,21 @@
 # railtherm: regenerate the rail-vehicle thermal study from the configs in config/.
 # Thin by design: every number is computed by the railtherm package; rules live in workflow/rules.
+from snakemake.exceptions import WorkflowError
 from snakemake.utils import min_version, validate
 
+from railtherm.errors import RailthermError
+from railtherm.yamlio import read_yaml
+
 min_version("9.0")
+
+
+# the study config is read by railtherm's own loader first, as `railtherm validate` reads it: a
+# key given twice or an alias bomb stops here, before Snakemake's loader takes the last value
+# of a key or builds the bomb
+try:
+    read_yaml("config/config.yaml")
+except RailthermError as err:
+    raise WorkflowError(f"invalid configuration: {err}") from None
 
 
 configfile: "config/config.yaml"

@@ -234,3 +234,35 @@ def test_full_study_reproduces_the_committed_tables(tmp_path):
         png_is_a_picture(png.read_bytes())
     again = snakemake(study)
     assert "Nothing to be done" in again.stdout + again.stderr
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize(
+    ("text", "reason"),
+    [
+        ("vehicles:\n  - config/vehicles/Tram2.yaml\n", "duplicate key 'vehicles'"),
+        (
+            "bomb: &a [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n"
+            + "".join(
+                f"b{i}: &b{i} [*{'a' if i == 0 else f'b{i - 1}'}"
+                + f", *{'a' if i == 0 else f'b{i - 1}'}" * 9
+                + "]\n"
+                for i in range(7)
+            ),
+            "alias bomb",
+        ),
+    ],
+    ids=["vehicles-twice", "alias-bomb"],
+)
+def test_the_workflow_reads_the_study_config_as_validate_does(tmp_path, text, reason):
+    """A config.yaml that `railtherm validate` refuses stops the workflow's parse with the same
+    message, before Snakemake's own loader would run the second `vehicles:` list silently or
+    build an alias bomb for minutes."""
+    study = make_study(tmp_path)
+    cfg = study / "config" / "config.yaml"
+    cfg.write_text(cfg.read_text() + text)
+    run = snakemake(study, "-n")
+    assert run.returncode != 0
+    said = run.stdout + run.stderr
+    assert "invalid configuration: config/config.yaml" in said
+    assert reason in said
