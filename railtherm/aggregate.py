@@ -33,7 +33,9 @@ def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame |
     the campaign's ground_truth.csv (synthetic vehicles only). A vehicle agrees with its truth
     when |k - k_truth| <= max(u_k, 3 % k_truth) (u_k the standard uncertainty; U_k = 2 u_k, the
     expanded one, is listed too). ``note`` names the declared deviations that bias k, says when
-    the window is not usable, and flags a disagreement that nothing declared explains.
+    the window is not usable, and flags a disagreement that nothing declared explains;
+    ``plausibility`` says when k lies outside ``check.k_range_W_m2K`` (a unit mistake), as
+    the fit's verdict does.
 
     A vehicle without ``surface_m2`` (class other) has no k: its k, u_k and U_k are blank, and
     the table then gives every vehicle's ``kA``, ``u_kA`` and ``k_status`` ("estimated" or
@@ -62,6 +64,7 @@ def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame |
             "forced": r["forced"],
             "usable": r["usable"],
             "reasons": "; ".join(r["reasons"]),
+            "plausibility": "; ".join(r.get("plausibility") or []),
         }
         if truth_by_id is not None and vid in truth_by_id.index:
             t = truth_by_id.loc[vid]

@@ -172,6 +172,7 @@ class KValue:
     window_start: Any = None
     window_end: Any = None
     notes: tuple[str, ...] = ()
+    plausibility: tuple[str, ...] = ()  # k outside the physical range: a unit mistake
 
     @property
     def u_kA(self) -> float:
@@ -204,6 +205,7 @@ class KValue:
             "usable": bool(self.usable),
             "notes": list(self.notes),
             "reasons": list(self.reasons),
+            "plausibility": list(self.plausibility),
             "budget": self.budget.to_dict(),
             "window": {"start": _plain(self.window_start), "end": _plain(self.window_end)},
         }
@@ -211,12 +213,18 @@ class KValue:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> KValue:
         """The inverse of :meth:`to_dict` (a kvalue.yaml read back)."""
-        names = {f.name for f in dataclasses.fields(cls)} - {"budget", "reasons", "notes"}
+        names = {f.name for f in dataclasses.fields(cls)} - {
+            "budget",
+            "reasons",
+            "notes",
+            "plausibility",
+        }
         window = data.get("window") or {}
         return cls(
             **{k: data[k] for k in names if k in data},
             reasons=tuple(data["reasons"]),
             notes=tuple(data.get("notes") or ()),
+            plausibility=tuple(data.get("plausibility") or ()),
             budget=Budget(**data["budget"]),
             window_start=window.get("start"),
             window_end=window.get("end"),
@@ -520,11 +528,14 @@ _LIMITS = (
 )
 
 
+K_RANGE = (0.1, 10.0)  # W/(m2 K): the default of check.k_range_W_m2K
+
+
 def for_vehicle(window: pd.DataFrame, vehicle_data: Mapping[str, Any], source: str) -> KValue:
     """:func:`static_k` with A, mass, settings, instruments and sensor counts from a vehicle's
     validated config (``Vehicle.data``); a surface or mass the config does not give is None."""
     A, mass = vehicle_data.get("surface_m2"), vehicle_data.get("mass_kg")
-    return static_k(
+    result = static_k(
         window,
         A=None if A is None else float(A),
         mass_kg=None if mass is None else float(mass),
@@ -533,6 +544,15 @@ def for_vehicle(window: pd.DataFrame, vehicle_data: Mapping[str, Any], source: s
         n_sensors=sensor_counts(vehicle_data["channels"]),
         source=source,
     )
+    lo, hi = (float(x) for x in (vehicle_data.get("check") or {}).get("k_range_W_m2K", K_RANGE))
+    if result.k is not None and not lo <= result.k <= hi:
+        why = (
+            f"k = {result.k:.4g} W/(m² K) lies outside the physical range {lo:g}-{hi:g} "
+            "W/(m² K) (check.k_range_W_m2K): are the units of the power and temperature "
+            "channels right (W or kW, degC, K or degF), and A the whole surface?"
+        )
+        result = dataclasses.replace(result, plausibility=(why,))
+    return result
 
 
 # ---------------------------------------------------------------------------------------------

@@ -482,6 +482,9 @@ def _with_exchange(
     return A, B
 
 
+PLAUSIBLE_AIR_C = (-60.0, 100.0)  # an interior air temperature outside: the inputs' units
+
+
 def _prepare(
     structure: models.Structure,
     thetas: list[dict[str, float]],
@@ -913,6 +916,14 @@ def simulate(
         "peak_power_W": scalar("peak_power_W", "W", peak),
         "final_T_C": scalar("final_T_C", "°C", final),
     }
+    hottest, coldest = float(np.max(T[0])), float(np.min(T[0]))
+    lo_C, hi_C = PLAUSIBLE_AIR_C
+    if hottest > hi_C or coldest < lo_C:
+        notes.append(
+            f"the predicted air temperature runs from {coldest:.4g} to {hottest:.4g} °C, beyond "
+            f"what a vehicle's interior reaches ({lo_C:g} to {hi_C:g} °C): is the scenario's "
+            "heating power in W (not kW or mW), and its outdoor temperature in °C?"
+        )
     series = pd.DataFrame({"time_h": t / 3600.0, "T_o": scenario.T_o})
     for i, state in enumerate(structure.states):
         series[state] = X[0, :, i]

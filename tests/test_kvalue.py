@@ -311,3 +311,36 @@ def test_k_scales_as_one_over_a_and_linearly_in_q_h(A, factor, Q_H, dT, seed):
     assert r.u_k >= 0.0 and r2.u_k >= 0.0
     assert r.u_k >= r.budget.power  # rss is at least each component
     assert r.kA == pytest.approx(r.k * A, rel=1e-12)
+
+
+def test_a_k_outside_the_physical_range_is_flagged_in_the_k_table():
+    """kW logged as W: k a thousand times too small. The static test may still find the
+    window steady; the k table says the number is implausible, as the fit's verdict does."""
+    from railtherm import aggregate, kvalue
+
+    t = np.arange(0, 8 * 3600 + 1, 60.0)
+    window = pd.DataFrame(
+        {
+            "time": t,
+            "timestamp": t,
+            "T": np.full(t.size, 20.0),
+            "T_veh": np.nan,
+            "T_o": np.full(t.size, -10.0),
+            "Q_H": np.full(t.size, 30.0),  # 30 kW logged as 30 W
+        }
+    )
+    from railtherm.config import section_defaults
+
+    data = {
+        "surface_m2": 300.0,
+        "mass_kg": 30000.0,
+        "kvalue": section_defaults("kvalue"),
+        "instruments": section_defaults("instruments"),
+        "channels": {"indoor_air": [{"column": "a"}], "outdoor_air": [{"column": "b"}]},
+        "check": {"k_range_W_m2K": [0.1, 10]},
+    }
+    k = kvalue.for_vehicle(window, data, "w")
+    assert k.steady and k.k == pytest.approx(30.0 / 30.0 / 300.0)
+    assert "outside the physical range 0.1-10" in k.plausibility[0]
+    table = aggregate.kvalue_table({"V": k.to_dict()})
+    assert "check.k_range_W_m2K" in table.loc[0, "plausibility"]

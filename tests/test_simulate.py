@@ -365,3 +365,14 @@ def test_pi_controller_taking_over_a_steady_state_holds_it_without_a_dip():
     out = sim.simulate(first_order_fit(), sc, draws=0)
     np.testing.assert_allclose(out.series["T"], 20.0, atol=1e-9)
     np.testing.assert_allclose(out.series["heating_W"], 800.0 * 25.0 - 3000.0, rtol=1e-9)
+
+
+def test_an_implausible_prediction_says_what_to_check():
+    """1e12 W of heating (a unit slip) runs the air to ~1e9 °C: the result says so and names
+    the inputs to check, instead of printing the number alone."""
+    sc = scenario(24 * 3600.0, 600.0, -10.0, heating_W=1.0e12)
+    out = sim.simulate(first_order_fit(), sc, draws=0)
+    assert out.outcomes["final_T_C"].value > 1e6
+    assert any("beyond what a vehicle's interior reaches" in n and "in W" in n for n in out.notes)
+    ordinary = sim.simulate(first_order_fit(), scenario(24 * 3600.0, 600.0, -10.0, 20_000.0))
+    assert not any("beyond what" in n for n in ordinary.notes)
