@@ -42,6 +42,7 @@ import pandas as pd
 from railtherm import codedigest, timeaxis, units
 from railtherm.errors import ConfigError, DataError
 from railtherm.ingest import irradiance_names
+from railtherm.readers import elsewhere_hint
 from railtherm.rawfile import (
     MAX_ROWS,
     MIN_WINDOW_STEPS,
@@ -290,13 +291,15 @@ def load_vehicle(
 
     yaml_dir = os.path.dirname(path)
     raw_files: dict[str, str] = {}
+    locals_: dict[str, str] = {}  # the raw files as this process finds them
     found: dict[str, RawLayout] = {}
     for name, raw in data["raw_files"].items():
         local = os.path.normpath(os.path.join(yaml_dir, raw))
         raw_files[name] = _normalise(local, workdir)
+        locals_[name] = local
         found[name] = _layout(file, name, raw, local, raw_files[name], fmt, layouts or {})
 
-    _check_channels(file, data, found)
+    _check_channels(file, data, found, locals_)
     _check_windows(file, data, found)
     model = deep_merge((defaults or {}).get("model") or {}, data.get("model") or {})
     model.setdefault("orders", list(DEFAULT_ORDERS))
@@ -376,6 +379,7 @@ def _layout(
         raise ConfigError(file, key, raw, f"{normalised}: {exc.reason}") from None
     if time["column"] not in columns:
         hint = separator_hint(columns, fmt["separator"])
+        hint = elsewhere_hint(local, time["column"]) or hint  # a workbook's other sheet/row
         raise ConfigError(
             file,
             "format.time.column",
@@ -408,10 +412,13 @@ def _layout(
     )
 
 
-def _missing_column(file: str, key: str, column: str, raw: str, layout: RawLayout) -> ConfigError:
+def _missing_column(
+    file: str, key: str, column: str, raw: str, layout: RawLayout, local: str | None = None
+) -> ConfigError:
     close = difflib.get_close_matches(column, layout.columns, n=1)
     hint = f"did you mean '{close[0]}'? " if close else ""
     hint = separator_hint(layout.columns, "") or hint
+    hint = elsewhere_hint(local, column) or hint  # a workbook: on another sheet or row?
     return ConfigError(
         file, key, column, f"not a column of {raw} ({hint}columns: {words(layout.columns)})"
     )
@@ -444,7 +451,12 @@ def _check_stated_unit(file: str, key: str, group: str, channel: Mapping[str, An
     )
 
 
-def _check_channels(file: str, data: dict[str, Any], layouts: dict[str, RawLayout]) -> None:
+def _check_channels(
+    file: str,
+    data: dict[str, Any],
+    layouts: dict[str, RawLayout],
+    local: Mapping[str, str] | None = None,
+) -> None:
     """Every channel column is in every raw file; no column (nor the time column) used twice."""
     time_column = data["format"]["time"]["column"]
     used: dict[str, str] = {}
@@ -459,7 +471,8 @@ def _check_channels(file: str, data: dict[str, Any], layouts: dict[str, RawLayou
             used[column] = key
             for name, layout in layouts.items():
                 if column not in layout.columns:
-                    raise _missing_column(file, key, column, layout.path or name, layout)
+                    where = (local or {}).get(name)
+                    raise _missing_column(file, key, column, layout.path or name, layout, where)
             _check_stated_unit(file, f"channels.{group}[{i}]", group, channel)
     inputs: dict[str, str] = {}
     for i, name in enumerate(irradiance_names(data)):

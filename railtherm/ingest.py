@@ -96,7 +96,7 @@ import pandas as pd
 from railtherm import timeaxis, units
 from railtherm.errors import ConfigError, DataError
 from railtherm.rawfile import parse_times, read_columns, separator_hint
-from railtherm.readers import read_table, reader_kind
+from railtherm.readers import elsewhere_hint, read_table, reader_kind
 
 __all__ = [
     "TIDY_COLUMNS",
@@ -175,6 +175,7 @@ def read_raw(
         raise DataError(file, exc.key, exc.value, exc.reason) from None
     if time_column not in columns:
         hint = separator_hint(columns, sep) if reader_kind(path, fmt) == "csv" else ""
+        hint = elsewhere_hint(path, time_column) or hint
         raise DataError(
             file, time_column, None, f"time column not found ({hint}columns: {', '.join(columns)})"
         )
@@ -206,8 +207,17 @@ def read_raw(
         i = int(bad[0]) + 1
         what = "duplicated time" if steps[i - 1] == 0 else "time goes backwards"
         why = "the time column must increase strictly"
+        forward = steps[steps > 0]
+        step = float(np.median(forward)) if forward.size else 0.0
+        hour_back = abs(steps[i - 1] + 3600.0) <= max(2.0 * step, 1.0)
         if tf.timezone and tf.dst in ("earlier", "later"):  # both passes of the repeated hour
             why += f"; format.time.dst: {tf.dst} takes every repeated local time as one: infer?"
+        elif hour_back and tf.absolute and not tf.timezone:
+            why += (
+                "; it steps back by an hour, as a clock on local time does when summer time "
+                "ends: declare format.time.timezone (e.g. Europe/Berlin, America/Chicago) and "
+                "format.time.dst: infer"
+            )
         raise DataError(
             file,
             time_column,

@@ -25,7 +25,7 @@ from railtherm.errors import DataError
 
 # csv_error stays importable from here, where it was before railtherm.readers
 from railtherm.readers import csv_error as csv_error
-from railtherm.readers import read_header, read_table
+from railtherm.readers import elsewhere_hint, read_header, read_table
 
 
 @dataclass(frozen=True)
@@ -144,7 +144,10 @@ def read_layout(
     path = str(path)
     columns = read_columns(path, fmt=fmt)
     if time_column not in columns:
-        raise DataError(path, time_column, None, f"no such column (columns: {', '.join(columns)})")
+        hint = elsewhere_hint(path, time_column)
+        raise DataError(
+            path, time_column, None, f"no such column ({hint}columns: {', '.join(columns)})"
+        )
     raw = read_table(path, fmt, columns=[time_column])[time_column]
     if raw.empty:
         raise DataError(path, time_column, None, "the file has a header but no data rows")

@@ -47,7 +47,9 @@ from railtherm.errors import DataError
 __all__ = [
     "READERS",
     "csv_error",
+    "elsewhere_hint",
     "read_header",
+    "sheets_with",
     "read_table",
     "reader_kind",
 ]
@@ -418,6 +420,48 @@ def _excel(
         return tuple(names.values()), []
     data = [row for row in rows[header_row + 1 :] if not all(_empty(v) for v in row)]
     return names, data
+
+
+def sheets_with(path: str | os.PathLike[str], column: str, rows: int = 30) -> list[tuple[str, int]]:
+    """The worksheets of a workbook whose first ``rows`` rows hold a cell named ``column``,
+    each with that row (counted from 0, as ``format.header_row``): where a column missing
+    from the declared sheet is. Empty for any other file, or a workbook that cannot be read."""
+    path = str(path)
+    if reader_kind(path) != "excel":
+        return []
+    try:
+        calamine = importlib.import_module("python_calamine")
+        book = calamine.CalamineWorkbook.from_path(path)
+    except Exception:  # no reader or no workbook: the caller's own message stands
+        return []
+    found = []
+    try:
+        for meta in book.sheets_metadata:
+            if meta.typ != calamine.SheetTypeEnum.WorkSheet:
+                continue
+            head = book.get_sheet_by_name(meta.name).to_python(skip_empty_area=False, nrows=rows)
+            for r, row in enumerate(head):
+                if column in (_header_name(v) for v in row):
+                    found.append((meta.name, r))
+                    break
+    except Exception:
+        return found
+    finally:
+        book.close()
+    return found
+
+
+def elsewhere_hint(path: str | os.PathLike[str] | None, column: str) -> str:
+    """For a column missing from the declared sheet of a workbook, where it is and the settings
+    to read it there ("it is on sheet 'Data', row 2: set format.sheet ..."); else ""."""
+    found = sheets_with(path, column) if path else []
+    if not found:
+        return ""
+    sheet, row = found[0]
+    return (
+        f"it is on sheet '{sheet}', row {row + 1}: set format.sheet: {sheet!r} and "
+        f"format.header_row: {row} (counted from 0); "
+    )
 
 
 # ---------------------------------------------------------------------------------------------

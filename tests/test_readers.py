@@ -255,6 +255,21 @@ def test_a_wrong_sheet_is_named_with_the_sheets_there(tmp_path):
     one_line(err, path, "time column not found", "Klimawindkanal")
 
 
+@pytest.mark.bad_input
+def test_a_column_on_another_sheet_or_row_names_where_it_is(tmp_path):
+    """A workbook whose data sheet is not the first and has a title row: the messages say
+    on which sheet and row the column is, and which settings read it there."""
+    write_xlsx(tmp_path)
+    vehicle = write_vehicle(tmp_path, "logger.xlsx")  # neither sheet nor header_row declared
+    with pytest.raises(ConfigError) as err:
+        load_vehicle(vehicle, workdir=tmp_path)
+    one_line(err, "logger.yaml", "it is on sheet 'Messdaten', row 3", "format.header_row: 2")
+    path = tmp_path / "logger.xlsx"
+    with pytest.raises(DataError) as err:
+        ingest.read_raw(path, {"sheet": 1, "time": {"column": "Time", "format": "seconds"}})
+    one_line(err, path, "time column not found", "set format.sheet: 'Messdaten'")
+
+
 def test_a_wrong_sheet_stops_the_validator_naming_config_and_file(tmp_path):
     write_xlsx(tmp_path)
     vehicle = write_vehicle(tmp_path, "logger.xlsx", {"sheet": "Daten"})

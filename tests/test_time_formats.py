@@ -381,6 +381,20 @@ def test_local_time_without_a_dst_rule_names_the_repeated_hour(tmp_path, monkeyp
     assert "'2024-10-27T02:00:00'" in err and "declare format.time.dst: infer" in err, err
 
 
+@pytest.mark.bad_input
+def test_a_clock_stepping_back_an_hour_without_a_timezone_names_the_settings(
+    tmp_path, monkeypatch, capsys
+):
+    """A local-time log read as if it had no time zone goes back by an hour when summer time
+    ends: the message says so and names format.time.timezone and format.time.dst."""
+    vehicle = write_vehicle(tmp_path, "berlin-csv")
+    edit(vehicle, lambda d: (d["format"]["time"].pop("dst"), d["format"]["time"].pop("timezone")))
+    err = validate_error(tmp_path, monkeypatch, capsys, vehicle)
+    assert "time goes backwards" in err, err
+    assert "steps back by an hour" in err and "declare format.time.timezone" in err, err
+    assert "format.time.dst: infer" in err, err
+
+
 def test_an_earlier_or_later_rule_on_a_log_through_the_repeated_hour_names_infer(
     tmp_path, monkeypatch, capsys
 ):
