@@ -42,7 +42,6 @@ import pandas as pd
 from railtherm import codedigest, timeaxis, units
 from railtherm.errors import ConfigError, DataError
 from railtherm.ingest import irradiance_names
-from railtherm.readers import elsewhere_hint
 from railtherm.rawfile import (
     MAX_ROWS,
     MIN_WINDOW_STEPS,
@@ -51,6 +50,7 @@ from railtherm.rawfile import (
     read_layout,
     separator_hint,
 )
+from railtherm.readers import elsewhere_hint
 from railtherm.yamlio import (
     TYPE_WORDS,
     check_finite,
