@@ -48,6 +48,7 @@ __all__ = [
     "READERS",
     "csv_error",
     "elsewhere_hint",
+    "header_rows",
     "read_header",
     "sheets_with",
     "read_table",
@@ -426,6 +427,13 @@ def sheets_with(path: str | os.PathLike[str], column: str, rows: int = 30) -> li
     """The worksheets of a workbook whose first ``rows`` rows hold a cell named ``column``,
     each with that row (counted from 0, as ``format.header_row``): where a column missing
     from the declared sheet is. Empty for any other file, or a workbook that cannot be read."""
+    return header_rows(path, lambda names: column in names, rows)
+
+
+def header_rows(path: str | os.PathLike[str], test: Any, rows: int = 30) -> list[tuple[str, int]]:
+    """Per worksheet of a workbook, the first of its first ``rows`` rows whose cells, read as
+    column names, pass ``test`` (a callable on the list of names): (sheet, row counted from
+    0). Empty for any other file, or a workbook that cannot be read."""
     path = str(path)
     if reader_kind(path) != "excel":
         return []
@@ -441,7 +449,7 @@ def sheets_with(path: str | os.PathLike[str], column: str, rows: int = 30) -> li
                 continue
             head = book.get_sheet_by_name(meta.name).to_python(skip_empty_area=False, nrows=rows)
             for r, row in enumerate(head):
-                if column in (_header_name(v) for v in row):
+                if test([_header_name(v) for v in row]):
                     found.append((meta.name, r))
                     break
     except Exception:

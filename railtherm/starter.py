@@ -1,6 +1,10 @@
-"""A starter vehicle YAML for a raw logger file: ``railtherm new-vehicle RAW.csv``.
+"""A starter vehicle YAML for a raw logger file: ``railtherm new-vehicle RAW``.
 
-The file format is detected, the rest is guessed or left as an explicit TODO:
+Any file railtherm reads is read whole (:mod:`railtherm.readers`: CSV, plain or gzip; a
+workbook, whose table - sheet and header row - is the first with a time-named column unless
+``--sheet``/``--header-row`` say; MATLAB and R data), so ranges, gaps and a repeated hour
+anywhere in the record are seen. The file format is detected, the rest is guessed or left as
+an explicit TODO:
 
 - **separator** among ``,`` ``;`` and tab by :class:`csv.Sniffer` on the first lines (if it
   cannot decide: the candidate that splits the header into the most columns);
@@ -15,7 +19,9 @@ The file format is detected, the rest is guessed or left as an explicit TODO:
   German, British and US notations) that reads every value, each parsed by
   :func:`railtherm.rawfile.read_layout` exactly as the validator will; otherwise a TODO. For
   instants a commented ``timezone``/``dst`` line says how to declare a logger clock on local
-  time;
+  time; where the clock steps back an hour once (the end of summer time) they are declared,
+  ``dst: infer`` with the zone the column's name states (``Europe/Berlin``, ``CST/CDT``,
+  ``MEZ``) or a TODO;
 - **channel groups** from the column names (English and German, case-insensitive), each guess
   marked ``# guessed from the column name: check``; temperatures named in °F (``[°F]``, degF,
   Fahrenheit) get ``unit: degF``, those named in K or with values above 200 ``unit: K``, power
@@ -38,9 +44,11 @@ import os
 import re
 import sys
 import zlib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import yaml
 
@@ -55,13 +63,23 @@ from railtherm.rawfile import (
     read_layout,
     separator_hint,
 )
+from railtherm.readers import header_rows, read_table, reader_kind
 from railtherm.yamlio import packaged_schema
 
 TODO = "TODO"
+READER_WORDS = {"excel": "a workbook", "matlab": "a MATLAB file", "r": "R data"}
 GUESSED = "# guessed from the column name: check"
 SEPARATORS = (",", ";", "\t")
 SNIFF_CHARS = 64 * 1024  # the text csv.Sniffer looks at
-SAMPLE_ROWS = 5000  # rows read to detect the decimal mark and the units
+# the zones of common abbreviations of standard and summer time in a time column's name
+ZONE_ABBREVIATIONS = {
+    **dict.fromkeys(("CET", "CEST", "MEZ", "MESZ"), "Europe/Berlin"),
+    **dict.fromkeys(("GMT", "BST"), "Europe/London"),
+    **dict.fromkeys(("EST", "EDT"), "America/New_York"),
+    **dict.fromkeys(("CST", "CDT"), "America/Chicago"),
+    **dict.fromkeys(("MST", "MDT"), "America/Denver"),
+    **dict.fromkeys(("PST", "PDT"), "America/Los_Angeles"),
+}
 NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")  # ids and names in the schema
 CLASSES = tuple(packaged_schema("vehicle")["properties"]["class"]["enum"])
 
@@ -117,7 +135,7 @@ class Detected:
 
     ``layout`` is None when no time column could be read in any notation of
     :data:`TIME_FORMATS`; ``time_problem`` then says why, and ``time_column_known`` whether
-    the column or only its format is in doubt. ``sample`` holds the first rows read with the
+    the column or only its format is in doubt. ``sample`` holds every row, read with the
     detected separator and decimal mark.
     """
 
@@ -130,7 +148,11 @@ class Detected:
     layout: RawLayout | None
     time_problem: str = ""
     time_column_known: bool = True  # False: the guessed column is no time (it does not increase)
-    sample: pd.DataFrame = field(default_factory=pd.DataFrame)
+    sample: pd.DataFrame = field(default_factory=pd.DataFrame)  # the whole record
+    kind: str = "csv"  # the reader (railtherm.readers)
+    given: dict[str, Any] = field(default_factory=dict)  # sheet, header_row, encoding
+    repeated_hour: str | None = None  # a time the clock steps back an hour to (DST's end)
+    zone: str | None = None  # the time zone the time column's name states
 
 
 @dataclass
@@ -179,9 +201,10 @@ def detect_separator(path: str) -> str:
     return separator
 
 
-def _read_sample(path: str, separator: str, decimal: str) -> pd.DataFrame:
+def _read_sample(path: str, separator: str, decimal: str, encoding: str = "utf-8") -> pd.DataFrame:
+    """The whole record (every row: ranges, gaps and a repeated hour anywhere are seen)."""
     try:
-        return pd.read_csv(path, sep=separator, decimal=decimal, nrows=SAMPLE_ROWS, index_col=False)
+        return pd.read_csv(path, sep=separator, decimal=decimal, index_col=False, encoding=encoding)
     except (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError) as exc:
         raise csv_error(path, exc) from None
 
@@ -190,55 +213,125 @@ def _numeric_columns(sample: pd.DataFrame) -> int:
     return sum(pd.api.types.is_numeric_dtype(sample[c]) for c in sample.columns)
 
 
-def detect_decimal(path: str, separator: str) -> tuple[str, pd.DataFrame]:
-    """The decimal mark with which pandas reads more columns as numbers, and the sample read
+def detect_decimal(path: str, separator: str, encoding: str = "utf-8") -> tuple[str, pd.DataFrame]:
+    """The decimal mark with which pandas reads more columns as numbers, and the record read
     with it: ``,`` only when it reads more (``21,5``) and the separator is not ``,``."""
-    dot = _read_sample(path, separator, ".")
+    dot = _read_sample(path, separator, ".", encoding)
     if separator == ",":
         return ".", dot
-    comma = _read_sample(path, separator, ",")
+    comma = _read_sample(path, separator, ",", encoding)
     if _numeric_columns(comma) > _numeric_columns(dot):
         return ",", comma
     return ".", dot
 
 
-def detect(raw_path: str | os.PathLike[str]) -> Detected:
-    """Separator, decimal mark, time column and format, and the time span of a raw file.
+def _table_sheet(path: str) -> dict[str, Any]:
+    """For a workbook: the sheet and header row of its first table whose header names a time
+    column (a workbook often opens with a sheet of run information, a table with a title
+    row); empty when none is found (the first sheet's first row, the defaults)."""
+    found = header_rows(
+        path,
+        lambda names: (
+            sum(bool(n) for n in names) >= 2
+            and any(_TIME_NAME.search(str(n).lower()) for n in names)
+        ),
+    )
+    if not found:
+        return {}
+    sheet, row = found[0]
+    return {"sheet": sheet, "header_row": row}
 
-    :class:`DataError` naming the file when it is empty, cannot be read as CSV, or has fewer
-    than two columns.
+
+def _zone_from_name(column: str) -> str | None:
+    """The IANA time zone a column name states: as such (``Europe/Berlin``) or by the
+    abbreviations of a zone's standard and summer time (``CST/CDT``, ``MEZ``)."""
+    named = re.search(
+        r"(Africa|America|Antarctica|Asia|Atlantic|Australia|Europe|Indian|Pacific)/[A-Za-z_/]+",
+        column,
+    )
+    if named:
+        return named.group(0)
+    for word in re.findall(r"[A-Z]{3,4}", column):
+        if word in ZONE_ABBREVIATIONS:
+            return ZONE_ABBREVIATIONS[word]
+    return None
+
+
+def _repeated_hour(path: str, sample: pd.DataFrame, layout: RawLayout, decimal: str) -> str | None:
+    """The time a clock on local time steps back an hour to (the end of summer time), as
+    written, or None: the column's only decreases are one such step."""
+    column = layout.time_column
+    tf = timeaxis.time_format(layout.time_format)
+    if not tf.absolute or getattr(layout.t_first, "tzinfo", None) is not None:
+        return None
+    try:
+        times = parse_times(path, sample[column].astype(str), column, layout.time_format, decimal)
+    except DataError:
+        return None
+    seconds = timeaxis.seconds(times, tf)
+    steps = np.diff(seconds)
+    back = np.flatnonzero(steps <= 0)
+    step = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.0
+    if len(back) == 1 and abs(steps[back[0]] + 3600.0) <= max(2.0 * step, 1.0):
+        return str(sample[column].iloc[back[0] + 1])
+    return None
+
+
+def detect(raw_path: str | os.PathLike[str], given: Mapping[str, Any] | None = None) -> Detected:
+    """Separator, decimal mark (a CSV file), time column and format, and the time span of a
+    raw file of any reader's kind (:mod:`railtherm.readers`). ``given``: the reader's
+    settings the user knows (``sheet``, ``header_row``, ``encoding``); a workbook's sheet and
+    header row are otherwise found (:func:`_table_sheet`). Every row is read.
+
+    :class:`DataError` naming the file when it is empty, cannot be read, or has fewer than
+    two columns.
     """
     path = str(raw_path)
-    separator = detect_separator(path)
-    columns = read_columns(path, separator)
+    given = {k: v for k, v in (given or {}).items() if v is not None}
+    kind = reader_kind(path, given)
+    if kind == "excel" and "sheet" not in given and "header_row" not in given:
+        given = {**_table_sheet(path), **given}
+    if kind == "csv":
+        separator = detect_separator(path)
+        columns = read_columns(path, fmt={"separator": separator, **given})
+    else:
+        separator = ","
+        columns = read_columns(path, fmt=given)
     if len(columns) < 2:
         reason = "the header reads as one column with each of the separators ',', ';' and tab"
-        if separator_hint(columns, separator):  # none of those, so '|' would split it
+        if kind != "csv":
+            reason = "the table has one column: a raw file needs a time column and a channel"
+        elif separator_hint(columns, separator):  # none of those, so '|' would split it
             reason += "; for a file separated by '|', write format.separator '|' by hand"
         else:
             reason += ": a raw file needs a time column and at least one channel"
         raise DataError(path, "(header)", columns[0] if columns else "", reason)
-    decimal, sample = detect_decimal(path, separator)
+    if kind == "csv":
+        decimal, sample = detect_decimal(path, separator, given.get("encoding", "utf-8"))
+    else:
+        decimal, sample = ".", read_table(path, given)
     named = [c for c in columns if _TIME_NAME.search(c.lower())]
     time_column = named[0] if named else columns[0]
     layout, problems = None, []
     for time_format in TIME_FORMATS:
         try:
-            layout = read_layout(path, separator, decimal, time_column, time_format)
+            layout = read_layout(path, separator, decimal, time_column, time_format, fmt=given)
             break
         except DataError as exc:
             if exc.value is None:  # about the file (no data rows), not a time value
                 raise
             problems.append(exc.value)
-    problem, column_known = "", True
+    problem, column_known, repeated = "", True, None
     if layout is None:
         problem = (
             f"the time column '{time_column}' holds neither numbers, ISO 8601 timestamps nor "
             f"a common date notation such as dd.mm.yyyy HH:MM:SS (for example {problems[0]!r})"
         )
     elif not _increasing(path, sample, layout, decimal):
-        problem = f"the column '{time_column}' does not increase from row to row"
-        layout, column_known = None, False
+        repeated = _repeated_hour(path, sample, layout, decimal)
+        if repeated is None:
+            problem = f"the column '{time_column}' does not increase from row to row"
+            layout, column_known = None, False
     return Detected(
         path=path,
         columns=columns,
@@ -250,6 +343,10 @@ def detect(raw_path: str | os.PathLike[str]) -> Detected:
         time_problem=problem,
         time_column_known=column_known,
         sample=sample,
+        kind=kind,
+        given=given,
+        repeated_hour=repeated,
+        zone=_zone_from_name(time_column),
     )
 
 
@@ -285,9 +382,9 @@ def _values(sample: pd.DataFrame, column: str) -> pd.Series:
 
 def _range(values: pd.Series) -> str:
     if values.empty:
-        return "no numeric values in the first rows"
+        return "no numeric values in the record"
     if values.min() == values.max():
-        return f"value {values.min():.4g} throughout the first rows"
+        return f"value {values.min():.4g} throughout the record"
     return f"values {values.min():.4g} to {values.max():.4g}"
 
 
@@ -393,13 +490,18 @@ class _Todos(list):
 
 def _header(found: Detected) -> list[str]:
     layout = found.layout
-    shown_sep = "\\t" if found.separator == "\t" else found.separator
-    compressed = ", gzip-compressed" if found.path.endswith(".gz") else ""
+    rows = f"{len(found.columns)} columns, all {len(found.sample):,} rows read"
+    if found.kind == "csv":
+        shown_sep = "\\t" if found.separator == "\t" else found.separator
+        compressed = ", gzip-compressed" if found.path.endswith(".gz") else ""
+        what = f"separator '{shown_sep}', decimal mark '{found.decimal}'{compressed}"
+    else:
+        where = ", ".join(f"{k} {v!r}" for k, v in found.given.items() if k != "encoding")
+        what = f"{READER_WORDS.get(found.kind, found.kind)}" + (f" ({where})" if where else "")
     lines = [
         "# Starter vehicle file written by `railtherm new-vehicle` from",
         f"#   {found.path}",
-        f"# Detected: separator '{shown_sep}', decimal mark '{found.decimal}'{compressed}, "
-        f"{len(found.columns)} columns.",
+        f"# Detected: {what}, {rows}.",
     ]
     if layout is not None:
         tf = timeaxis.time_format(layout.time_format)
@@ -451,10 +553,17 @@ def _metadata(vid: str, from_file_name: bool, todos: _Todos) -> list[str]:
 
 def _format(found: Detected, todos: _Todos) -> list[str]:
     layout = found.layout
-    lines = [
-        "format:",
-        _comment_line(f"  separator: {json.dumps(found.separator)}", "# detected"),
-        _comment_line(f'  decimal: "{found.decimal}"', "# detected"),
+    lines = ["format:"]
+    if found.kind == "csv":
+        lines += [
+            _comment_line(f"  separator: {json.dumps(found.separator)}", "# detected"),
+            _comment_line(f'  decimal: "{found.decimal}"', "# detected"),
+        ]
+    for key in ("encoding", "sheet", "header_row"):
+        if key in found.given:
+            why = "# given" if key == "encoding" else "# the table found (or given)"
+            lines.append(_comment_line(f"  {key}: {_scalar(found.given[key])}", why))
+    lines += [
         "  # power_timing: instant      # optional: what a logged power value stands for:",
         "  #   instant | mean_preceding | mean_following (energy meters); see the logger's manual",
         "  time:",
@@ -463,7 +572,7 @@ def _format(found: Detected, todos: _Todos) -> list[str]:
         first = "# the first column (no name looks like time): check"
         why = GUESSED if found.time_by_name else first
         lines.append(_comment_line(f"    column: {_scalar(found.time_column)}", why))
-        lines += _time_format_lines(layout)
+        lines += _time_format_lines(layout, found, todos)
         if layout.step_s:
             lines.append(f"    # logger step: {layout.step_s:g} s (the median time difference)")
     elif not found.time_column_known:
@@ -486,9 +595,11 @@ def _format(found: Detected, todos: _Todos) -> list[str]:
     return [*lines, ""]
 
 
-def _time_format_lines(layout: RawLayout) -> list[str]:
+def _time_format_lines(layout: RawLayout, found: Detected, todos: _Todos) -> list[str]:
     """``format:`` of the time column with what to check, and for instants written without a
-    UTC offset the commented ``timezone``/``dst`` lines of a logger clock on local time."""
+    UTC offset the ``timezone``/``dst`` lines of a logger clock on local time: declared when
+    the record repeats an hour (the end of summer time), with the zone its column's name
+    states or a TODO; else commented, with that zone or an example."""
     tf = timeaxis.time_format(layout.time_format)
     note = "# detected: every value parses"
     if tf.format == "seconds":
@@ -505,10 +616,26 @@ def _time_format_lines(layout: RawLayout) -> list[str]:
         note += "; check the order of day and month"
     lines = [_comment_line(f"    format: {_scalar(tf.format)}", note)]
     offset = getattr(layout.t_first, "tzinfo", None) is not None
-    if tf.absolute and not offset:
+    if tf.absolute and not offset and found.repeated_hour is not None:
+        said = f"# the clock steps back an hour to {found.repeated_hour}: local time"
+        if found.zone:
+            zone = _comment_line(f"    timezone: {found.zone}", f"{said}, zone from the name")
+        else:
+            meaning = f"the logger clock's IANA time zone ({said[2:]})"
+            zone = _comment_line(
+                f"    timezone: {TODO}", todos.add("format.time.timezone", meaning)
+            )
+        lines += [
+            zone,
+            _comment_line(
+                "    dst: infer", "# the repeated hour read in order: first summer, then winter"
+            ),
+        ]
+    elif tf.absolute and not offset:
+        example = found.zone or "Europe/Berlin"
         lines += [
             _comment_line(
-                "    # timezone: Europe/Berlin", "# if the logger clock ran on local time: its zone"
+                f"    # timezone: {example}", "# if the logger clock ran on local time: its zone"
             ),
             _comment_line(
                 "    # dst: infer",
@@ -570,14 +697,16 @@ def starter_vehicle(
     raw_path: str | os.PathLike[str],
     vehicle_id: str | None = None,
     yaml_dir: str | os.PathLike[str] | None = None,
+    given: Mapping[str, Any] | None = None,
 ) -> tuple[str, list[str]]:
     """The text of a starter vehicle YAML for ``raw_path`` and its TODO list.
 
     ``yaml_dir`` is the directory the YAML will be saved in (default: the current directory):
     ``raw_files`` gives the raw file's path relative to it, as
-    :func:`railtherm.config.load_vehicle` reads it. Each TODO starts with the key to fill, then
-    ``: `` and what is meant; ``railtherm validate`` refuses the file until every TODO is
-    filled. The keys come in the schema's order.
+    :func:`railtherm.config.load_vehicle` reads it. ``given``: reader settings the user knows
+    (``sheet``, ``header_row``, ``encoding``; :func:`detect`). Each TODO starts with the key
+    to fill, then ``: `` and what is meant; ``railtherm validate`` refuses the file until
+    every TODO is filled. The keys come in the schema's order.
     """
     path = str(raw_path)
     if not os.path.isfile(path):
@@ -589,7 +718,7 @@ def starter_vehicle(
             vehicle_id,
             "must start with a letter and contain only letters, digits, _ or -",
         )
-    found = detect(path)
+    found = detect(path, given)
     stem = _stem(path)
     yaml_dir = os.path.abspath(yaml_dir if yaml_dir is not None else os.getcwd())
     todos = _Todos()
@@ -620,7 +749,11 @@ def _run(args: argparse.Namespace) -> int:
             out, "(file)", out, "exists already; new-vehicle does not overwrite a file"
         )
     yaml_dir = os.path.dirname(os.path.abspath(out)) if out is not None else None
-    text, todos = starter_vehicle(args.raw, args.id, yaml_dir)
+    sheet = args.sheet
+    if sheet is not None and sheet.isdigit():
+        sheet = int(sheet)  # a position, counted from 0, as format.sheet
+    given = {"sheet": sheet, "header_row": args.header_row, "encoding": args.encoding}
+    text, todos = starter_vehicle(args.raw, args.id, yaml_dir, given)
     listing = [f"  {t}" for t in todos]
     if out is None:
         sys.stdout.write(text)
@@ -647,12 +780,30 @@ def register(commands: Any) -> None:
         "new-vehicle",
         help="write a starter vehicle YAML for a raw logger file",
         description=(
-            "Detect the separator, decimal mark and time format of RAW.csv, guess which column "
-            "feeds which channel group, and write a vehicle YAML with explicit TODOs for what "
-            "the file cannot tell. 'railtherm validate' accepts it once the TODOs are filled."
+            "Read a raw logger file of any kind railtherm reads (CSV, plain or .gz; a workbook; "
+            "a MATLAB or R data file), all of its rows; detect the separator and decimal mark "
+            "of a CSV file, a workbook's table (sheet and header row), the time format and a "
+            "clock on local time (an hour repeated at the end of summer time); guess which "
+            "column feeds which channel group and its unit; and write a vehicle YAML with "
+            "explicit TODOs for what the file cannot tell. 'railtherm validate' accepts it "
+            "once the TODOs are filled."
         ),
     )
-    parser.add_argument("raw", metavar="RAW.csv", help="raw logger file (plain or .gz)")
+    parser.add_argument(
+        "raw",
+        metavar="RAW",
+        help="raw logger file: .csv/.txt (or .gz), .xlsx/.xls, .mat, .rda/.rds",
+    )
+    parser.add_argument(
+        "--sheet", help="a workbook's sheet: its name or position from 0 (default: found)"
+    )
+    parser.add_argument(
+        "--header-row",
+        type=int,
+        metavar="N",
+        help="the row of a workbook's column names, counted from 0 (default: found)",
+    )
+    parser.add_argument("--encoding", help="a CSV file's text encoding (default utf-8)")
     parser.add_argument(
         "--out",
         metavar="VEHICLE.yaml",
