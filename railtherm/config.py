@@ -43,8 +43,10 @@ from railtherm import codedigest, timeaxis, units
 from railtherm.errors import ConfigError, DataError
 from railtherm.ingest import irradiance_names
 from railtherm.rawfile import (
+    MAX_RAW_ROWS,
     MAX_ROWS,
     MIN_WINDOW_STEPS,
+    TYPO_GAP_S,
     RawLayout,
     read_columns,
     read_layout,
@@ -409,6 +411,7 @@ def _layout(
         t_first=layout.t_first,
         t_last=layout.t_last,
         step_s=layout.step_s,
+        gap_s=layout.gap_s,
     )
 
 
@@ -623,6 +626,16 @@ def _check_window_size(
         )
     if not layout.step_s or layout.step_s <= 0:
         return
+    if not step and duration / layout.step_s > MAX_ROWS:
+        raise ConfigError(
+            file,
+            "cleaning.step_s",
+            None,
+            f"{key} spans {duration / layout.step_s:,.0f} logger steps of {layout.step_s:g} s "
+            f"in {layout.path}, more than the {MAX_ROWS:,} rows a tidy table may hold: set "
+            f"cleaning.step_s to resample it (at least {duration / MAX_ROWS:.3g} s; 60 s keeps "
+            "a thermal test's dynamics)",
+        )
     if duration < MIN_WINDOW_STEPS * layout.step_s:
         raise ConfigError(
             file,
@@ -634,19 +647,32 @@ def _check_window_size(
 
 
 def _check_record_size(file: str, layout: RawLayout) -> None:
-    """The raw record completed to its logger step holds at most MAX_ROWS rows: a span of
-    years at a step of seconds is a typo in a timestamp, refused before it is allocated."""
+    """The raw record completed to its logger step: beyond MAX_ROWS rows a jump between two
+    rows longer than TYPO_GAP_S is a typo in a timestamp (a span of years at a step of
+    seconds), and no record may exceed MAX_RAW_ROWS; both refused before they are allocated."""
     if not layout.step_s or layout.step_s <= 0:
         return
     span = layout.seconds(layout.t_last)
-    if span / layout.step_s > MAX_ROWS:
+    rows = span / layout.step_s
+    jump = layout.gap_s is not None and layout.gap_s > TYPO_GAP_S
+    if rows > MAX_ROWS and (jump or layout.gap_s is None):
         raise ConfigError(
             file,
             "raw_files",
             layout.path,
             f"its rows run from {_fmt_time(layout.t_first)} to {_fmt_time(layout.t_last)} at a "
-            f"step of {layout.step_s:g} s: {span / layout.step_s:,.0f} rows to complete, more "
-            f"than {MAX_ROWS:,}; a typo in a timestamp (the year?) or the wrong time format?",
+            f"step of {layout.step_s:g} s: {rows:,.0f} rows to complete, more than "
+            f"{MAX_ROWS:,}; a typo in a timestamp (the year?) or the wrong time format "
+            "(format.time.format)?",
+        )
+    if rows > MAX_RAW_ROWS:
+        raise ConfigError(
+            file,
+            "raw_files",
+            layout.path,
+            f"{rows:,.0f} rows at its step of {layout.step_s:g} s, more than {MAX_RAW_ROWS:,} "
+            "that one raw file may hold: split the record into several raw_files (one per "
+            "test), each listed with its windows",
         )
 
 

@@ -47,6 +47,7 @@ class RawLayout:
     t_first: pd.Timestamp | float
     t_last: pd.Timestamp | float
     step_s: float | None = None
+    gap_s: float | None = None  # the longest time between two rows (a typo makes it years)
 
     @property
     def absolute(self) -> bool:
@@ -64,6 +65,10 @@ class RawLayout:
 # or a file is taken for a mistake (a step of 0.01 s, a year typo in a timestamp) and refused
 # before anything is allocated: a year at one second is 3e7 rows.
 MAX_ROWS = 5_000_000
+# A raw record completed to its logger step may hold more (a long record at 1 Hz, resampled by
+# cleaning.step_s), unless one jump between two rows explains its span: a typo
+MAX_RAW_ROWS = 40_000_000  # 15 months at 1 s
+TYPO_GAP_S = 30 * 86_400.0  # a jump between two rows longer than any pause of a test
 MIN_WINDOW_STEPS = 3  # a window needs at least this many logger steps: a fit and its tests
 
 
@@ -162,6 +167,7 @@ def read_layout(
         t_first=first if tf.absolute else float(first),
         t_last=last if tf.absolute else float(last),
         step_s=float(np.median(steps)) if steps.size else None,
+        gap_s=float(np.max(steps)) if steps.size else None,
     )
 
 

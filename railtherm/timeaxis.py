@@ -225,11 +225,25 @@ def _localize(path: str, column: str, raw: pd.Series, times: pd.Series, tf: Time
             if hits.size:
                 where = f"line {int(hits[0]) + 2}: "
         value = raw.iloc[int(hits[0])] if stamp and hits.size else (stamp.group(0) if stamp else "")
+        if len(times) == 1:  # one time (a window's bound), not a column: no line to cite
+            where = ""
         if kind:
             reason = (
                 f"{where}this local time does not exist in {tf.timezone} (the hour skipped when "
                 "daylight-saving time starts): is the timezone right, or the clock already on "
                 "UTC or standard time?"
+            )
+        elif len(times) == 1:  # a window's bound: no rule orders one time
+            passes = [
+                times.dt.tz_localize(tf.timezone, ambiguous=np.array([first])).iloc[0].isoformat()
+                for first in (True, False)
+            ]
+            reason = (
+                f"this local time occurs twice in {tf.timezone} (the hour repeated when "
+                f"daylight-saving time ends; format.time.dst {tf.dst} orders the rows of a "
+                "column, not one time): write the bound with its UTC offset, "
+                f"{passes[0]} (the first pass) or {passes[1]} (the second), or move it out of "
+                "the repeated hour"
             )
         else:
             reason = (

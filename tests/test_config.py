@@ -8,6 +8,7 @@ import os
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
@@ -918,3 +919,46 @@ def test_volume_is_optional(repo):
     del data["volume_m3"]
     write_vehicle(data)
     assert load_vehicle(VEHICLE_FILE).volume_m3 is None
+
+
+def _long_record(tmp_path, days: float, step_s: float, typo: bool = False) -> str:
+    """A raw file of ``days`` at ``step_s``, its last row a year typo when ``typo``."""
+    n = int(days * 86_400 / step_s) + 1
+    t = START + pd.to_timedelta(np.arange(n) * step_s, unit="s")
+    if typo:
+        t = t[:-1].append(pd.DatetimeIndex([t[-1] + pd.DateOffset(years=18)]))
+    frame = pd.DataFrame({c: 20.0 for c in COLUMNS[1:]}, index=range(n))
+    frame.insert(0, "time", t.strftime("%Y-%m-%dT%H:%M:%S"))
+    frame.to_csv(tmp_path / RAW_FILE, index=False)
+    return t[-2 if typo else -1].strftime("%Y-%m-%dT%H:%M:%S")  # the last good row
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize(
+    ("typo", "step", "key", "reason"),
+    [
+        (False, None, "cleaning.step_s", "set cleaning.step_s to resample it"),
+        (True, 300, "raw_files", "a typo in a timestamp (the year?)"),
+    ],
+    ids=["long-high-rate-record-without-step", "year-typo-with-step"],
+)
+def test_a_long_high_rate_record_names_the_setting_and_a_typo_stays_a_typo(
+    repo, monkeypatch, typo, step, key, reason
+):
+    """A record longer than a tidy table may hold (58 days at 1 Hz against 5 million rows;
+    here 2 days at 10 s against 10,000) is a real record: read with cleaning.step_s, and
+    without it refused naming that setting; a year typo in the last row stays a typo."""
+    monkeypatch.setattr("railtherm.config.MAX_ROWS", 10_000)
+    end = _long_record(repo, 2.0, 10.0, typo)
+    data = copy.deepcopy(VEHICLE)
+    data["windows"] = {"identification": [{"name": "all", "start": START.isoformat(), "end": end}]}
+    if step:
+        data["cleaning"] = {"step_s": step}
+    write_vehicle(data)
+    with pytest.raises(ConfigError) as caught:
+        load_vehicle(VEHICLE_FILE)
+    assert caught.value.key == key and reason in str(caught.value), str(caught.value)
+    if not typo:  # the same record resampled to 300 s is read
+        data["cleaning"] = {"step_s": 300}
+        write_vehicle(data)
+        assert load_vehicle(VEHICLE_FILE).layouts["cwt"].step_s == 10.0

@@ -455,8 +455,17 @@ def test_a_wrong_time_declaration_is_one_line_naming_key_value_and_accepted_form
         ("hours", "2024-10-24T02:00:00", "must be a number of hours (format.time.format is hours)"),
         ("german-cp1252", "24.10.2024 02:00", "not a time of the pattern"),
         ("berlin-csv", "2024-10-27T02:30:00", "occurs twice in Europe/Berlin"),
+        ("berlin-csv", "2024-10-27T02:30:00", "2024-10-27T02:30:00+02:00 (the first pass)"),
+        ("berlin-csv", "2024-10-27T02:30:00", "or 2024-10-27T02:30:00+01:00 (the second)"),
     ],
-    ids=["number-on-pattern", "text-on-hours", "other-pattern", "ambiguous-local-bound"],
+    ids=[
+        "number-on-pattern",
+        "text-on-hours",
+        "other-pattern",
+        "ambiguous-local-bound",
+        "ambiguous-bound-first-pass",
+        "ambiguous-bound-second-pass",
+    ],
 )
 def test_a_window_bound_in_another_notation_is_named(tmp_path, form, bound, reason):
     vehicle = write_vehicle(tmp_path, form)
@@ -464,6 +473,7 @@ def test_a_window_bound_in_another_notation_is_named(tmp_path, form, bound, reas
     with pytest.raises(ConfigError) as caught:
         load_vehicle(vehicle, workdir=tmp_path)
     assert caught.value.key == "windows.identification[0].start" and reason in str(caught.value)
+    assert "line 2" not in str(caught.value)  # one time, not a row of the file
 
 
 def test_a_bound_with_its_offset_settles_the_repeated_hour(tmp_path):
