@@ -131,9 +131,10 @@ def read_layout(
     :mod:`railtherm.readers`; its ``time`` gives the time column, format, timezone and DST
     rule); the arguments given put their value over it (CSV: ``separator`` default ``,``,
     ``decimal`` default ``.``). ``time_format`` is any notation of :mod:`railtherm.timeaxis`:
-    ``"iso"`` or a strftime pattern, ``"epoch"`` or ``"serial_days"`` (instants, returned as
-    ``pandas.Timestamp``), or ``"seconds"``, ``"minutes"``, ``"hours"``, ``"days"`` (elapsed
-    time, returned as float seconds); ``decimal`` is honoured. Plain and ``.gz`` CSV files are
+    ``"iso"`` or a strftime pattern, ``"epoch"``, ``"epoch_ms"`` or ``"serial_days"``
+    (instants, returned as ``pandas.Timestamp``), or ``"seconds"``, ``"minutes"``,
+    ``"hours"``, ``"days"`` (elapsed time, returned as float seconds); ``decimal`` is
+    honoured. Plain and ``.gz`` CSV files are
     read alike. Raises :class:`DataError` naming the file when it cannot be read, the time
     column is missing, or a time value cannot be parsed (naming the first bad value and its
     line); ValueError for a time format that is none of these.

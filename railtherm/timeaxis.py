@@ -43,7 +43,9 @@ import pandas as pd
 from railtherm.errors import ConfigError, DataError
 
 ELAPSED_UNITS_S = {"seconds": 1.0, "minutes": 60.0, "hours": 3600.0, "days": 86400.0}
-NAMED_ABSOLUTE = ("iso", "epoch", "serial_days")
+NAMED_ABSOLUTE = ("iso", "epoch", "epoch_ms", "serial_days")
+EPOCHS = {"epoch": 1e6, "epoch_ms": 1e3}  # microseconds per counted unit since 1970 UTC
+LAST_YEAR = 2200  # an instant after this year is a unit mistake (epoch milliseconds read as s)
 SERIAL_DAY_ORIGIN = pd.Timestamp("1899-12-30")  # day 0 of the 1900 date system
 DST_RULES = ("raise", "infer", "earlier", "later")
 ACCEPTED = (
@@ -94,6 +96,7 @@ class TimeFormat:
         return {
             "iso": "an ISO 8601 timestamp",
             "epoch": "a number of seconds since 1970-01-01 UTC (epoch)",
+            "epoch_ms": "a number of milliseconds since 1970-01-01 UTC (epoch_ms)",
             "serial_days": "a spreadsheet serial day number (serial_days)",
         }.get(self.format, f"a number of {self.format}")
 
@@ -143,7 +146,7 @@ def declared(file: str, spec: Mapping[str, Any]) -> TimeFormat:
     tf = time_format(spec)
     if tf.timezone is not None:
         zone = tf.timezone
-        if not tf.absolute or tf.format == "epoch":
+        if not tf.absolute or tf.format in EPOCHS:
             what = "elapsed time has" if not tf.absolute else "epoch seconds count in UTC and have"
             raise ConfigError(
                 file,
@@ -261,13 +264,25 @@ def parse(path: str, raw: pd.Series, column: str, tf: TimeFormat, decimal: str =
     text = raw.astype(object).where(raw.notna(), None)
     if not tf.absolute:
         times = elapsed_seconds(_numbers(raw, decimal), tf.format)
-    elif tf.format in ("epoch", "serial_days"):
+    elif tf.format in ("serial_days", *EPOCHS):
         numbers = _numbers(raw, decimal)
         # to whole microseconds (epoch) or milliseconds (a day's float fraction) before the
         # conversion: a float of seconds or days is not an exact count of nanoseconds
-        if tf.format == "epoch":
-            us = np.round(numbers.to_numpy() * 1e6)
+        if tf.format in EPOCHS:
+            us = np.round(numbers.to_numpy() * EPOCHS[tf.format])
             times = pd.Series(pd.to_datetime(us, unit="us", utc=True, errors="coerce"))
+            late = np.flatnonzero(times.dt.year.to_numpy(dtype=float, na_value=0) > LAST_YEAR)
+            if late.size:
+                row = int(late[0])
+                as_ms = pd.to_datetime(np.round(numbers.iloc[row] * 1e3), unit="us", utc=True)
+                raise DataError(
+                    path,
+                    column,
+                    text.iloc[row],
+                    f"line {row + 2}: read as {tf.describe()} this is the year "
+                    f"{times.iloc[row].year}; as milliseconds it is {as_ms.isoformat()}: "
+                    "declare format.time.format: epoch_ms",
+                )
         else:
             ms = np.round(numbers.to_numpy() * 86_400_000.0)
             times = pd.Series(SERIAL_DAY_ORIGIN + pd.to_timedelta(ms, unit="ms", errors="coerce"))
@@ -351,7 +366,7 @@ def instant(
             raise ConfigError(file, key, value, f"must be a number of {tf.format} {declared_as}")
         return float(elapsed_seconds(float(value), tf.format))
     number = isinstance(value, int | float) and not isinstance(value, bool)
-    if tf.format in ("epoch", "serial_days"):
+    if tf.format in ("serial_days", *EPOCHS):
         if number or (isinstance(value, str) and _numbers(pd.Series([value]), decimal).notna()[0]):
             return parse(file, pd.Series([str(value)]), key, tf, decimal)[0]
         if not isinstance(value, str):
@@ -385,7 +400,7 @@ def instant(
             stamp = _localize(file, key, pd.Series([value]), pd.Series([stamp]), tf)[0]
         except DataError as exc:
             raise ConfigError(file, key, value, exc.reason) from None
-    elif tf.format == "epoch" and stamp.tzinfo is None:
+    elif tf.format in EPOCHS and stamp.tzinfo is None:
         stamp = stamp.tz_localize("UTC")  # an epoch file's instants are in UTC
     return stamp
 

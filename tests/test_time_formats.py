@@ -154,6 +154,15 @@ def forms() -> dict[str, tuple]:
             (int(1729728000 + W0), int(1729728000 + W1)),
             "T_ext",
         ),
+        "epoch-ms": (
+            "epoch_ms.csv",
+            lambda p: write_csv(
+                with_time("unix_ms", [repr(1729728000000.0 + 1e3 * s) for s in t.tolist()]), p
+            ),
+            {"time": {"column": "unix_ms", "format": "epoch_ms"}},
+            (int(1729728000000 + 1e3 * W0), int(1729728000000 + 1e3 * W1)),
+            "T_ext",
+        ),
         "serial-days": (  # window bounds in ISO 8601 where the file writes numbers
             "serial.csv",
             lambda p: write_csv(with_time("Excel-Datum", serial), p),
@@ -256,7 +265,7 @@ def test_every_notation_gives_the_tidy_table_and_estimates_of_the_iso_original(
     if kind in ("hours", "minutes", "days"):  # elapsed seconds since the file's zero
         expected = (pd.to_datetime(labels) - START).dt.total_seconds()
         np.testing.assert_array_equal(table["timestamp"].to_numpy(float), expected.to_numpy())
-    elif kind == "epoch" or "timezone" in forms()[form][2]["time"]:  # instants in UTC
+    elif kind in ("epoch", "epoch_ms") or "timezone" in forms()[form][2]["time"]:  # in UTC
         assert list(table["timestamp"]) == [f"{s}+00:00" for s in labels]
     else:
         assert list(table["timestamp"]) == list(labels)
@@ -335,8 +344,16 @@ def edit(vehicle: Path, change) -> None:
         ),
         ("hours", GERMAN, ("line 2: not a time of the pattern", "'0.0'", "it is a number")),
         ("epoch", "iso", ("line 2: not an ISO 8601 timestamp", "serial_days")),
+        ("epoch-ms", "epoch", ("this is the year 56", "as milliseconds it is 2024-10-24")),
     ],
-    ids=["pattern-without-seconds", "iso-declared-german", "month-first", "numbers", "epoch"],
+    ids=[
+        "pattern-without-seconds",
+        "iso-declared-german",
+        "month-first",
+        "numbers",
+        "epoch",
+        "epoch-ms-as-seconds",
+    ],
 )
 def test_a_notation_that_does_not_match_names_value_line_notation_and_fix(
     tmp_path, monkeypatch, capsys, form, declared, parts
