@@ -211,10 +211,19 @@ def _read_error(path: str, kind: str, exc: BaseException) -> DataError:
     elif isinstance(exc, FileNotFoundError) and kind != "csv":
         reason = "no such file"
     else:
-        reason = f"cannot read the file as {_WHAT[kind]}: {exc}"
+        reason = f"cannot read the file as {_WHAT[kind]}: {str(exc).splitlines()[0]}"
         if kind != "csv":
             reason += "; is format.reader right?"
+        elif "Expected" in str(exc) and "fields" in str(exc):
+            reason += _SHIFT_HINT
     return DataError(path, "", None, reason.splitlines()[0])
+
+
+# a CSV row with more fields than its header
+_SHIFT_HINT = (
+    ": a decimal comma in a file separated by ',' (20,5 read as two values)? Declare the "
+    "logger's format.separator (';' or tab) and format.decimal ',', or export the values quoted"
+)
 
 
 def _needs(module: str, package: str, path: str, kind: str) -> Any:
@@ -335,7 +344,13 @@ def _csv_table(path: str, fmt: Mapping[str, Any], columns: list[str] | None) -> 
     if columns is not None:
         kwargs["usecols"] = columns
     try:
-        return pd.read_csv(path, **kwargs)
+        with warnings.catch_warnings():  # a row longer than the header: values lost, refused
+            warnings.simplefilter("error", pd.errors.ParserWarning)
+            return pd.read_csv(path, **kwargs)
+    except pd.errors.ParserWarning:
+        raise DataError(
+            path, "", None, f"a data row has more fields than the header{_SHIFT_HINT}"
+        ) from None
     except pd.errors.EmptyDataError:
         raise DataError(path, "", None, "the file is empty (no header line)") from None
     except UnicodeDecodeError as exc:

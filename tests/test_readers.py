@@ -370,3 +370,21 @@ def test_matlab_struct_fields_must_be_columns_of_one_length(tmp_path):
     with pytest.raises(DataError) as err:
         readers.read_table(path, {})
     one_line(err, path, "'T_int'", "has 4 values where 'Time' has 3")
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize(
+    "rows",
+    ["0,20,5,-10.0,1000\n60,20,6,-10.0,1000\n", "0,20.5,-10.0,1000\n60,20,6,-10.0,1000\n"],
+    ids=["first-row-longer", "later-row-longer"],
+)
+def test_a_decimal_comma_in_a_comma_separated_file_is_named_not_shifted(tmp_path, rows):
+    """An unquoted 20,5 in a file separated by ',' makes a row longer than the header: pandas
+    would drop the first field with a warning and shift every value; refused, naming the
+    separator and decimal settings."""
+    path = tmp_path / "shifted.csv"
+    path.write_text("time,T_in,T_out,P\n" + rows)
+    fmt = {"separator": ",", "decimal": ".", "time": {"column": "time", "format": "seconds"}}
+    with pytest.raises(DataError) as err:
+        ingest.read_raw(path, fmt)
+    one_line(err, path, "a decimal comma in a file separated by ','", "format.separator")
