@@ -253,7 +253,7 @@ def test_to_dict_is_plain_yaml_in_a_stable_order():
     r = k_of(window(hours=4.0, T_veh=16.0), inst=INSTRUMENTS)
     d = r.to_dict()
     assert list(d)[:5] == ["k", "u_k", "u_k_rel", "kA", "A"]
-    assert list(d)[-3:] == ["reasons", "budget", "window"]
+    assert list(d)[-4:] == ["reasons", "plausibility", "budget", "window"]
     assert list(d["budget"])[: len(kvalue.COMPONENTS)] == list(kvalue.COMPONENTS)
     assert d["window"] == {"start": 1000.0, "end": 1000.0 + 4 * 3600}
     text = yaml.safe_dump(d, sort_keys=False)  # safe_dump fails on numpy scalars
@@ -313,6 +313,7 @@ def test_k_scales_as_one_over_a_and_linearly_in_q_h(A, factor, Q_H, dT, seed):
     assert r.kA == pytest.approx(r.k * A, rel=1e-12)
 
 
+@pytest.mark.bad_input
 def test_a_k_outside_the_physical_range_is_flagged_in_the_k_table():
     """kW logged as W: k a thousand times too small. The static test may still find the
     window steady; the k table says the number is implausible, as the fit's verdict does."""

@@ -88,6 +88,7 @@ def test_new_vehicle_reads_the_workbook_as_it_is_and_the_fit_finds_the_truth(wor
         assert entry.value == pytest.approx(value, rel=0.05), p
 
 
+@pytest.mark.bad_input
 def test_the_same_workbook_declared_celsius_is_refused(workbook):
     folder = workbook.parent
     data = yaml.safe_load(starter(workbook, folder))
