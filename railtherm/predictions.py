@@ -117,7 +117,7 @@ def outcome_text(row: Mapping[str, Any], stem: str, unit: str, duration_h: float
             return "?"
         if math.isinf(v):
             return f"> {duration_h:g}" if unit == "h" else "∞"
-        return f"{v:,.3g}" if abs(v) < 1000 else f"{v:,.0f}"
+        return f"{v:.3g}" if abs(v) < 1000 else f"{v:,.0f}".replace(",", "\u202f")
 
     band = ""
     if not pd.isna(row.get(f"{stem}_lo")):

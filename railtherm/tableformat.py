@@ -77,7 +77,7 @@ def model_markdown(df: pd.DataFrame, source: str, selection: str = "") -> str:
             "estimator": df["estimator"].map(ESTIMATOR_LABEL),
             "kA (W/K)": [ka(r) for r in df.itertuples()],
             "k from": df["k_source"],
-            "R² (1)": [f"{x:.3f}" for x in df["R2"]],
+            "R² (1)": [r2_text(x) for x in df["R2"]],
             "NRMSE fit (1)": [f"{x:.3f}" for x in df["nrmse_fit"]],
             "RMSE (K)": [f"{x:.3f}" for x in df["rmse_K"]],
             "AIC": [
@@ -147,10 +147,23 @@ def _sci(x: float, tex: bool, digits: int = 2) -> tuple[str, int]:
     return f"{x / 10.0**e:.{decimals}f}{_power(e, tex)}", e
 
 
-def _plain(x: float, decimals: int, thousands: bool = False) -> str:
+THIN = "\u202f"  # groups thousands: "5 554 [5 243, 5 883]", where commas would be ambiguous
+
+
+def _plain(x: float, decimals: int, thousands: bool = False, tex: bool = False) -> str:
     if not math.isfinite(x):
         return "∞"
-    return f"{x:,.{decimals}f}" if thousands else f"{x:.{decimals}f}"
+    if not thousands:
+        return f"{x:.{decimals}f}"
+    return f"{x:,.{decimals}f}".replace(",", "\\," if tex else THIN)
+
+
+def r2_text(x: float) -> str:
+    """R^2 (eq. 21) with the digits that tell fits apart: three decimals, five from 0.999 up
+    (where three would print 1.000 for most fits)."""
+    if not math.isfinite(x):
+        return "–"
+    return f"{x:.5f}" if x >= 0.999 else f"{x:.3f}"
 
 
 UNBOUNDED_FACTOR = pem.UNBOUNDED_FACTOR  # an interval limit this far prints as 0 or ∞
@@ -179,7 +192,7 @@ def _number(kind: str, x: float, tex: bool) -> str:
     if kind == "delta":
         return _delta(x)
     decimals, thousands = {"k": (2, False), "int": (0, True)}[kind]
-    return _plain(x, decimals, thousands)
+    return _plain(x, decimals, thousands, tex)
 
 
 def _value_interval(kind: str, x: float, lo: float, hi: float, tex: bool) -> str:
@@ -187,8 +200,9 @@ def _value_interval(kind: str, x: float, lo: float, hi: float, tex: bool) -> str
     value's power of ten for the 1.8x10^7 kind; 0 and ∞ for limits the data do not set).
     k is printed with two decimals, as its interval: u(k) is about 1 % of k."""
     lo, hi = _limits(x, lo, hi)
-    if kind == "sci":
-        text, e = _sci(x, tex)
+    if kind == "sci":  # the value with as many decimals as its interval
+        e = _sci(x, tex)[1]
+        text = f"{x / 10.0**e:.2f}{_power(e, tex)}"
         inner = ", ".join("0" if lim == 0 else _plain(lim / 10.0**e, 2) for lim in (lo, hi))
         text = f"{text} [{inner}]{_power(e, tex)}"
         return f"${text}$".replace("∞", "\\infty") if tex else text
@@ -196,9 +210,9 @@ def _value_interval(kind: str, x: float, lo: float, hi: float, tex: bool) -> str
         return f"{_delta(x)} [{'0' if lo == 0 else _delta(lo, 3)}, {_delta(hi, 3)}]"
     decimals, thousands = {"k": (2, False), "int": (0, True)}[kind]
     return (
-        f"{_plain(x, decimals, thousands)} "
-        f"[{'0' if lo == 0 else _plain(lo, decimals, thousands)}, "
-        f"{_plain(hi, decimals, thousands)}]"
+        f"{_plain(x, decimals, thousands, tex)} "
+        f"[{'0' if lo == 0 else _plain(lo, decimals, thousands, tex)}, "
+        f"{_plain(hi, decimals, thousands, tex)}]"
     )
 
 
@@ -277,7 +291,7 @@ def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame
                     if "C_total" in df
                     else {}
                 ),
-                "R² (1)": [f"{x:.3f}" for x in df["R2"]],
+                "R² (1)": [r2_text(x) for x in df["R2"]],
                 "verdict": df["verdict"].map(esc),
                 "k from": df["k_source"].map(esc),
             }
@@ -300,7 +314,7 @@ def format_table(name: str, df: pd.DataFrame, tex: bool = False) -> pd.DataFrame
         def num(q, x):
             if not math.isfinite(x):
                 return "–"
-            return _plain(x, 0, True) if q == "c_veh" else _delta(x)
+            return _plain(x, 0, True, tex) if q == "c_veh" else _delta(x)
 
         def centre(r):
             """c_veh: the mean (the paper's statistic); delta: the geometric mean."""

@@ -226,8 +226,8 @@ def test_a_value_at_a_bound_and_those_coupled_to_it_are_never_printed_averaged_o
     test = tables["class_test"].iloc[0]
     assert test["n_a"] == 2  # M0 is not in the test either
     md = tableformat.to_markdown("table2", tables["table2"], "T2.", "synthetic", [])
-    assert "≤" not in md and "≥" not in md and "1.0×10⁴" not in md and "10,000,000" not in md
-    assert "1.4×10⁷" in md  # C_total, not C_veh
+    assert "≤" not in md and "≥" not in md and "1.00×10⁴" not in md and "10\u202f000" not in md
+    assert "1.40×10⁷" in md  # C_total, not C_veh
     md3 = tableformat.to_markdown("table3", t3.reset_index(), "T3.", "s", [])
     (m0_line,) = [line for line in md3.splitlines() if line.startswith("| M0 ")]
     assert m0_line.count("not identified") == 2  # neither c_veh nor delta of M0
@@ -335,13 +335,15 @@ def test_truth_comparison_splits_inside_the_interval_from_within_tolerance():
 @pytest.mark.parametrize(
     "kind, x, lo, hi, text",
     [
-        ("sci", 1.8e7, 1.7e7, 2.06e7, "1.8×10⁷ [1.70, 2.06]×10⁷"),
-        ("sci", 9.96e6, 9.0e6, 1.1e7, "1.0×10⁷ [0.90, 1.10]×10⁷"),
-        ("int", 47_831.0, 40_000.0, 50_000.0, "47,831 [40,000, 50,000]"),
+        # the value with its interval's decimals; thousands grouped by a narrow space, not
+        # by commas that would read as the interval's separator
+        ("sci", 1.8e7, 1.7e7, 2.06e7, "1.80×10⁷ [1.70, 2.06]×10⁷"),
+        ("sci", 9.96e6, 9.0e6, 1.1e7, "1.00×10⁷ [0.90, 1.10]×10⁷"),
+        ("int", 47_831.0, 40_000.0, 50_000.0, "47\u202f831 [40\u202f000, 50\u202f000]"),
         ("k", 3.2353, 3.17, 3.30, "3.24 [3.17, 3.30]"),
         ("delta", 0.554, 0.5, 0.61, "0.55 [0.500, 0.610]"),
-        ("int", 1e7, 1e-3, math.inf, "10,000,000 [0, ∞]"),
-        ("sci", 1e4, 1e-20, 1e40, "1.0×10⁴ [0, ∞]×10⁴"),
+        ("int", 1e7, 1e-3, math.inf, "10\u202f000\u202f000 [0, ∞]"),
+        ("sci", 1e4, 1e-20, 1e40, "1.00×10⁴ [0, ∞]×10⁴"),
     ],
 )
 def test_numbers_are_printed_as_the_paper_does(kind, x, lo, hi, text):
