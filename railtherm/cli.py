@@ -161,9 +161,11 @@ def _fit(args: argparse.Namespace) -> int:
     if result.kvalue is not None:
         k = result.kvalue
         value = (
-            f"kA = {k.kA:.4g} +- {k.u_kA:.2g} W/K (eq. 10; k not given: no surface_m2)"
+            f"kA = {k.kA:.4g} ± {k.u_kA:.2g} W/K (± one standard uncertainty u; eq. 10; k not "
+            "given: no surface_m2)"
             if k.k is None
-            else f"k = {k.k:.4g} +- {k.u_k:.2g} W/(m2 K) (eq. 10)"
+            else f"k = {k.k:.4g} ± {k.u_k:.2g} W/(m2 K) (± one standard uncertainty u; 95 %: "
+            f"± {2 * k.u_k:.2g}; eq. 10)"
         )
         print(
             f"{vehicle.id}: {value}, "

@@ -157,8 +157,8 @@ def scenario_markdown(
         labels = {
             "heat_up_h": f"heat-up to {sc.heat_up_to_C or 0:g} °C (h)",
             "cool_down_h": f"cool-down to {sc.cool_down_to_C or 0:g} °C (h)",
-            "energy_kWh": "energy (kWh)",
-            "peak_kW": "peak power (kW)",
+            "energy_kWh": f"energy over the {sc.duration_s / 3600.0:g} h (kWh)",
+            "peak_kW": f"peak power over the {sc.duration_s / 3600.0:g} h (kW)",
             "final_T_C": "T at the end (°C)",
         }
         lines = [

@@ -241,7 +241,8 @@ class SimulationResult:
         lines = [f"{self.label} - scenario {self.scenario.name} ({self.source})"]
         lines.append(f"  heat-up time:   {o['heat_up_time_s'].text(3600.0, 'h')}")
         lines.append(f"  cool-down time: {o['cool_down_time_s'].text(3600.0, 'h')}")
-        lines.append(f"  energy:         {o['energy_kWh'].text()}")
+        hours = f"{self.scenario.duration_s / 3600.0:g} h"
+        lines.append(f"  energy:         {o['energy_kWh'].text()} (over the scenario's {hours})")
         lines.append(f"  peak power:     {o['peak_power_W'].text(1000.0, 'kW')}")
         lines.append(f"  final T:        {o['final_T_C'].text(digits=3)}")
         if self.draws:
