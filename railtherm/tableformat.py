@@ -529,7 +529,10 @@ def write_study_tables(
             df["source"] = source
         write_csv(df, paths[f"{name}_csv"])
         notes = NOTES[name] + not_given_notes(name, tables)
-        notes += [SYNTHETIC_NOTE] if "synthetic" in source else []
+        if source.startswith("mixed:"):  # the note is about the synthetic rows only
+            notes += [SYNTHETIC_NOTE.replace("These re-estimates", "The synthetic rows' estimates")]
+        elif "synthetic" in source:
+            notes += [SYNTHETIC_NOTE]
         with open(paths[f"{name}_md"], "w", encoding="utf-8") as stream:
             stream.write(to_markdown(name, df, CAPTIONS[name], source, notes))
         with open(paths[f"{name}_tex"], "w", encoding="utf-8") as stream:

@@ -372,7 +372,12 @@ def test_study_tables_are_written_with_their_source(tmp_path):
         assert "\\caption{" in tex and "synthetic" in tex and "\\begin{tabular}" in tex
     measured = {vid: {**v, "synthetic": False} for vid, v in vehicles.items()}
     assert aggregate.data_source(measured) == aggregate.MEASURED_SOURCE
-    assert "mixed" in aggregate.data_source({**measured, "X": vehicle("tram")})
+    mixed = aggregate.data_source({**measured, "X": vehicle("tram")})
+    assert "mixed" in mixed
+    # a mixed study's caption speaks of its synthetic rows only
+    tableformat.write_study_tables(tables, mixed, paths)
+    md = (tmp_path / "table2.md").read_text(encoding="utf-8")
+    assert "The synthetic rows' estimates come from" in md and "These re-estimates" not in md
 
 
 def test_welch_with_fewer_than_three_vehicles_in_a_class_is_not_testable():
