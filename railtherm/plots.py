@@ -437,6 +437,9 @@ def _has_data(v: np.ndarray) -> bool:
     return bool(np.isfinite(v).any())
 
 
+T_O_MIN_SPAN_K = 10.0  # the T_o axis spans at least this: a steady tunnel's noise stays small
+
+
 def _inputs_panel(ax: Any, series: pd.DataFrame, lay: _Windows, tunnel: bool = True) -> list[Any]:
     """T_o (left, degC) and Q_H (right, kW, held over each sample: step "post"); T_o is the
     tunnel air of a climatic wind tunnel (``tunnel``), else the outdoor air."""
@@ -446,10 +449,14 @@ def _inputs_panel(ax: Any, series: pd.DataFrame, lay: _Windows, tunnel: bool = T
         lay.x, lay.values(series, "T_o"), color=COLORS["T_o"], lw=1.0, label=f"T_o ({where})"
     )
     q = lay.values(series, "Q_H") / 1000.0
-    lines += axq.step(
-        lay.x, q, where="post", color=COLORS["Q_H"], lw=0.6, alpha=0.75, label="Q_H (heat input)"
-    )
+    lines += axq.step(lay.x, q, where="post", color=COLORS["Q_H"], lw=1.0, label="Q_H (heat input)")
     ax.set_ylabel("T_o (°C)")
+    t_o = np.asarray(lay.values(series, "T_o"), dtype=float)
+    if _has_data(t_o):  # a steady tunnel's sensor noise must not fill the panel over Q_H
+        low, high = float(np.nanmin(t_o)), float(np.nanmax(t_o))
+        if high - low < T_O_MIN_SPAN_K:
+            middle = (low + high) / 2.0
+            ax.set_ylim(middle - T_O_MIN_SPAN_K / 2.0, middle + T_O_MIN_SPAN_K / 2.0)
     # irradiance inputs (eq. 1), means over the step like Q_H, on the same axis in kW/m2
     irradiance = {c: lay.values(series, c) / 1000.0 for c in series.columns if c.startswith("I_")}
     for i, (name, values) in enumerate(irradiance.items()):

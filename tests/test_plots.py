@@ -568,3 +568,13 @@ def test_figure5_names_a_value_without_a_limit_in_the_legend():
     b = plots.figure5(t3)[1]
     legend = [t.get_text() for x in b.axes if x.get_legend() for t in x.get_legend().texts]
     assert "not identified" in legend and "not identified: limit" not in legend
+
+
+def test_a_steady_tunnels_sensor_noise_does_not_fill_the_input_panel():
+    """T_o within 0.4 K (a steady tunnel and its sensor's noise): its axis spans at least
+    T_O_MIN_SPAN_K, so the noise stays a thin line and the Q_H steps show."""
+    fig = plots.fit_figure(series(), FIT, "steady tunnel")
+    (axis,) = [ax for ax in fig.axes if ax.get_ylabel() == "T_o (°C)"]
+    low, high = axis.get_ylim()
+    assert high - low >= plots.T_O_MIN_SPAN_K - 1e-9
+    assert low < -10.0 < high
