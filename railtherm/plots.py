@@ -1246,8 +1246,9 @@ def scenario_figure(
 ) -> Figure:
     """One scenario through every vehicle's identified model (``runs``: vehicle ->
     :class:`railtherm.simulate.SimulationResult`): (a) the indoor air temperature T(t) with
-    its 95 % band, the heat-up threshold dashed; (b) the heating energy since the start (kWh,
-    the integral of the held power: readable where a thermostat switches every few steps)."""
+    its 95 % band, the heat-up threshold dashed, each line faint once it reaches the threshold
+    (where a thermostat holds it, switching every few steps); (b) the heating energy since the
+    start (kWh, the integral of the held power: readable where a thermostat switches)."""
     if not runs:
         raise ValueError("no simulated vehicle to draw")
     colors = _vehicle_colors(list(runs))
@@ -1258,7 +1259,12 @@ def scenario_figure(
         for vid, run in runs.items():
             s = run.series
             c = colors[vid]
-            ax_t.plot(s["time_h"], s["T"], color=c, lw=1.1, label=vid)
+            T = s["T"].to_numpy()
+            reached = np.flatnonzero(T >= threshold_C) if threshold_C is not None else np.array([])
+            cut = int(reached[0]) + 1 if reached.size else len(T)
+            ax_t.plot(s["time_h"][:cut], T[:cut], color=c, lw=1.1, label=vid)
+            if cut < len(T):  # held at the set point: a thermostat's chatter, drawn faintly
+                ax_t.plot(s["time_h"][cut - 1 :], T[cut - 1 :], color=c, lw=0.4, alpha=0.35)
             if "T_lo" in s:
                 ax_t.fill_between(s["time_h"], s["T_lo"], s["T_hi"], color=c, alpha=0.15, lw=0)
             dt_h = float(s["time_h"].iloc[1] - s["time_h"].iloc[0])

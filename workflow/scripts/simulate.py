@@ -26,11 +26,17 @@ shown = {
     if name == chosen.name
 }
 doubt = f" ({mark}: assumptions in doubt, no band)" if any(mark in v for v in shown) else ""
+note = plots.provenance_note(table.assign(source=source))
+left = [vid for vid in fits if (chosen.name, vid) not in runs]  # the table says why
+if left:
+    note = f"not drawn: {', '.join(left)} (not simulated, see the scenario table)" + (
+        f"; {note}" if note else ""
+    )
 fig = plots.scenario_figure(
     shown,
     title=f"{chosen.name}: identified second-order models, 95 % bands{doubt}",
     threshold_C=chosen.heat_up_to_C,
-    note=plots.provenance_note(table.assign(source=source)),
+    note=note,
 )
 plots.save_figure(fig, snakemake.output.png.removesuffix(".png"))
 log.info("%d scenarios x %d vehicles", len(scenarios), len(fits))
