@@ -780,8 +780,9 @@ def _class_figure(
         if log:
             ax.set_yscale("log")
         ax.set_ylim(*ylim)
-        # a label is about 6 pt high; the axes about 0.55 of the figure height
-        sep = 6.5 / (0.55 * 72.0 * fig.get_figheight())
+        # a label is about 6 pt high, with its white ground and a gap 8.5; the axes about 0.55
+        # of the figure height
+        sep = 8.5 / (0.55 * 72.0 * fig.get_figheight())
         name_at = transforms.offset_copy(ax.get_xaxis_transform(), fig=fig, x=3.0, units="points")
         classes = aggregate.class_order(table3["class"].tolist())
         boxes, labels, open_kinds = [], [], set()
