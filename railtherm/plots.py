@@ -1309,7 +1309,7 @@ def reference_validation_figure(
         finite = done[["heat_up_fit_h", "heat_up_ref_h", "heat_up_ref_h_lo"]].astype(float)
         finite = finite.to_numpy()[np.isfinite(finite.to_numpy())]
         top = 1.25 * float(finite.max()) if finite.size else 1.0
-        named: set[str] = set()
+        named: dict[str, tuple[float, float, Any]] = {}  # vehicle: where its name goes
         for (basis, k_from), style in styles.items():
             part = done[(done["basis"] == basis) & (done["k_from"] == k_from)]
             part = part[np.isfinite(part["heat_up_fit_h"].astype(float))]
@@ -1335,15 +1335,7 @@ def reference_validation_figure(
                         ls="none",
                     )
                 if r["vehicle"] not in named:
-                    named.add(r["vehicle"])
-                    ax_a.annotate(
-                        r["vehicle"],
-                        (x, lo if math.isfinite(lo) else min(y, top)),
-                        xytext=(2, -8),
-                        textcoords="offset points",
-                        fontsize=5.5,
-                        color=c,
-                    )
+                    named[r["vehicle"]] = (x, lo if math.isfinite(lo) else min(y, top), c)
             ax_a.plot(
                 [],
                 [],
@@ -1353,6 +1345,23 @@ def reference_validation_figure(
                 mfc=style["mfc"] or "0.3",
                 label=style["label"],
             )
+        placed: list[tuple[float, float, int]] = []  # anchor and line of each name
+        width = 0.09 * top  # a name of six letters, in hours of the x axis
+        for vid, (x, y, c) in sorted(named.items(), key=lambda kv: (kv[1][0], kv[1][1])):
+            # the first line below its anchor that no name nearby takes yet
+            taken = {
+                line for px, py, line in placed if abs(px - x) < width and abs(py - y) < 0.1 * top
+            }
+            line = next(i for i in range(len(placed) + 1) if i not in taken)
+            ax_a.annotate(
+                vid,
+                (x, y),
+                xytext=(2, -8 - 7 * line),
+                textcoords="offset points",
+                fontsize=5.5,
+                color=c,
+            )
+            placed.append((x, y, line))
         ax_a.plot([0, top], [0, top], color="0.5", lw=0.8, ls="--")
         ax_a.set_xlim(0, top)
         ax_a.set_ylim(0, top * 1.03)
