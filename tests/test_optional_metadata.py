@@ -424,5 +424,8 @@ def test_railtherm_fit_prints_kA_for_an_object_without_surface_with_a_k_window(t
     status = main(["fit", "config/vehicles/Tram2.yaml", "--model", "order1", "-d", str(tmp_path)])
     assert status == 0
     out = capsys.readouterr().out
-    assert re.search(r"Tram2: kA = [0-9.]+ \+- [0-9.]+ W/K \(eq. 10; k not given", out), out
+    pattern = (
+        r"Tram2: kA = [0-9.]+ ± [0-9.]+ W/K \(± one standard uncertainty u; eq. 10; k not given"
+    )
+    assert re.search(pattern, out), out
     no_nan_printed(out)
