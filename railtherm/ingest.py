@@ -96,7 +96,7 @@ import pandas as pd
 from railtherm import timeaxis, units
 from railtherm.errors import ConfigError, DataError
 from railtherm.rawfile import parse_times, read_columns, separator_hint
-from railtherm.readers import elsewhere_hint, read_table, reader_kind
+from railtherm.readers import elsewhere_hint, line_of, read_table, reader_kind
 
 __all__ = [
     "TIDY_COLUMNS",
@@ -222,11 +222,13 @@ def read_raw(
             file,
             time_column,
             labels.iloc[i],
-            f"{what}: data row {i + 1} (line {i + 2}) follows {labels.iloc[i - 1]!s} ({why})",
+            f"{what}: data row {i + 1} ({line_of(labels, i)}) follows {labels.iloc[i - 1]!s} "
+            f"({why})",
         )
     raw.index = pd.Index(seconds, name="t_s")
     origin = times.iloc[0] if tf.absolute else None  # the time at index 0 s
     raw.attrs = {
+        **{k: raw.attrs[k] for k in ("sheet", "lines") if k in raw.attrs},  # a workbook's rows
         "file": file,
         "time_column": time_column,
         "time_format": tf.format,
@@ -345,7 +347,9 @@ def _numeric(file: str, raw: pd.DataFrame, column: str) -> np.ndarray:
         if bad.any():
             i = int(bad.argmax())
             value = str(text.iloc[i])
-            raise DataError(file, column, value, f"line {i + 2}: not a number{_number_hint(value)}")
+            raise DataError(
+                file, column, value, f"{line_of(series, i)}: not a number{_number_hint(value)}"
+            )
     infinite = np.isinf(values)
     if infinite.any():
         i = int(infinite.argmax())
@@ -353,7 +357,7 @@ def _numeric(file: str, raw: pd.DataFrame, column: str) -> np.ndarray:
             file,
             column,
             str(text.iloc[i]),
-            f"line {i + 2}: not a finite measurement (a logger's overflow or fault); empty "
+            f"{line_of(series, i)}: not a finite measurement (a logger's overflow or fault); empty "
             "the cell to mark a gap, which is interpolated up to cleaning.max_gap_s",
         )
     return values

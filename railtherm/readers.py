@@ -49,6 +49,7 @@ __all__ = [
     "csv_error",
     "elsewhere_hint",
     "header_rows",
+    "line_of",
     "read_header",
     "sheets_with",
     "read_table",
@@ -157,8 +158,10 @@ def read_table(
     wanted = None if columns is None else list(columns)
     if kind == "csv":
         return _csv_table(path, fmt, wanted)
+    where: dict[str, Any] = {}
     if kind == "excel":
         names, rows = _excel(path, fmt)
+        where = {"sheet": rows.sheet, "lines": rows.lines}  # the sheet's own row numbers
         data = {
             name: [row[i] if i < len(row) else None for row in rows] for i, name in names.items()
         }
@@ -170,7 +173,26 @@ def read_table(
         _check_wanted(path, wanted, tuple(data))
         data = {name: values for name, values in data.items() if name in wanted}
     decimal = fmt.get("decimal", ".")
-    return pd.DataFrame({name: _text(values, decimal) for name, values in data.items()})
+    table = pd.DataFrame({name: _text(values, decimal) for name, values in data.items()})
+    table.attrs.update(where)
+    return table
+
+
+def line_of(table: pd.DataFrame | pd.Series, position: int) -> str:
+    """Where the data row at ``position`` is, for a message: ``line N`` of a text file (its
+    header line 1), or ``row N of sheet 'S'`` of a workbook (``attrs`` of
+    :func:`read_table`; blank rows left out of the table are counted)."""
+    lines = table.attrs.get("lines")
+    if lines is not None and 0 <= position < len(lines):
+        return f"row {lines[position]} of sheet '{table.attrs.get('sheet')}'"
+    return f"line {position + 2}"
+
+
+class _Rows(list):
+    """A sheet's data rows, with the sheet's name and each row's number in it (from 1)."""
+
+    sheet: str = ""
+    lines: list[int]
 
 
 def csv_error(path: str, exc: Exception) -> DataError:
@@ -434,7 +456,12 @@ def _excel(
     names = {i: n for i, n in names.items() if n != ""}
     if header_only:
         return tuple(names.values()), []
-    data = [row for row in rows[header_row + 1 :] if not all(_empty(v) for v in row)]
+    data = _Rows()
+    data.sheet, data.lines = name, []
+    for number, row in enumerate(rows[header_row + 1 :], start=header_row + 2):
+        if not all(_empty(v) for v in row):
+            data.append(row)
+            data.lines.append(number)
     return names, data
 
 

@@ -41,6 +41,7 @@ import numpy as np
 import pandas as pd
 
 from railtherm.errors import ConfigError, DataError
+from railtherm.readers import line_of
 
 ELAPSED_UNITS_S = {"seconds": 1.0, "minutes": 60.0, "hours": 3600.0, "days": 86400.0}
 NAMED_ABSOLUTE = ("iso", "epoch", "epoch_ms", "serial_days")
@@ -226,7 +227,7 @@ def _localize(path: str, column: str, raw: pd.Series, times: pd.Series, tf: Time
                 times.astype(str).str.startswith(stamp.group(0).replace("T", " "))
             )
             if hits.size:
-                where = f"line {int(hits[0]) + 2}: "
+                where = f"{line_of(raw, int(hits[0]))}: "
         value = raw.iloc[int(hits[0])] if stamp and hits.size else (stamp.group(0) if stamp else "")
         if len(times) == 1:  # one time (a window's bound), not a column: no line to cite
             where = ""
@@ -279,7 +280,7 @@ def parse(path: str, raw: pd.Series, column: str, tf: TimeFormat, decimal: str =
                     path,
                     column,
                     text.iloc[row],
-                    f"line {row + 2}: read as {tf.describe()} this is the year "
+                    f"{line_of(raw, row)}: read as {tf.describe()} this is the year "
                     f"{times.iloc[row].year}; as milliseconds it is {as_ms.isoformat()}: "
                     "declare format.time.format: epoch_ms",
                 )
@@ -294,7 +295,7 @@ def parse(path: str, raw: pd.Series, column: str, tf: TimeFormat, decimal: str =
     if bad.any():
         row = int(bad.argmax())
         raise DataError(
-            path, column, text.iloc[row], f"line {row + 2}: not {tf.describe()}{_named(tf)}"
+            path, column, text.iloc[row], f"{line_of(raw, row)}: not {tf.describe()}{_named(tf)}"
         )
     if tf.absolute and tf.timezone:
         if times.dt.tz is not None:
@@ -334,7 +335,7 @@ def _iso(path: str, raw: pd.Series, column: str, text: pd.Series) -> pd.Series:
             path,
             column,
             text.iloc[row],
-            f"line {row + 2}: no UTC offset, where other timestamps have one; give every "
+            f"{line_of(raw, row)}: no UTC offset, where other timestamps have one; give every "
             "timestamp its offset, or none",
         )
     return times

@@ -284,3 +284,28 @@ def test_epoch_milliseconds_declared_epoch_name_the_format(tmp_path):
     df.to_csv(tmp_path / "ms.csv", index=False)
     text = read_refused(tmp_path / "ms.csv", {"column": "Zeit", "format": "epoch"})
     assert "declare format.time.format: epoch_ms" in text and "as milliseconds it is 2024" in text
+
+
+def test_a_workbooks_bad_cell_is_named_by_its_row_in_the_sheet(tmp_path):
+    """A text cell in a workbook below a title row and a blank row: the message gives the row
+    as the spreadsheet numbers it, not a line of a CSV file."""
+    pytest.importorskip("python_calamine")
+    pytest.importorskip("xlsxwriter")
+    df = frame()
+    df["Zeit"] = df["Zeit"].dt.strftime("%Y-%m-%dT%H:%M:%S")
+    df = df.astype(object)
+    df.loc[3, :] = None  # a blank row: left out of the table, counted in the sheet
+    df.loc[6, "T_int"] = "21,5 C"
+    path = tmp_path / "run.xlsx"
+    with pd.ExcelWriter(path, engine="xlsxwriter") as book:
+        df.to_excel(book, sheet_name="Log", index=False, startrow=2)
+    time = {"column": "Zeit", "format": "iso", "timezone": "Europe/Berlin", "dst": "infer"}
+    vehicle_path = vehicle(tmp_path, path.name, {"time": time, "sheet": "Log", "header_row": 2})
+    data = yaml.safe_load(vehicle_path.read_text())
+    del data["format"]["separator"], data["format"]["decimal"]
+    vehicle_path.write_text(yaml.safe_dump(data, sort_keys=False))
+    loaded = load_vehicle(vehicle_path, workdir=tmp_path)
+    with pytest.raises(DataError) as caught:
+        ingest.clean_window(path, loaded.data, "all")
+    # header in sheet row 3, data from row 4: the seventh data row is row 10
+    assert "row 10 of sheet 'Log': not a number" in str(caught.value), str(caught.value)
