@@ -1233,8 +1233,11 @@ def innovation_figure(
 
 
 def _vehicle_colors(names: Sequence[str]) -> dict[str, Any]:
+    """A colour per vehicle: tab20's ten strong colours first, its ten light ones only from
+    the eleventh vehicle on (light lines are hard to read; neighbours never pair up)."""
     cmap = matplotlib.colormaps["tab20"]
-    return {name: cmap(i % 20) for i, name in enumerate(names)}
+    order = [*range(0, 20, 2), *range(1, 20, 2)]
+    return {name: cmap(order[i % 20]) for i, name in enumerate(names)}
 
 
 def scenario_figure(

@@ -67,7 +67,7 @@ def starter(workbook, folder) -> str:
     assert [t.split(":")[0] for t in todos] == ["class", "mass_kg", "surface_m2"]
     for key, value in (("class", "tram"), ("mass_kg", "38000"), ("surface_m2", "306")):
         text = re.sub(rf"^{key}: +TODO", f"{key}: {value}", text, flags=re.M)
-    return text + "model: {orders: [2], mode: joint}\n"
+    return text  # only what no file can tell is filled in; the model as new-vehicle leaves it
 
 
 def test_new_vehicle_reads_the_workbook_as_it_is_and_the_fit_finds_the_truth(workbook):
@@ -80,7 +80,11 @@ def test_new_vehicle_reads_the_workbook_as_it_is_and_the_fit_finds_the_truth(wor
     path.write_text(text, encoding="utf-8")
     result = fit_vehicle(load_vehicle(path, workdir=folder), models=["order2"], workdir=folder)
     fit = result.fits["order2"]
-    assert fit.verdict == "fit acceptable", fit.reasons
+    # no steady window for the static k test: kA is estimated with the capacities, and the
+    # verdict says so (the config's default mode asks for the static test); nothing else
+    assert fit.data["k_source"].startswith("joint estimation"), fit.data["k_source"]
+    failed = [c["criterion"] for c in fit.data["criteria"] if c["applies"] and not c["passed"]]
+    assert failed in ([], ["k_stage"]), (failed, fit.reasons)
     for p, value in TRUTH.items():
         entry = fit.parameters[p]
         assert entry.identified, p
