@@ -18,7 +18,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from railtherm import models, pem
 
@@ -210,17 +209,14 @@ class Fit:
 
 
 def write_yaml(data: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
-    """A result as plain YAML (keys in insertion order), the form of every railtherm result
-    file (kvalue.yaml, identify/<model>.yaml, fit_<model>.yaml)."""
-    directory = os.path.dirname(str(path))
-    if directory:
-        os.makedirs(directory, exist_ok=True)
-    with open(path, "w", encoding="utf-8") as stream:
-        yaml.safe_dump(dict(data), stream, sort_keys=False)
+    """A result as plain YAML (:func:`railtherm.io.write_result`)."""
+    from railtherm import io
+
+    io.write_result(data, path)
 
 
 def read_fit(path: str | os.PathLike[str], series: str | os.PathLike[str] | None = None) -> Fit:
-    """A :class:`Fit` from ``fit_<model>.yaml`` (and its series CSV, if given)."""
-    with open(path, encoding="utf-8") as stream:
-        data = yaml.safe_load(stream)
-    return Fit(data, None if series is None else pd.read_csv(series))
+    """A :class:`Fit` from ``fit_<model>.yaml`` (:func:`railtherm.io.read_fit`)."""
+    from railtherm import io
+
+    return io.read_fit(path, series)

@@ -30,7 +30,6 @@ from typing import Any
 import matplotlib
 import numpy as np
 import pandas as pd
-import yaml
 from matplotlib import transforms
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -39,6 +38,7 @@ from matplotlib.lines import Line2D
 from matplotlib.text import Text
 
 from railtherm import aggregate, ingest, pem
+from railtherm import io as rt_io
 from railtherm.acf import autocorrelation
 from railtherm.diagnostics import cumulated_periodogram
 from railtherm.kvalue import KValue
@@ -1432,7 +1432,7 @@ def vehicle_figures(
     """
     drawn = []
     if kvalue is not None:
-        result = KValue.from_dict(yaml.safe_load(Path(kvalue["result"]).read_text("utf-8")))
+        result = rt_io.read_kvalue(kvalue["result"])
         figure = kvalue_figure(
             ingest.read_tidy(kvalue["record"]),
             ingest.read_tidy(kvalue["window"]),
@@ -1443,7 +1443,7 @@ def vehicle_figures(
         save_figure(figure, kvalue["png"].removesuffix(".png"))
         drawn.append(f"k figure of {vehicle}")
     for files in (fits or {}).values():
-        fit = yaml.safe_load(Path(files["fit"]).read_text("utf-8"))
+        fit = rt_io.read_result(files["fit"])
         series = pd.read_csv(files["series"])
         fit_synthetic = bool(fit.get("synthetic", False))
         model = FIT_MODELS[fit["structure"].split("+")[0]]

@@ -1,23 +1,19 @@
 """Adapter for rule aggregate: Tables 1-3, class statistics and the class test (CSV, MD, TeX)."""
 
-from pathlib import Path
-
-import yaml
-
 from railtherm import aggregate, logs, tableformat
+from railtherm import io as rt_io
 
 log = logs.to_file(snakemake.log[0])
 vehicles = snakemake.params.vehicles
 fits = {
-    vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    for vid, path in zip(vehicles, snakemake.input.fits, strict=True)
+    vid: rt_io.read_result(path) for vid, path in zip(vehicles, snakemake.input.fits, strict=True)
 }
 kvalues = {vid: None for vid in vehicles} | {
-    vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    vid: rt_io.read_result(path)
     for vid, path in zip(snakemake.params.with_kvalue, snakemake.input.kvalues, strict=True)
 }
 first_order = {
-    vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    vid: rt_io.read_result(path)
     for vid, path in zip(
         snakemake.params.with_first_order, snakemake.input.first_order, strict=True
     )

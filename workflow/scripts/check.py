@@ -1,15 +1,14 @@
 """Adapter for rule check: diagnostics and verdict of each of a vehicle's fits."""
 
 import pandas as pd
-import yaml
 
 from railtherm import identify, logs
+from railtherm import io as rt_io
 from railtherm.fit import Fit
 
 log = logs.to_file(snakemake.log[0])
 for model in snakemake.params.models:
-    with open(snakemake.input[f"estimate_{model}"], encoding="utf-8") as stream:
-        estimate = yaml.safe_load(stream)
+    estimate = rt_io.read_result(snakemake.input[f"estimate_{model}"])
     series = pd.read_csv(snakemake.input[f"series_{model}"])
     fit = Fit(identify.check(estimate, series, snakemake.params.check), series)
     fit.write(snakemake.output[f"fit_{model}"])

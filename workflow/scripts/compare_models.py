@@ -2,12 +2,11 @@
 
 from pathlib import Path
 
-import yaml
-
 from railtherm import aggregate, logs, tableformat, tables
+from railtherm import io as rt_io
 
 log = logs.to_file(snakemake.log[0])
-fits = [yaml.safe_load(Path(p).read_text(encoding="utf-8")) for p in snakemake.input.fits]
+fits = [rt_io.read_result(p) for p in snakemake.input.fits]
 source = aggregate.data_source(snakemake.params.data)
 table = aggregate.model_table(fits, source)
 tables.write_csv(table, snakemake.output.csv)

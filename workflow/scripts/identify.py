@@ -1,9 +1,7 @@
 """Adapter for rule identify: PEM fit of each of a vehicle's models to its windows."""
 
-import yaml
-
 from railtherm import identify, ingest, logs
-from railtherm.fit import write_yaml
+from railtherm import io as rt_io
 
 log = logs.to_file(snakemake.log[0])
 tables = {
@@ -12,8 +10,7 @@ tables = {
 }
 kvalue = k_window = None
 if snakemake.input.kvalue:
-    with open(snakemake.input.kvalue, encoding="utf-8") as stream:
-        kvalue = yaml.safe_load(stream)
+    kvalue = rt_io.read_result(snakemake.input.kvalue)
     k_window = ingest.read_tidy(snakemake.input.k_window)
 # the storage-corrected kA (eqs. 7-8 over the k window), once for every model of the vehicle
 storage = identify.storage_corrected_k(tables, k_window, snakemake.params.vehicle, kvalue)
@@ -27,7 +24,7 @@ if storage and storage["applied"]:
     )
 for model in snakemake.params.models:
     estimate, series = identify.identify(tables, snakemake.params.vehicle, kvalue, model, storage)
-    write_yaml(estimate, snakemake.output[f"estimate_{model}"])
+    rt_io.write_result(estimate, snakemake.output[f"estimate_{model}"])
     ingest.write_tidy(series, snakemake.output[f"series_{model}"])
     fit = estimate["fit"]
     criterion = (

@@ -1,13 +1,13 @@
 """Adapter for rule kvalue: static k (eq. 10), its steady-state verdict and u(k)."""
 
 from railtherm import ingest, kvalue, logs
-from railtherm.fit import write_yaml
+from railtherm import io as rt_io
 
 log = logs.to_file(snakemake.log[0])
 vehicle = snakemake.params.vehicle
 window = ingest.read_tidy(snakemake.input.window)
 result = kvalue.for_vehicle(window, vehicle, source=snakemake.input.window)
-write_yaml(result.to_dict(), snakemake.output[0])
+rt_io.write_result(result.to_dict(), snakemake.output[0])
 if result.k is None:  # no surface_m2: kA only
     log.info("kA = %.4g +- %.2g W/K, steady: %s", result.kA, result.u_kA, result.steady)
 else:

@@ -1,15 +1,13 @@
 """Adapter for rule kvalue_table: k and u(k) of every vehicle beside the truth where known."""
 
-from pathlib import Path
-
 import pandas as pd
-import yaml
 
 from railtherm import aggregate, logs, tables
+from railtherm import io as rt_io
 
 log = logs.to_file(snakemake.log[0])
 results = {
-    vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    vid: rt_io.read_result(path)
     for vid, path in zip(snakemake.params.vehicles, snakemake.input.results, strict=True)
 }
 truth = pd.read_csv(snakemake.input.truth) if snakemake.input.truth else None

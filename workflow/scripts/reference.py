@@ -3,9 +3,9 @@
 from pathlib import Path
 
 import pandas as pd
-import yaml
 
 from railtherm import aggregate, ingest, logs, reference, tables
+from railtherm import io as rt_io
 
 log = logs.to_file(snakemake.log[0])
 refs, parts, vehicles = [], [], {}
@@ -17,7 +17,7 @@ for path, fit_file, vehicle, windows in zip(
     strict=True,
 ):
     ref = reference.load_reference(path)
-    fit = yaml.safe_load(Path(fit_file).read_text(encoding="utf-8"))
+    fit = rt_io.read_result(fit_file)
     windows_data = {w: ingest.read_tidy(p) for w, p in windows.items()}
     parts.append(reference.compare(ref, fit, windows_data, vehicle))
     refs.append(ref)

@@ -1,8 +1,7 @@
 """Adapter for rule sindy: the SINDy cross-check of each vehicle of a batch (sindy.yaml)."""
 
-import yaml
-
 from railtherm import ingest, logs, sindy
+from railtherm import io as rt_io
 
 log = logs.to_file(snakemake.log[0])
 p = snakemake.params.settings
@@ -13,9 +12,7 @@ for vid, vehicle in snakemake.params.vehicles.items():
     windows = [ingest.read_tidy(path) for path in snakemake.input[f"windows_{vid}"]]
     fit = None
     if f"fit_{vid}" in snakemake.input.keys():
-        with open(snakemake.input[f"fit_{vid}"], encoding="utf-8") as stream:
-            fit = yaml.safe_load(stream)
+        fit = rt_io.read_result(snakemake.input[f"fit_{vid}"])
     result = sindy.for_vehicle(vehicle, windows, fit, settings)
-    with open(snakemake.output[f"sindy_{vid}"], "w", encoding="utf-8") as stream:
-        yaml.safe_dump(result, stream, sort_keys=False)
+    rt_io.write_result(result, snakemake.output[f"sindy_{vid}"])
     log.info("%s: %s", result["vehicle"], result["verdict"])

@@ -2,13 +2,12 @@
 
 from pathlib import Path
 
-import yaml
-
 from railtherm import aggregate, logs, plots, sindy, tables
+from railtherm import io as rt_io
 
 log = logs.to_file(snakemake.log[0])
 results = {
-    vid: yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    vid: rt_io.read_result(path)
     for vid, path in zip(snakemake.params.vehicles, snakemake.input.results, strict=True)
 }
 source = aggregate.data_source(snakemake.params.data)
