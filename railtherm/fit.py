@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from railtherm import io as results_io
 from railtherm import models, pem
 
 
@@ -210,13 +211,10 @@ class Fit:
 
 def write_yaml(data: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
     """A result as plain YAML (:func:`railtherm.io.write_result`)."""
-    from railtherm import io
-
-    io.write_result(data, path)
+    results_io.write_result(data, path)
 
 
 def read_fit(path: str | os.PathLike[str], series: str | os.PathLike[str] | None = None) -> Fit:
-    """A :class:`Fit` from ``fit_<model>.yaml`` (:func:`railtherm.io.read_fit`)."""
-    from railtherm import io
-
-    return io.read_fit(path, series)
+    """A :class:`Fit` from ``fit_<model>.yaml`` (read by :func:`railtherm.io.read_result`)
+    and its series CSV, if given."""
+    return Fit(results_io.read_result(path), None if series is None else pd.read_csv(series))

@@ -1432,7 +1432,7 @@ def vehicle_figures(
     """
     drawn = []
     if kvalue is not None:
-        result = rt_io.read_kvalue(kvalue["result"])
+        result = KValue.from_dict(rt_io.read_result(kvalue["result"]))
         figure = kvalue_figure(
             ingest.read_tidy(kvalue["record"]),
             ingest.read_tidy(kvalue["window"]),
