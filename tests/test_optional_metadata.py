@@ -379,6 +379,7 @@ def metadata_study(root: Path) -> Path:
     return study
 
 
+@pytest.mark.slow
 @pytest.mark.workflow
 def test_snakemake_study_with_objects_without_metadata(tmp_path):
     study = metadata_study(tmp_path)

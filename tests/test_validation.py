@@ -205,6 +205,7 @@ def test_bad_reference_file_names_the_key(tmp_path, edit, key):
     assert str(path) in str(err.value) and key in str(err.value)
 
 
+@pytest.mark.slow
 @pytest.mark.workflow
 def test_validation_study_reproduces_its_committed_results(tmp_path):
     """The README's validation command, from clean, in a scratch copy: the tables committed
@@ -338,6 +339,7 @@ def test_validate_checks_the_reference_files_as_the_run_would(tmp_path, capsys):
     assert "no such fit in the study" in err
 
 
+@pytest.mark.slow
 def test_every_model_combination_that_validates_runs_to_the_end(tmp_path):
     """Model sections a user may write - no model.orders (the paper's two), the Kalman
     estimator alone, order 2 with interior_envelope but no order 1, no order at all beside a

@@ -94,6 +94,7 @@ def copy_of(study: Path, tmp_path: Path) -> Path:
     return target
 
 
+@pytest.mark.slow
 def test_run_writes_raw_files_and_truth_deterministically(small_run, tmp_path):
     first = copy_of(small_run, tmp_path / "a")
     written = outputs(first)
