@@ -461,8 +461,9 @@ def _filter(
             steady_now = st is not None and float(np.abs(P - st.P).max()) <= STEADY_TOL * float(
                 np.abs(st.P).max()
             )
-            jump = (
-                PRIOR_CORRECTION
+            jump = (  # decided at the run's first row: later rows only shorten what is left
+                k == k0
+                and PRIOR_CORRECTION
                 and st is not None
                 and not steady_now
                 and not series

@@ -651,6 +651,10 @@ def _run(
         integral = np.zeros(S) if power0 is None else np.asarray(power0, dtype=float).copy()
         kp = ctl.kp_W_K if ctl.kp_W_K is not None else PI_KP_PER_W * ctl.power_max_W
         ti = ctl.ti_s if ctl.ti_s is not None else PI_TI_S
+    if steps.Bd1 is not None:  # each step's change of the inputs: T_o, heat flows, irradiance
+        slopes = np.diff(u, axis=0)
+        if ctl is None:  # a fixed heating power is a profile too; a controller's is held
+            slopes[:, 1] += np.diff(scenario.heating_W)
     for k in range(N1):
         T = X[:, k, 0]
         if ctl is None:
@@ -676,12 +680,7 @@ def _run(
             "sij,sj->si", steps.Bd[g], U[:, k]
         )
         if steps.Bd1 is not None:  # the scenario's inputs linear to the next grid point
-            slope = u[k + 1] - u[k]  # T_o, heat flows, irradiance (without the heating)
-            if ctl is None:  # a fixed heating power is a profile too; a controller's is held
-                slope = slope + np.eye(len(slope))[1] * (
-                    scenario.heating_W[k + 1] - scenario.heating_W[k]
-                )
-            x += np.einsum("sij,j->si", steps.Bd1[g], slope)
+            x += np.einsum("sij,j->si", steps.Bd1[g], slopes[k])
         if noise is not None:
             x = x + np.einsum("sij,sj->si", steps.Qchol[g], noise[:, k])
         X[:, k + 1] = x

@@ -71,6 +71,7 @@ READER_WORDS = {"excel": "a workbook", "matlab": "a MATLAB file", "r": "R data"}
 GUESSED = "# guessed from the column name: check"
 SEPARATORS = (",", ";", "\t")
 SNIFF_CHARS = 64 * 1024  # the text csv.Sniffer looks at
+DECIMAL_ROWS = 5000  # rows that decide the decimal mark (the record is then read whole once)
 # the zones of common abbreviations of standard and summer time in a time column's name
 ZONE_ABBREVIATIONS = {
     **dict.fromkeys(("CET", "CEST", "MEZ", "MESZ"), "Europe/Berlin"),
@@ -201,10 +202,15 @@ def detect_separator(path: str) -> str:
     return separator
 
 
-def _read_sample(path: str, separator: str, decimal: str, encoding: str = "utf-8") -> pd.DataFrame:
-    """The whole record (every row: ranges, gaps and a repeated hour anywhere are seen)."""
+def _read_sample(
+    path: str, separator: str, decimal: str, encoding: str = "utf-8", rows: int | None = None
+) -> pd.DataFrame:
+    """The first ``rows`` rows, or the whole record (every row: ranges, gaps and a repeated
+    hour anywhere are seen)."""
     try:
-        return pd.read_csv(path, sep=separator, decimal=decimal, index_col=False, encoding=encoding)
+        return pd.read_csv(
+            path, sep=separator, decimal=decimal, index_col=False, encoding=encoding, nrows=rows
+        )
     except (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError) as exc:
         raise csv_error(path, exc) from None
 
@@ -214,15 +220,14 @@ def _numeric_columns(sample: pd.DataFrame) -> int:
 
 
 def detect_decimal(path: str, separator: str, encoding: str = "utf-8") -> tuple[str, pd.DataFrame]:
-    """The decimal mark with which pandas reads more columns as numbers, and the record read
-    with it: ``,`` only when it reads more (``21,5``) and the separator is not ``,``."""
-    dot = _read_sample(path, separator, ".", encoding)
-    if separator == ",":
-        return ".", dot
-    comma = _read_sample(path, separator, ",", encoding)
-    if _numeric_columns(comma) > _numeric_columns(dot):
-        return ",", comma
-    return ".", dot
+    """The decimal mark with which pandas reads more columns as numbers in the first
+    DECIMAL_ROWS rows (``,`` only when it reads more, ``21,5``, and the separator is not
+    ``,``), and the whole record read once with it."""
+    decimal = "."
+    if separator != ",":
+        dot, comma = (_read_sample(path, separator, d, encoding, DECIMAL_ROWS) for d in ".,")
+        decimal = "," if _numeric_columns(comma) > _numeric_columns(dot) else "."
+    return decimal, _read_sample(path, separator, decimal, encoding)
 
 
 def _table_sheet(path: str) -> dict[str, Any]:
@@ -257,24 +262,29 @@ def _zone_from_name(column: str) -> str | None:
     return None
 
 
-def _repeated_hour(path: str, sample: pd.DataFrame, layout: RawLayout, decimal: str) -> str | None:
-    """The time a clock on local time steps back an hour to (the end of summer time), as
-    written, or None: the column's only decreases are one such step."""
+def _time_order(
+    path: str, sample: pd.DataFrame, layout: RawLayout, decimal: str
+) -> tuple[bool, str | None]:
+    """Whether the time column increases strictly over the record (a channel taken for the
+    time column does not), and where it does not: the time a clock on local time steps back an
+    hour to (the end of summer time), as written, when that single step is the only decrease;
+    else None. The column is parsed once."""
     column = layout.time_column
     tf = timeaxis.time_format(layout.time_format)
-    if not tf.absolute or getattr(layout.t_first, "tzinfo", None) is not None:
-        return None
     try:
         times = parse_times(path, sample[column].astype(str), column, layout.time_format, decimal)
     except DataError:
-        return None
-    seconds = timeaxis.seconds(times, tf)
-    steps = np.diff(seconds)
+        return False, None
+    if times.is_monotonic_increasing and times.is_unique and len(times) > 1:
+        return True, None
+    if not tf.absolute or getattr(layout.t_first, "tzinfo", None) is not None:
+        return False, None
+    steps = np.diff(timeaxis.seconds(times, tf))
     back = np.flatnonzero(steps <= 0)
     step = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.0
     if len(back) == 1 and abs(steps[back[0]] + 3600.0) <= max(2.0 * step, 1.0):
-        return str(sample[column].iloc[back[0] + 1])
-    return None
+        return False, str(sample[column].iloc[back[0] + 1])
+    return False, None
 
 
 def detect(raw_path: str | os.PathLike[str], given: Mapping[str, Any] | None = None) -> Detected:
@@ -327,9 +337,9 @@ def detect(raw_path: str | os.PathLike[str], given: Mapping[str, Any] | None = N
             f"the time column '{time_column}' holds neither numbers, ISO 8601 timestamps nor "
             f"a common date notation such as dd.mm.yyyy HH:MM:SS (for example {problems[0]!r})"
         )
-    elif not _increasing(path, sample, layout, decimal):
-        repeated = _repeated_hour(path, sample, layout, decimal)
-        if repeated is None:
+    else:
+        increasing, repeated = _time_order(path, sample, layout, decimal)
+        if not increasing and repeated is None:
             problem = f"the column '{time_column}' does not increase from row to row"
             layout, column_known = None, False
     return Detected(
@@ -348,17 +358,6 @@ def detect(raw_path: str | os.PathLike[str], given: Mapping[str, Any] | None = N
         repeated_hour=repeated,
         zone=_zone_from_name(time_column),
     )
-
-
-def _increasing(path: str, sample: pd.DataFrame, layout: RawLayout, decimal: str) -> bool:
-    """The time column increases strictly in the sample's rows (a channel taken for the time
-    column does not)."""
-    column = layout.time_column
-    try:
-        times = parse_times(path, sample[column].astype(str), column, layout.time_format, decimal)
-    except DataError:
-        return False
-    return bool(times.is_monotonic_increasing and times.is_unique and len(times) > 1)
 
 
 def _normalised_name(column: str) -> str:
