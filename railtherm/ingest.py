@@ -128,6 +128,11 @@ KNOWN_HEAT = "heat_flows"  # eq. 1's known heat flows (W), summed into Q_H
 IRRADIANCE = "irradiance"  # W/m2, one model input per channel
 
 
+def input_hold(vehicle_data: Mapping[str, Any]) -> str:
+    """The declared input hold (``model.input_hold``; the paper's zero-order hold by default)."""
+    return str((vehicle_data.get("model") or {}).get("input_hold", "zero_order"))
+
+
 def irradiance_names(vehicle_data: Mapping[str, Any]) -> list[str]:
     """The tidy column (and model input) of each irradiance channel, in config order:
     ``I_<name>``, by default ``I_sol`` (then ``I_sol2``, ...)."""
@@ -604,7 +609,7 @@ def tidy(
     time_column = fmt["time"]["column"]
     tf = timeaxis.declared(file, fmt["time"])
     timing = fmt.get("power_timing", "instant")
-    hold = (vehicle_data.get("model") or {}).get("input_hold", "zero_order")
+    hold = input_hold(vehicle_data)
     cleaning = vehicle_data.get("cleaning") or {}
     max_gap = float(cleaning.get("max_gap_s", 900.0))
     key = window_key or _window_key(vehicle_data, window)

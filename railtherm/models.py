@@ -530,14 +530,21 @@ def discretize_ramp(
     A = np.atleast_2d(np.asarray(A, dtype=float))
     B = np.atleast_2d(np.asarray(B, dtype=float))
     n, m = B.shape
+    E = expm(_augmented(A, B, dt, ramp))
+    return E[:n, :n], E[:n, n : n + m], (E[:n, n + m :] if ramp else None)
+
+
+def _augmented(A: np.ndarray, B: np.ndarray, dt: float, ramp: bool) -> np.ndarray:
+    """[[A, B], [0, 0]] dt, or with the ramp [[A, B, 0], [0, 0, I/dt], [0, 0, 0]] dt (the
+    input and its slope as extra states): the exponent of the module docstring."""
+    n, m = B.shape
     k = n + (2 * m if ramp else m)
     M = np.zeros((k, k))
     M[:n, :n] = A * dt
     M[:n, n : n + m] = B * dt
     if ramp:
-        M[n : n + m, n + m :] = np.eye(m)
-    E = expm(M)
-    return E[:n, :n], E[:n, n : n + m], (E[:n, n + m :] if ramp else None)
+        M[n : n + m, n + m :] = np.eye(m)  # d(input)/dt = slope, over dt: the ramp s/dt
+    return M
 
 
 def discretize_noise(
@@ -680,13 +687,8 @@ def discretize(
     first = check_hold(hold) == "first_order"
     A, B = structure.matrices(theta)
     n, m = B.shape
-    k = n + (2 * m if first else m)
-    M = np.zeros((k, k))
-    M[:n, :n] = A
-    M[:n, n : n + m] = B
-    M *= dt
-    if first:
-        M[n : n + m, n + m :] = np.eye(m)  # d(input)/dt = slope, over dt: the ramp s/dt
+    M = _augmented(A, B, dt, first)
+    k = len(M)
     P = len(params)
     if P:
         der = structure.derivatives(theta)

@@ -165,12 +165,10 @@ def experiment_from_table(
     t = table["time"].to_numpy(float)
     dt = float(np.median(np.diff(t)))
     To = table["T_o"].to_numpy(float)
-    if models.check_hold(hold) == "first_order":
-        pass  # point values, linear between samples
-    elif T_o_hold == "mean":
-        To = np.concatenate([(To[:-1] + To[1:]) / 2.0, To[-1:]])
-    elif T_o_hold != "zoh":
+    if T_o_hold not in ("mean", "zoh"):
         raise ValueError(f"T_o_hold must be 'mean' or 'zoh', got {T_o_hold!r}")
+    if models.check_hold(hold) == "zero_order" and T_o_hold == "mean":
+        To = models.step_means(To, "first_order")  # the trapezoidal mean over each step
     u = np.column_stack([To] + [table[c].to_numpy(float) for c in inputs[1:]])
     y = np.column_stack(
         [

@@ -21,6 +21,7 @@ from typing import Any
 import pandas as pd
 
 from railtherm import simulate as sim
+from railtherm import tableformat
 from railtherm.fit import Fit
 from railtherm.scenario import Scenario
 
@@ -117,7 +118,7 @@ def outcome_text(row: Mapping[str, Any], stem: str, unit: str, duration_h: float
             return "?"
         if math.isinf(v):
             return f"> {duration_h:g}" if unit == "h" else "∞"
-        return f"{v:.3g}" if abs(v) < 1000 else f"{v:,.0f}".replace(",", "\u202f")
+        return f"{v:.3g}" if abs(v) < 1000 else tableformat.grouped(v)
 
     band = ""
     if not pd.isna(row.get(f"{stem}_lo")):

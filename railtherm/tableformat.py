@@ -150,12 +150,15 @@ def _sci(x: float, tex: bool, digits: int = 2) -> tuple[str, int]:
 THIN = "\u202f"  # groups thousands: "5 554 [5 243, 5 883]", where commas would be ambiguous
 
 
+def grouped(x: float, decimals: int = 0, tex: bool = False) -> str:
+    """``x`` with its thousands grouped by a narrow no-break space (TeX: a thin space)."""
+    return f"{x:,.{decimals}f}".replace(",", "\\," if tex else THIN)
+
+
 def _plain(x: float, decimals: int, thousands: bool = False, tex: bool = False) -> str:
     if not math.isfinite(x):
         return "∞"
-    if not thousands:
-        return f"{x:.{decimals}f}"
-    return f"{x:,.{decimals}f}".replace(",", "\\," if tex else THIN)
+    return grouped(x, decimals, tex) if thousands else f"{x:.{decimals}f}"
 
 
 def r2_text(x: float) -> str:
@@ -173,7 +176,7 @@ def _delta(x: float, decimals: int = 2) -> str:
     """delta as the paper prints it: two decimals, three significant digits from 10 up."""
     if not math.isfinite(x):
         return "∞"
-    return f"{x:.{decimals}f}" if abs(x) < 10 else f"{x:.3g}" if abs(x) < 1000 else f"{x:,.0f}"
+    return f"{x:.{decimals}f}" if abs(x) < 10 else f"{x:.3g}" if abs(x) < 1000 else grouped(x)
 
 
 def _limits(x: float, lo: float, hi: float) -> tuple[float, float]:
