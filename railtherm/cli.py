@@ -48,7 +48,7 @@ import os
 import sys
 from collections.abc import Sequence
 
-from railtherm import __version__, starter
+from railtherm import __version__, starter, structures
 from railtherm.config import Study, add_vehicle, load_study, read_yaml, study_context
 from railtherm.errors import ConfigError, RailthermError
 
@@ -377,11 +377,7 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument(
         "--model",
         action="append",
-        choices=[
-            key + suffix
-            for key in ("order1", "order2", "interior_envelope")
-            for suffix in ("", "_kalman")
-        ],
+        choices=[key + suffix for key in structures.keys() for suffix in ("", "_kalman")],
         help=(
             "model to fit (repeatable; default: the models the vehicle file asks for); the "
             "suffix _kalman fits it by the Kalman-filter estimator"

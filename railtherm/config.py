@@ -39,7 +39,7 @@ from typing import Any
 
 import pandas as pd
 
-from railtherm import codedigest, timeaxis, units
+from railtherm import codedigest, structures, timeaxis, units
 from railtherm.errors import ConfigError, DataError
 from railtherm.ingest import irradiance_names
 from railtherm.rawfile import (
@@ -89,7 +89,7 @@ CHANNEL_GROUPS = (
 DEFAULT_ORDERS = (1, 2)  # the paper's two models, when model.orders is not given
 # Parameters model.initial and model.bounds name, besides the solar ones of the vehicle's
 # irradiance inputs I_<name>: a_I_<name> and, for a gain on both nodes, f_I_<name>.
-PARAMETERS = ("kA", "C_bar", "C", "K_veh", "C_veh", "K_i", "C_e", "K_o")
+PARAMETERS = tuple(structures.parameters())  # every registered structure's
 
 
 @dataclass(frozen=True)
@@ -488,18 +488,22 @@ def _check_channels(
 def _check_envelope(file: str, data: dict[str, Any], model: dict[str, Any]) -> None:
     """What the channels say about the envelope node fits the models asked for: a solar gain
     declared on the envelope (``channels.irradiance[i].node`` envelope or both) needs a
-    second node, which the first-order model lacks; ``model.envelope_sensors: surface``
-    needs surface sensors; ``model.outputs`` compares T_e only when it is measured."""
-    one_node = 1 in (model.get("orders") or [])
+    second node, which a one-node structure (the first-order model) lacks;
+    ``model.envelope_sensors: surface`` needs surface sensors; ``model.outputs`` compares a
+    state no structure's sensors measure (T_e) only when envelope sensors measure it."""
+    asked = [structures.by_key(f"order{n}") for n in model.get("orders") or []]
+    asked += [structures.STRUCTURES[name] for name in model.get("structures") or []]
+    one_node = [s for s in asked if not s.envelope]
     for i, channel in enumerate(data["channels"].get("irradiance") or []):
         node = channel.get("node", "air")
         if node != "air" and one_node:
+            two = [s.key for s in structures.STRUCTURES.values() if s.envelope]
             raise ConfigError(
                 file,
                 f"channels.irradiance[{i}].node",
                 node,
-                "the first-order model (model.orders 1) has one node, no envelope: declare "
-                "node air, or fit only order 2 and interior_envelope",
+                f"the {one_node[0].title} ({one_node[0].key}) has one node, no envelope: "
+                f"declare node air, or fit only {', '.join(two)}",
             )
     timing = data["format"].get("power_timing", "instant")
     if model.get("input_hold") == "first_order" and timing != "instant":
@@ -532,13 +536,18 @@ def _check_envelope(file: str, data: dict[str, Any], model: dict[str, Any]) -> N
             f"no channels.{sensors} sensors are declared: add them, or remove the key (the "
             "envelope then stays unmeasured)",
         )
-    if "T_e" in (model.get("outputs") or []) and not sensors:
+    unmeasured = [
+        x
+        for x in model.get("outputs") or []
+        if not any(x in s.sensors for s in structures.STRUCTURES.values())
+    ]
+    if unmeasured and not sensors:
         raise ConfigError(
             file,
             "model.outputs",
             model["outputs"],
-            "T_e is compared only when measured: set model.envelope_sensors: surface, or drop "
-            "T_e from the list",
+            f"{unmeasured[0]} is compared only when measured: set model.envelope_sensors: "
+            f"surface, or drop {unmeasured[0]} from the list",
         )
 
 

@@ -19,17 +19,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import ingest, metrics, models, pem
+from railtherm import ingest, metrics, models, pem, structures
 from railtherm.errors import ConfigError, DataError
 from railtherm.kvalue import COMPONENTS, sensor_counts, sensor_u_K, storage_corrected_kA
 from railtherm.yamlio import packaged_schema, validate_schema
 
-# the fitted models of a vehicle, by the key in their file names (fit_<key>.yaml)
-MODEL_STRUCTURE = {
-    "order1": "first_order",
-    "order2": "second_order",
-    "interior_envelope": "interior_envelope",
-}
 KA_BOUNDS = (1.0, 1.0e5)  # W/K, for joint estimation when the config gives none nor a scale
 # the default search range of a conductance estimated jointly: this factor either side of the
 # record's own scale (the static kA, 2 W/(m^2 K) on the surface, or the windows' energy
@@ -59,8 +53,9 @@ def estimators(vehicle_data: Mapping[str, Any]) -> list[str]:
 
 def model_keys(vehicle_data: Mapping[str, Any]) -> list[str]:
     """The models a vehicle's config asks for: its orders (order1, order2), then any further
-    structures (interior_envelope), each once per estimator (``model.estimator``): the key
-    itself for output_error, with the suffix ``_kalman`` for kalman."""
+    structures (``model.structures``, :mod:`railtherm.structures`), each once per estimator
+    (``model.estimator``): the key itself for output_error, with the suffix ``_kalman`` for
+    kalman."""
     model = vehicle_data["model"]
     keys = [f"order{int(n)}" for n in model["orders"]] + list(model.get("structures") or [])
     suffix = {"output_error": "", "kalman": KALMAN_SUFFIX}
@@ -97,8 +92,8 @@ def model_structure(order: int | str, vehicle_data: Mapping[str, Any] | None = N
     the node its channel declares. A gain declared on the envelope (or both) where the model
     has one node (order1) is a :class:`ConfigError` naming the channel."""
     irradiance = irradiance_inputs(vehicle_data) if vehicle_data else []
-    name = MODEL_STRUCTURE[split_key(order)[0]]
-    base = models.STRUCTURES[name]
+    base = structures.by_key(split_key(order)[0])
+    name = base.name
     for i, spec in enumerate(irradiance):
         node = models.irradiance_spec(spec)[1]
         if node != "air" and not base.envelope:
@@ -107,9 +102,16 @@ def model_structure(order: int | str, vehicle_data: Mapping[str, Any] | None = N
                 f"channels.irradiance[{i}].node",
                 node,
                 f"model {model_key(order)} ({name}) has one node, no envelope: declare node "
-                "air, or fit only order2 and interior_envelope (model.orders, model.structures)",
+                f"air, or fit only {', '.join(two_node_keys())} (model.orders, "
+                "model.structures)",
             )
     return models.structure_for(name, irradiance)
+
+
+def two_node_keys() -> list[str]:
+    """The model keys of the structures with an envelope node (where a solar gain declared on
+    the envelope can enter)."""
+    return [s.key for s in structures.STRUCTURES.values() if s.envelope]
 
 
 # model.envelope_sensors -> the tidy column that measures the envelope state
@@ -126,12 +128,12 @@ def envelope_tables(
     tidy column T_veh) the measurement of the structure's envelope state (T_e of the
     interior-envelope structure), compared in eq. 17 like T_veh in eqs. 7-8 and, with
     ``model.x0: measured``, its measured initial state. Without the key, or for a structure
-    whose envelope state is that column already (T_veh) or that has none, the windows as
-    they are: the envelope unmeasured."""
+    whose sensors measure its envelope state already (T_veh of eqs. 7-8,
+    ``Structure.sensors``) or that has none, the windows as they are."""
     group = (vehicle_data.get("model") or {}).get("envelope_sensors")
     state = structure.states[1] if structure.envelope else None
     column = ENVELOPE_SENSORS.get(str(group)) if group else None
-    if column is None or state is None or state == column:
+    if column is None or state is None or state in structure.sensors:
         return dict(tables)
     return {
         name: table.assign(**{state: table[column]}) if column in table.columns else table
@@ -274,16 +276,17 @@ def _settings(
         kA_start = static_kA(kvalue, A)
     else:  # k = 2 W/(m2 K) on the surface; without one, the windows' energy balance
         kA_start = 2.0 * A if A is not None else energy_balance_kA(tables)
-    if "kA" not in structure.parameters:  # losses in series: kA = K_i K_o / (K_i + K_o)
-        for p in ("K_i", "K_o"):
+    if "kA" not in structure.parameters:  # losses in series: kA derived (loss_path)
+        path = structure.loss_path
+        for p in path:  # n conductances of n kA in series give kA
             if kA_start is not None:
-                initial.setdefault(p, 2.0 * kA_start)
+                initial.setdefault(p, len(path) * kA_start)
                 bounds.setdefault(p, conductance_bounds(kA_start))
-        k_source = f"{JOINT[estimator]}, kA = K_i K_o / (K_i + K_o)"
+        k_source = f"{JOINT[estimator]}, kA = {kA_expression(structure)}"
         if mode == "static":
             notes.append(
-                f"{structure.name}: the static k cannot be imposed (kA is derived from K_i and "
-                "K_o); it is estimated with the capacities"
+                f"{structure.name}: the static k cannot be imposed (kA is derived, "
+                f"{kA_expression(structure)}); it is estimated with the capacities"
             )
     elif mode == "static" and usable:
         fixed["kA"] = static_kA(kvalue, A)
@@ -435,7 +438,7 @@ def _judged_fit(structure, exps, options, vehicle_data, kvalue, storage):
     budget = systematic_budget(structure, exps, options, result, vehicle_data, kvalue, storage)
     combine_uncertainty(fitted["parameters"], budget)
     if "kA" not in fitted["parameters"]:
-        fitted["parameters"]["kA"] = derived_kA(fitted)
+        fitted["parameters"]["kA"] = derived_kA(fitted, structure)
     judge_identification(
         fitted,
         {**structure.bounds, **options["bounds"]},
@@ -1035,27 +1038,36 @@ def estimate_parameters(structure: models.Structure, exps: Sequence, options: Ma
     return pem.fit(structure, exps, **options)
 
 
-def derived_kA(fitted: Mapping[str, Any]) -> dict[str, Any]:
-    """The overall heat-loss coefficient of losses in series, kA = K_i K_o / (K_i + K_o), with
-    a 95 % interval by the delta method on log K_i, log K_o (their combined sds and the fit's
-    correlation): d log kA = K_o/(K_i+K_o) d log K_i + K_i/(K_i+K_o) d log K_o."""
+def kA_expression(structure: models.Structure) -> str:
+    """How the structure's overall kA follows from its parameters, as its module says (or
+    "from the steady state")."""
+    return structure.kA_expression or "the steady state's 1 / (dT/dQ_H)"
+
+
+def derived_kA(fitted: Mapping[str, Any], structure: models.Structure) -> dict[str, Any]:
+    """The overall heat-loss coefficient of a structure without a parameter kA (e.g. losses
+    in series, kA = K_i K_o / (K_i + K_o)), from its steady state
+    (:meth:`~railtherm.structures.Structure.kA_log_gradient`), with a 95 % interval by the
+    delta method on the log parameters (their combined sds and the fit's correlation):
+    d log kA = sum_p (d log kA / d log p) d log p."""
     par = fitted["parameters"]
-    K_i, K_o = par["K_i"]["value"], par["K_o"]["value"]
-    value = models.overall_kA({"K_i": K_i, "K_o": K_o})
-    g = {"K_i": K_o / (K_i + K_o), "K_o": K_i / (K_i + K_o)}
-    sd = {p: par[p].get("sd_log_total", par[p].get("sd_log", 0.0)) for p in g}
+    theta = {p: par[p]["value"] for p in structure.parameters}
+    value, gradient = structure.kA_log_gradient(theta)
     free = list(fitted["free"])
     corr = np.asarray(fitted["correlation"], dtype=float)
-    rho = corr[free.index("K_i"), free.index("K_o")] if {"K_i", "K_o"} <= set(free) else 0.0
-    var = (g["K_i"] * sd["K_i"]) ** 2 + (g["K_o"] * sd["K_o"]) ** 2
-    var += 2.0 * rho * g["K_i"] * g["K_o"] * sd["K_i"] * sd["K_o"]
+    moving = [p for p in free if gradient.get(p, 0.0) != 0.0]
+    g = np.array([gradient[p] for p in moving])
+    sd = np.array([par[p].get("sd_log_total", par[p].get("sd_log", 0.0)) for p in moving])
+    idx = [free.index(p) for p in moving]
+    gs = g * sd
+    var = float(gs @ corr[np.ix_(idx, idx)] @ gs) if moving else 0.0
     sd_log = float(np.sqrt(max(var, 0.0)))
     with np.errstate(over="ignore"):
         ci = [float(value * np.exp(-pem.Z95 * sd_log)), float(value * np.exp(pem.Z95 * sd_log))]
     return {
         "value": float(value),
         "estimated": "derived",
-        "derived_from": "K_i K_o / (K_i + K_o)",
+        "derived_from": kA_expression(structure),
         "ci95": ci,
         "sd_log_total": sd_log,
     }
@@ -1393,7 +1405,11 @@ def skipped_checks(estimate: Mapping[str, Any]) -> list[str]:
     return out
 
 
-CONDUCTANCES = ("K_veh", "K_i", "K_o")  # between two nodes: judged per m2 of the outer surface
+def conductances() -> list[str]:
+    """The conductances of every structure but the overall kA (judged by k): K_veh, K_i, K_o,
+    judged per m2 of the outer surface."""
+    found = [p for s in structures.STRUCTURES.values() for p in s.conductances if p != "kA"]
+    return list(dict.fromkeys(found))
 
 
 def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
@@ -1452,7 +1468,7 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 "model lacks taken for sunshine"
             )
     ceiling = float(thresholds["max_conductance_per_area_W_m2K"])
-    for p in CONDUCTANCES:
+    for p in conductances():
         K = value(p) if p in par else None
         if K is not None and A is not None and K / A > ceiling:
             out.append(
@@ -1465,7 +1481,8 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
     total = (estimate["fit"].get("totals") or {}).get("C_total")
     if total is not None and not pem.parameter_identification(total)["identified"]:
         total = None
-    capacities = [value(p) for p in ("C_bar", "C", "C_veh", "C_e") if p in par]
+    every = dict.fromkeys(p for s in structures.STRUCTURES.values() for p in s.capacities)
+    capacities = [value(p) for p in every if p in par]
     if None in capacities and total is not None:  # the split unknown, the sum determined
         capacities = [float(total["value"])]
     if capacities and None not in capacities and estimate.get("mass_kg"):

@@ -5,9 +5,10 @@ Inputs are u = [T_o, Q_H] (degC, W), optionally followed by irradiance channels 
 :func:`with_irradiance`: solar gains a_i I_i into the air node, the envelope node or shared
 between them, eq. 1); outputs y = x (C = I, D = 0, eqs. 11-12).
 
-Structures are data (:class:`Structure`, :data:`STRUCTURES`): a name, the parameter and state
-names, and functions giving the continuous (A, B) and their analytic derivatives with respect
-to each parameter. Nothing downstream knows how many states a structure has.
+The structures themselves are data, one module each in :mod:`railtherm.structures`
+(:class:`Structure`, :data:`STRUCTURES`): a name, the parameter and state names, and functions
+giving the continuous (A, B) and their analytic derivatives with respect to each parameter.
+Nothing here knows how many states a structure has.
 
 Discrete model (eq. 15 with K = 0), input held over each step (zero-order hold, the paper's
 choice)::
@@ -49,10 +50,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+
+from railtherm.structures import STRUCTURES, Structure
 
 __all__ = [
     "HOLDS",
@@ -111,229 +114,19 @@ def lfilter(b, a, x, **kwargs):
     return filter_(b, a, x, **kwargs)
 
 
-def first_order(kA: float, C_bar: float) -> tuple[np.ndarray, np.ndarray]:
-    """(A, B) of the first-order model, eq. 13: C_bar dT/dt = Q_H - kA (T - T_o) (eq. 9)."""
-    A = np.array([[-kA / C_bar]])
-    B = np.array([[kA / C_bar, 1.0 / C_bar]])
-    return A, B
-
-
-def second_order(kA: float, C: float, K_veh: float, C_veh: float) -> tuple[np.ndarray, np.ndarray]:
-    """(A, B) of the second-order model, eq. 14, with states x = [T, T_veh] (eqs. 7-8)."""
-    A = np.array(
-        [
-            [-(kA + K_veh) / C, K_veh / C],
-            [K_veh / C_veh, -K_veh / C_veh],
-        ]
-    )
-    B = np.array([[kA / C, 1.0 / C], [0.0, 0.0]])
-    return A, B
-
-
-def _first_order_derivatives(kA: float, C_bar: float) -> dict:
-    """d(A, B)/d(kA, C_bar) of eq. 13."""
-    return {
-        "kA": (np.array([[-1.0 / C_bar]]), np.array([[1.0 / C_bar, 0.0]])),
-        "C_bar": (
-            np.array([[kA / C_bar**2]]),
-            np.array([[-kA / C_bar**2, -1.0 / C_bar**2]]),
-        ),
-    }
-
-
-def _second_order_derivatives(kA: float, C: float, K_veh: float, C_veh: float) -> dict:
-    """d(A, B)/d(kA, C, K_veh, C_veh) of eq. 14."""
-    z = np.zeros((2, 2))
-    return {
-        "kA": (np.array([[-1.0 / C, 0.0], [0.0, 0.0]]), np.array([[1.0 / C, 0.0], [0.0, 0.0]])),
-        "C": (
-            np.array([[(kA + K_veh) / C**2, -K_veh / C**2], [0.0, 0.0]]),
-            np.array([[-kA / C**2, -1.0 / C**2], [0.0, 0.0]]),
-        ),
-        "K_veh": (
-            np.array([[-1.0 / C, 1.0 / C], [1.0 / C_veh, -1.0 / C_veh]]),
-            z.copy(),
-        ),
-        "C_veh": (
-            np.array([[0.0, 0.0], [-K_veh / C_veh**2, K_veh / C_veh**2]]),
-            z.copy(),
-        ),
-    }
-
-
-def interior_envelope(
-    C: float, K_i: float, C_e: float, K_o: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """(A, B) of the interior-envelope model, states x = [T, T_e]: the air node (with the
-    interior, capacity C) is linked through K_i to an envelope node (C_e), which alone is
-    linked through K_o to the outdoor air; heating enters the air node.
-
-        C dT/dt = K_i (T_e - T) + Q_H,   C_e dT_e/dt = K_i (T - T_e) + K_o (T_o - T_e)
-
-    The building literature's TiTe model and pySIP's TwTi_RoRi (R_i = 1/K_i, R_o = 1/K_o).
-    Unlike eq. 14 every loss passes the envelope; the overall heat-loss coefficient, the
-    paper's kA, is K_i K_o / (K_i + K_o) (:func:`overall_kA`)."""
-    A = np.array([[-K_i / C, K_i / C], [K_i / C_e, -(K_i + K_o) / C_e]])
-    B = np.array([[0.0, 1.0 / C], [K_o / C_e, 0.0]])
-    return A, B
-
-
-def _interior_envelope_derivatives(C: float, K_i: float, C_e: float, K_o: float) -> dict:
-    """Analytic d(A, B)/d(theta) of :func:`interior_envelope`."""
-    z = np.zeros((2, 2))
-    return {
-        "C": (
-            np.array([[K_i / C**2, -K_i / C**2], [0.0, 0.0]]),
-            np.array([[0.0, -1 / C**2], [0, 0]]),
-        ),
-        "K_i": (np.array([[-1 / C, 1 / C], [1 / C_e, -1 / C_e]]), z.copy()),
-        "C_e": (
-            np.array([[0.0, 0.0], [-K_i / C_e**2, (K_i + K_o) / C_e**2]]),
-            np.array([[0.0, 0.0], [-K_o / C_e**2, 0.0]]),
-        ),
-        "K_o": (np.array([[0.0, 0.0], [0.0, -1 / C_e]]), np.array([[0.0, 0.0], [1 / C_e, 0.0]])),
-    }
-
-
-def overall_kA(theta: Mapping[str, float]) -> float:
-    """The overall heat-loss coefficient (W/K) of a structure's parameters: kA itself, or
-    K_i K_o / (K_i + K_o) for the interior-envelope structure (losses in series)."""
-    if "kA" in theta:
-        return float(theta["kA"])
-    return float(theta["K_i"] * theta["K_o"] / (theta["K_i"] + theta["K_o"]))
-
-
-@dataclass(frozen=True)
-class Structure:
-    """A grey-box structure dx/dt = A(theta) x + B(theta) u, u = ``inputs`` (T_o, Q_H, then
-    any irradiance channels of :func:`with_irradiance`), y = x.
-
-    ``build(**theta) -> (A, B)`` and ``jacobian(**theta) -> {param: (dA, dB)}`` take the
-    parameters by name; ``initial`` holds the paper's start values (section 5.3) and
-    ``bounds`` loose default bounds (SI units) for parameters the caller does not bound;
-    ``air`` names the air node's capacity, the parameter through which heating and any solar
-    gain enter the air node (state 0): B[0, 1] = 1 / theta[air]. ``capacities`` (J/K) and
-    ``conductances`` (W/K) name the parameters of each kind: the automatic start of
-    :func:`railtherm.pem.fit` scales them to the data (the time constants C / K and the
-    overall kA of eq. 10); any other parameter (an aperture, m2) is neither. ``envelope``
-    names the envelope node's capacity (state 1: C_veh of T_veh, C_e of T_e), through which
-    solar gain declared on the envelope enters, B[1, j] = a_j / theta[envelope]; empty for a
-    one-node structure.
-
-    ``coupled`` names the parameters of the dynamic part (the capacities and the internal
-    conductance between the nodes) that the data determine only together: when one of them
-    is not identified (at a bound of the search, or an interval too wide), none of the group
-    is reported as an estimate. ``totals`` names each combination the data do determine
-    however the capacity splits between the nodes, as {name: the parameters summed}: the
-    total capacity C_total = C + C_veh of eqs. 7-8, the C_bar of eq. 9 (the first-order model
-    lumps both nodes into one).
-    """
-
-    name: str
-    parameters: tuple[str, ...]
-    states: tuple[str, ...]
-    build: Callable[..., tuple[np.ndarray, np.ndarray]] = field(repr=False)
-    jacobian: Callable[..., dict] = field(repr=False)
-    inputs: tuple[str, ...] = ("T_o", "Q_H")
-    initial: Mapping[str, float] = field(default_factory=dict)
-    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
-    equations: str = ""
-    air: str = "C"
-    capacities: tuple[str, ...] = ()
-    conductances: tuple[str, ...] = ()
-    envelope: str = ""
-    coupled: tuple[str, ...] = ()
-    totals: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
-
-    def _theta(self, theta: Mapping[str, float]) -> dict:
-        missing = [p for p in self.parameters if p not in theta]
-        if missing:
-            raise KeyError(f"structure {self.name!r} needs parameters {missing}")
-        return {p: float(theta[p]) for p in self.parameters}
-
-    def matrices(self, theta: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
-        """Continuous (A, B) at ``theta`` (a mapping with at least every parameter)."""
-        return self.build(**self._theta(theta))
-
-    def derivatives(self, theta: Mapping[str, float]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Analytic {param: (dA/dparam, dB/dparam)} at ``theta``."""
-        return self.jacobian(**self._theta(theta))
+# (A, B) of the paper's models by their usual names (eqs. 13, 14) and of the interior-envelope
+# structure: each structure module's ``matrices``
+first_order = STRUCTURES["first_order"].build
+second_order = STRUCTURES["second_order"].build
+interior_envelope = STRUCTURES["interior_envelope"].build
 
 
 def steady_state_kA(structure: Structure, theta: Mapping[str, float]) -> float:
     """The overall heat-loss coefficient (W/K) of any structure at ``theta``, from its steady
-    state: eq. 10, Q_H = kA (T - T_o), holds at equilibrium, so kA = 1 / (dT/dQ_H) with
-    dT/dQ_H = -(A^-1 B)[0, 1] (heating enters the air node, state 0). It equals kA itself for
-    eqs. 13-14 and K_i K_o / (K_i + K_o) for the interior-envelope structure
-    (:func:`overall_kA`). NaN when the network has no steady state."""
-    A, B = structure.matrices(theta)
-    try:
-        gain = -float(np.linalg.solve(A, B[:, 1])[0])
-    except np.linalg.LinAlgError:
-        return math.nan
-    return 1.0 / gain if gain > 0 and math.isfinite(gain) else math.nan
-
-
-STRUCTURES: dict[str, Structure] = {
-    "first_order": Structure(
-        name="first_order",
-        parameters=("kA", "C_bar"),
-        states=("T",),
-        build=first_order,
-        jacobian=_first_order_derivatives,
-        # the paper's start (section 5.3): C_bar = C + C_veh of its second-order start
-        initial={"kA": 1000.0, "C_bar": 120_480.0 + 500_000.0},
-        bounds={"kA": (1.0, 1.0e6), "C_bar": (1.0e4, 1.0e10)},
-        equations="eq. 9, eq. 13",
-        air="C_bar",
-        capacities=("C_bar",),
-        conductances=("kA",),
-    ),
-    "second_order": Structure(
-        name="second_order",
-        parameters=("kA", "C", "K_veh", "C_veh"),
-        states=("T", "T_veh"),
-        build=second_order,
-        jacobian=_second_order_derivatives,
-        # the paper's start (section 5.3; K_veh printed as "20 J/K", a conductance in W/K)
-        initial={"kA": 1000.0, "C": 120_480.0, "K_veh": 20.0, "C_veh": 500_000.0},
-        # C bounded below: C -> 0 is a false optimum (the air node reacting instantly)
-        bounds={
-            "kA": (1.0, 1.0e6),
-            "C": (1.0e4, 1.0e10),
-            "K_veh": (1.0e-2, 1.0e7),
-            "C_veh": (1.0e4, 1.0e10),
-        },
-        equations="eqs. 7-8, eq. 14",
-        capacities=("C", "C_veh"),
-        conductances=("kA", "K_veh"),
-        envelope="C_veh",
-        coupled=("C", "K_veh", "C_veh"),
-        totals={"C_total": ("C", "C_veh")},
-    ),
-    "interior_envelope": Structure(
-        name="interior_envelope",
-        parameters=("C", "K_i", "C_e", "K_o"),
-        states=("T", "T_e"),
-        build=interior_envelope,
-        jacobian=_interior_envelope_derivatives,
-        # start: the paper's capacities (section 5.3), an envelope 10 times tighter to the air
-        # than to the outdoors is not assumed: both conductances start equal
-        initial={"C": 120_480.0, "K_i": 1000.0, "C_e": 500_000.0, "K_o": 1000.0},
-        bounds={
-            "C": (1.0e4, 1.0e10),
-            "K_i": (1.0e-1, 1.0e7),
-            "C_e": (1.0e4, 1.0e10),
-            "K_o": (1.0e-1, 1.0e6),
-        },
-        equations="interior-envelope (TiTe, pySIP TwTi_RoRi)",
-        capacities=("C", "C_e"),
-        conductances=("K_i", "K_o"),
-        envelope="C_e",
-        coupled=("C", "K_i", "C_e", "K_o"),
-        totals={"C_total": ("C", "C_e")},
-    ),
-}
+    state (:meth:`Structure.kA_log_gradient`): eq. 10, Q_H = kA (T - T_o), holds at
+    equilibrium. It equals kA itself for eqs. 13-14 and K_i K_o / (K_i + K_o) for the
+    interior-envelope structure. NaN when the network has no steady state."""
+    return structure.kA_log_gradient(theta)[0]
 
 
 APERTURE_INITIAL = 1.0  # m2: start value of an effective aperture a_i

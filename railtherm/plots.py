@@ -37,7 +37,7 @@ from matplotlib.layout_engine import ConstrainedLayoutEngine, PlaceHolderLayoutE
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
 
-from railtherm import aggregate, ingest, pem
+from railtherm import aggregate, ingest, pem, structures
 from railtherm import io as rt_io
 from railtherm.acf import autocorrelation
 from railtherm.diagnostics import cumulated_periodogram
@@ -1406,12 +1406,6 @@ def reference_validation_figure(
 # ---------------------------------------------------------------------------------------------
 # Every figure of one vehicle (rule vehicle_figures)
 
-FIT_MODELS = {
-    "first_order": "first-order model (eq. 9)",
-    "second_order": "second-order model (eqs. 7-8)",
-    "interior_envelope": "interior-envelope model",
-}
-
 
 def vehicle_figures(
     vehicle: str,
@@ -1446,7 +1440,7 @@ def vehicle_figures(
         fit = rt_io.read_result(files["fit"])
         series = pd.read_csv(files["series"])
         fit_synthetic = bool(fit.get("synthetic", False))
-        model = FIT_MODELS[fit["structure"].split("+")[0]]
+        model = structures.of_fit(fit["structure"]).title
         if fit.get("estimator") == "kalman":
             model += ", Kalman-filter estimator"
         figure = fit_figure(series, fit, f"{fit['vehicle']}: {model}", synthetic=fit_synthetic)

@@ -22,20 +22,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import identify, metrics, models, pem
+from railtherm import identify, metrics, pem, structures
 from railtherm.errors import ConfigError
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 
 __all__ = ["compare", "load_reference", "markdown", "published_parameters", "simulate_published"]
 
 UNITS = {
-    "C": "J/K",
-    "C_e": "J/K",
-    "C_bar": "J/K",
-    "C_veh": "J/K",
-    "K_i": "W/K",
-    "K_o": "W/K",
-    "K_veh": "W/K",
+    **{p: structures.unit(p) for p in structures.parameters()},
     "kA": "W/K",
     "nrmse_fit": "1",
     "r2": "1",
@@ -124,7 +118,7 @@ def simulate_published(
     yhat = np.concatenate([x[:, 0] for x in result.simulated])
     p = int(sum(np.count_nonzero(est) for est in result.x0_estimated))
     out = metrics.summary(y, yhat, p=p)
-    out["kA"] = models.overall_kA(theta)
+    out["kA"] = structure.overall_kA(theta)
     return out
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-from railtherm import identify, ingest, kvalue
+from railtherm import identify, ingest, kvalue, structures
 from railtherm.config import Vehicle
 from railtherm.fit import Fit, write_yaml
 
@@ -54,10 +54,10 @@ def fit_vehicle(
     files into (``vehicles/<id>/clean/<window>.csv``, ``kvalue.yaml``,
     ``identify/<model>.yaml`` and ``_series.csv``, ``fit_<model>.yaml``)."""
     keys = list(models) if models else identify.model_keys(vehicle.data)
-    unknown = [k for k in keys if identify.split_key(k)[0] not in identify.MODEL_STRUCTURE]
+    unknown = [k for k in keys if identify.split_key(k)[0] not in structures.keys()]
     if unknown:
         raise ValueError(
-            f"unknown model {unknown[0]!r}; known: {sorted(identify.MODEL_STRUCTURE)}, each "
+            f"unknown model {unknown[0]!r}; known: {', '.join(structures.keys())}, each "
             f"also with the suffix {identify.KALMAN_SUFFIX} (the Kalman-filter estimator)"
         )
     tables = tidy_tables(vehicle, workdir)

@@ -15,22 +15,20 @@ from typing import Any
 
 import pandas as pd
 
-from railtherm import pem
+from railtherm import pem, structures
 from railtherm.aggregate import ESTIMATED, NOT_GIVEN, is_not_given, selectable
 from railtherm.tables import round_significant, write_csv
 
 ESTIMATOR_LABEL = {"output_error": "output error", "kalman": "Kalman ML"}
-# the nested structures a forward selection tests: the first-order model is the limit of the
-# second-order model as K_veh -> 0 (the body decouples) and of the interior-envelope model as
-# K_i -> infinity (air and envelope one node); one parameter of each on its boundary
-NESTING = (("order1", "order2", 1), ("order1", "interior_envelope", 1))
 
 
 def model_selection_markdown(fits: Sequence[Mapping[str, Any]], alpha: float = 0.05) -> str:
     """Per vehicle with two or more kalman fits that are acceptable and converged (a fit in
     doubt or unconverged is no candidate): the forward selection of its nested
     structures by likelihood-ratio tests (:func:`railtherm.diagnostics.forward_selection`,
-    :data:`NESTING`); empty when no vehicle has them."""
+    :func:`railtherm.structures.nesting`: each structure's ``nests``, e.g. the first-order
+    model is the limit of the second-order model as K_veh -> 0 and of the interior-envelope
+    model as K_i -> infinity); empty when no vehicle has them."""
     from railtherm import diagnostics
     from railtherm.identify import split_key
 
@@ -45,7 +43,7 @@ def model_selection_markdown(fits: Sequence[Mapping[str, Any]], alpha: float = 0
             continue
         nesting = [
             (small, large, boundary)
-            for small, large, boundary in NESTING
+            for small, large, boundary in structures.nesting()
             if small in keys and large in keys and keys[large]["n_params"] > keys[small]["n_params"]
         ]
         if not nesting:  # e.g. order2 and interior_envelope without order1: not nested

@@ -170,9 +170,39 @@ def _default_filling_validator() -> type:
 @functools.cache
 def packaged_schema(name: str) -> dict[str, Any]:
     """The JSON Schema ``railtherm/schemas/<name>.schema.yaml`` (vehicle, published, audit,
-    reference), read once; shared, so treat it as read-only."""
+    reference), read once; shared, so treat it as read-only. A subschema ``{x-registry:
+    what}`` takes its values from the structure registry (:func:`registry_schema`)."""
     text = importlib.resources.files("railtherm").joinpath(f"schemas/{name}.schema.yaml")
-    return yaml.safe_load(text.read_text(encoding="utf-8"))
+    return _from_registry(yaml.safe_load(text.read_text(encoding="utf-8")))
+
+
+def registry_schema(what: str) -> dict[str, Any]:
+    """The subschema of a value the structure registry (:mod:`railtherm.structures`) lists:
+    ``orders`` (model.orders: 1, 2), ``structures`` (model.structures: the further
+    structures' names), ``states`` (model.outputs: every structure's states), ``model_keys``
+    (a model key, with the suffix _kalman of the Kalman-filter estimator)."""
+    from railtherm import structures
+
+    if what == "model_keys":
+        keys = "|".join(structures.keys())
+        return {"type": "string", "pattern": f"^({keys})(_kalman)?$"}
+    values = {
+        "orders": structures.orders(),
+        "structures": structures.further(),
+        "states": list(dict.fromkeys(x for s in structures.STRUCTURES.values() for x in s.states)),
+    }
+    return {"enum": values[what]}
+
+
+def _from_registry(schema: Any) -> Any:
+    if isinstance(schema, dict):
+        if "x-registry" in schema:
+            rest = {k: v for k, v in schema.items() if k != "x-registry"}
+            return {**rest, **registry_schema(schema["x-registry"])}
+        return {k: _from_registry(v) for k, v in schema.items()}
+    if isinstance(schema, list):
+        return [_from_registry(v) for v in schema]
+    return schema
 
 
 def _key(path: Iterable[Any], prefix: str = "") -> str:

@@ -403,7 +403,7 @@ def armadillo():
 
 def pysip_terms(r):
     th = r.theta
-    kA = identify.derived_kA(r.to_dict())
+    kA = identify.derived_kA(r.to_dict(), SIE)
     return {
         "R_o": (1 / th["K_o"], 1 / r.ci95["K_o"][1], 1 / r.ci95["K_o"][0]),
         "R_i": (1 / th["K_i"], 1 / r.ci95["K_i"][1], 1 / r.ci95["K_i"][0]),
@@ -420,7 +420,7 @@ def test_armadillo_like_pysip_zero_order_hold(armadillo):
     e = pem.Experiment("h2", armadillo.dt, armadillo.u[:-1], armadillo.y[:-1])
     r = kalman.fit(SIE, [e], x0="measured", fixed={"sigma_T": 0.0})
     assert r.success and not r.flags
-    kA = models.overall_kA(r.theta)
+    kA = SIE.overall_kA(r.theta)
     for p in ("K_o", "K_i", "C_e", "C"):
         assert r.theta[p] == pytest.approx(PYSIP_ZOH[p], rel=0.01), p
     assert kA == pytest.approx(PYSIP_ZOH["kA"], rel=0.01)

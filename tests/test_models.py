@@ -128,7 +128,8 @@ def _custom(A_fn, name="custom"):
         h = 1e-7
         return {"a": ((A_fn(a + h) - A_fn(a - h)) / (2 * h), np.zeros((len(A_fn(a)), 2)))}
 
-    return models.Structure(name, ("a",), tuple(f"x{i}" for i in range(len(A_fn(1.0)))), build, jac)
+    states = tuple(f"x{i}" for i in range(len(A_fn(1.0))))
+    return models.Structure(name=name, parameters=("a",), states=states, build=build, jacobian=jac)
 
 
 @pytest.mark.parametrize(

@@ -15,7 +15,7 @@ import yaml
 from compare_outputs import assert_outputs_agree
 from snakemake_run import snakemake
 
-from railtherm import config, identify, ingest, reference
+from railtherm import config, identify, ingest, reference, structures
 from railtherm.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -240,13 +240,15 @@ def test_derived_kA_interval_matches_monte_carlo(rho):
     sd = {"K_i": 0.04, "K_o": 0.02}
     fitted = {
         "parameters": {
+            "C": {"value": 2.0e5, "sd_log": 0.1},
             "K_i": {"value": 320.0, "sd_log": sd["K_i"]},
+            "C_e": {"value": 4.0e6, "fixed": True},
             "K_o": {"value": 65.0, "sd_log_total": sd["K_o"]},
         },
         "free": ["C", "K_i", "K_o"],
         "correlation": [[1.0, 0.0, 0.0], [0.0, 1.0, rho], [0.0, rho, 1.0]],
     }
-    kA = identify.derived_kA(fitted)
+    kA = identify.derived_kA(fitted, structures.STRUCTURES["interior_envelope"])
     assert kA["value"] == pytest.approx(320.0 * 65.0 / 385.0)
     cov = np.array([[sd["K_i"] ** 2, rho * 0.04 * 0.02], [rho * 0.04 * 0.02, sd["K_o"] ** 2]])
     draws = np.random.default_rng(8).multivariate_normal([np.log(320.0), np.log(65.0)], cov, 50_000)

@@ -1,0 +1,161 @@
+"""A model structure is one file: the registry of railtherm.structures feeds the config schema,
+the command line, the fits, the model table and the figures, so a network added as one new
+module is fitted everywhere, with no other file changed."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from railtherm import structures
+from railtherm.yamlio import packaged_schema
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGE = REPO / "railtherm"
+ARMADILLO = REPO / "validation" / "config" / "vehicles" / "Armadillo_zoh.yaml"
+NEW = "envelope_copy"  # the new structure's key: its module's file name
+
+
+def package_with_new_structure(tmp_path: Path) -> Path:
+    """A copy of the package (with the workflow beside it, as in the repository) with
+    ``structures/interior_envelope.py`` copied unchanged to ``structures/envelope_copy.py``:
+    no other file of the copy differs from the repository's."""
+    root = tmp_path / "pkg"
+    shutil.copytree(PACKAGE, root / "railtherm", ignore=shutil.ignore_patterns("__pycache__"))
+    for folder in ("workflow", "profiles"):
+        shutil.copytree(REPO / folder, root / folder, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copyfile(REPO / "Snakefile", root / "Snakefile")
+    shutil.copyfile(
+        PACKAGE / "structures" / "interior_envelope.py",
+        root / "railtherm" / "structures" / f"{NEW}.py",
+    )
+    return root
+
+
+def study_asking_for(tmp_path: Path, key: str) -> Path:
+    """A one-vehicle study (the validation study's config) whose vehicle, the Armadillo box
+    under the zero-order hold, asks for the structure ``key`` alone, output-error fit."""
+    study = tmp_path / "study"
+    (study / "config" / "vehicles").mkdir(parents=True)
+    (study / "data").mkdir()
+    shutil.copyfile(
+        REPO / "data" / "armadillo" / "armadillo_data_H2.csv", study / "data" / "h2.csv"
+    )
+    vehicle = yaml.safe_load(ARMADILLO.read_text())
+    vehicle["id"] = "Box"
+    vehicle["raw_files"] = {"h2": "../../data/h2.csv"}
+    vehicle["model"].update(orders=[], structures=[key], estimator="output_error")
+    (study / "config" / "vehicles" / "Box.yaml").write_text(yaml.safe_dump(vehicle))
+    config = yaml.safe_load((REPO / "validation" / "config" / "config.yaml").read_text())
+    config["vehicles"] = ["config/vehicles/Box.yaml"]
+    config["study"]["references"] = []
+    (study / "config" / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    return study
+
+
+def run(args: list[str], cwd: Path, package_root: Path | None) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    if package_root is not None:  # the copy first on the path, before the installed package
+        env["PYTHONPATH"] = os.pathsep.join([str(package_root), env.get("PYTHONPATH", "")])
+    return subprocess.run(
+        [sys.executable, *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=900
+    )
+
+
+def test_registry_derives_the_schema_the_cli_and_the_nesting():
+    """The enums of model.orders, model.structures and model.outputs, the reference files'
+    model keys and the nested pairs of the model selection are those of the modules."""
+    model = packaged_schema("vehicle")["properties"]["model"]["properties"]
+    assert model["orders"]["items"]["enum"] == structures.orders() == [1, 2]
+    assert model["structures"]["items"]["enum"] == structures.further()
+    assert "interior_envelope" in structures.further()
+    assert set(model["outputs"]["items"]["enum"]) == {"T", "T_veh", "T_e"}
+    pattern = packaged_schema("reference")["properties"]["model"]["pattern"]
+    assert all(k in pattern for k in structures.keys())
+    assert ("order1", "order2", 1) in structures.nesting()
+    assert structures.keys()[:2] == ["order1", "order2"]
+
+
+@pytest.mark.parametrize("name", list(structures.STRUCTURES))
+def test_every_structure_is_complete(name):
+    """Each module declares the derivatives of its own (A, B) (checked against central
+    differences), units for every parameter, a title, and an overall kA: a parameter kA or a
+    loss path whose steady state gives it."""
+    s = structures.STRUCTURES[name]
+    theta = {p: float(v) for p, v in s.initial.items()}
+    assert set(theta) == set(s.parameters) == set(s.bounds)
+    assert s.title and all(s.unit(p) in ("J/K", "W/K") for p in s.parameters)
+    A, B = s.matrices(theta)
+    assert A.shape == (len(s.states), len(s.states)) and B.shape == (len(s.states), 2)
+    for p, (dA, dB) in s.derivatives(theta).items():
+        h = 1e-6 * theta[p]
+        Ap, Bp = s.matrices({**theta, p: theta[p] + h})
+        Am, Bm = s.matrices({**theta, p: theta[p] - h})
+        np.testing.assert_allclose(dA, (Ap - Am) / (2 * h), rtol=1e-6, atol=1e-14)
+        np.testing.assert_allclose(dB, (Bp - Bm) / (2 * h), rtol=1e-6, atol=1e-14)
+    kA, gradient = s.kA_log_gradient(theta)
+    assert kA > 0 and ("kA" in s.parameters or s.loss_path)
+    for p in s.parameters:  # d log kA / d log p against a central difference
+        up = s.kA_log_gradient({**theta, p: theta[p] * np.exp(1e-6)})[0]
+        down = s.kA_log_gradient({**theta, p: theta[p] * np.exp(-1e-6)})[0]
+        assert gradient[p] == pytest.approx(np.log(up / down) / 2e-6, abs=1e-6)
+
+
+def test_two_structures_under_one_key_are_refused(tmp_path):
+    """A copy of an order's module keeps its order: two structures claim one model key, and
+    the import says which."""
+    root = tmp_path / "pkg"
+    shutil.copytree(PACKAGE, root / "railtherm", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copyfile(
+        PACKAGE / "structures" / "second_order.py", root / "railtherm" / "structures" / "twin.py"
+    )
+    result = run(["-c", "import railtherm.structures"], tmp_path, root)
+    assert result.returncode != 0
+    assert "'second_order' and 'twin' both declare the model key 'order2'" in result.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.workflow
+def test_a_structure_added_as_one_file_is_fitted_by_the_cli_and_the_workflow(tmp_path):
+    """The acceptance check of the registry: in a copy of the package with one module added
+    (a copy of interior_envelope.py under the key envelope_copy) and no other file changed,
+    ``railtherm fit`` and ``snakemake`` fit it for a vehicle that asks for it, models.md has
+    its row and the vehicle its fit figure. The installed package does not know the key."""
+    root = package_with_new_structure(tmp_path)
+    changed = [
+        p.relative_to(root / "railtherm")
+        for p in (root / "railtherm").rglob("*")
+        if p.is_file()
+        and not (PACKAGE / p.relative_to(root / "railtherm")).is_file()
+        and "__pycache__" not in p.parts
+    ]
+    assert changed == [Path("structures") / f"{NEW}.py"]
+    study = study_asking_for(tmp_path, NEW)
+    vehicle = "config/vehicles/Box.yaml"
+
+    refused = run(["-m", "railtherm", "validate", vehicle], study, None)
+    assert refused.returncode != 0 and "model.structures" in refused.stderr + refused.stdout
+
+    fit = run(["-m", "railtherm", "fit", vehicle], study, root)
+    assert fit.returncode == 0, fit.stderr[-3000:]
+    assert NEW in fit.stdout and "K_i" in fit.stdout and "C_e" in fit.stdout
+
+    workflow = run(
+        ["-m", "snakemake", "--snakefile", str(root / "Snakefile"), "--cores", "2"], study, root
+    )
+    assert workflow.returncode == 0, workflow.stderr[-3000:]
+    table = (study / "results" / "tables" / "models.md").read_text()
+    rows = [line for line in table.splitlines() if line.startswith("|") and NEW in line]
+    assert rows and "Box" in rows[0]
+    assert (study / "results" / "vehicles" / "Box" / f"fit_{NEW}.png").is_file()
+    fitted = yaml.safe_load(
+        (study / "results" / "vehicles" / "Box" / f"fit_{NEW}.yaml").read_text()
+    )
+    assert fitted["structure"] == fitted["model"] == NEW
