@@ -179,7 +179,7 @@ def packaged_schema(name: str) -> dict[str, Any]:
 def registry_schema(what: str) -> dict[str, Any]:
     """The subschema of a value the structure registry (:mod:`railtherm.structures`) lists:
     ``orders`` (model.orders: 1, 2), ``structures`` (model.structures: the further
-    structures' names), ``states`` (model.outputs: every structure's states), ``model_keys``
+    structures' names), ``states`` (model.outputs: the states a sensor can measure), ``model_keys``
     (a model key, with the suffix _kalman of the Kalman-filter estimator)."""
     from railtherm import structures
 
@@ -189,7 +189,7 @@ def registry_schema(what: str) -> dict[str, Any]:
     values = {
         "orders": structures.orders(),
         "structures": structures.further(),
-        "states": list(dict.fromkeys(x for s in structures.STRUCTURES.values() for x in s.states)),
+        "states": structures.measurable_states(),
     }
     return {"enum": values[what]}
 

@@ -29,6 +29,7 @@ __all__ = [
     "by_key",
     "further",
     "keys",
+    "measurable_states",
     "of_fit",
     "nesting",
     "orders",
@@ -106,6 +107,14 @@ def parameters() -> list[str]:
     C_veh, then the further structures'): the names ``model.initial`` and ``model.bounds``
     take besides the solar ones."""
     return list(dict.fromkeys(p for s in STRUCTURES.values() for p in s.parameters))
+
+
+def measurable_states() -> list[str]:
+    """The states a sensor can measure (``model.outputs``): every structure's ``sensors``, and
+    its envelope state (measured where ``model.envelope_sensors`` says so)."""
+    found = [x for s in STRUCTURES.values() for x in s.sensors]
+    found += [s.states[1] for s in STRUCTURES.values() if s.envelope]
+    return list(dict.fromkeys(found))
 
 
 def unit(parameter: str) -> str:
