@@ -54,15 +54,16 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_discrete_are, solve_discrete_lyapunov
 from scipy.optimize import minimize
 
 from railtherm import models, pem
+from railtherm.estimate import Estimate
 from railtherm.models import Structure
-from railtherm.pem import Experiment, Flag
+from railtherm.pem import Experiment
 
 __all__ = [
     "KalmanResult",
@@ -1033,11 +1034,12 @@ def _default_outputs(structure: Structure, experiments: Sequence[Experiment]) ->
 # the estimate
 
 
-@dataclass
-class KalmanResult:
-    """The maximum-likelihood estimate of the stochastic grey-box model.
+@dataclass(kw_only=True)
+class KalmanResult(Estimate):
+    """The maximum-likelihood estimate of the stochastic grey-box model, an
+    :class:`~railtherm.estimate.Estimate` with ``estimator`` kalman.
 
-    As :class:`railtherm.pem.FitResult` for the structure's parameters: ``theta`` (all, fixed
+    As every estimate for the structure's parameters: ``theta`` (all, fixed
     ones too), ``free`` (estimated, in the order of ``correlation``), ``fixed``, ``ci95``,
     ``sd_log``, ``correlation``, ``cond`` (square root of the condition number of the observed
     information of the log parameters, the analogue of cond(J)), ``flags``, ``identified``
@@ -1062,26 +1064,11 @@ class KalmanResult:
     inverse observed information: log parameters, log noise parameters, initial states in K).
     """
 
-    structure: str
-    theta: dict[str, float]
-    free: tuple[str, ...]
-    fixed: dict[str, float]
-    ci95: dict[str, tuple[float, float]]
-    sd_log: dict[str, float]
-    correlation: np.ndarray
-    cond: float
-    flags: list[Flag]
-    cost: float
-    n_obs: int
-    n_unknowns: int
-    success: bool
-    message: str
-    outputs: tuple[str, ...]
-    names: list[str]
-    x0: list[np.ndarray]
-    simulated: list[np.ndarray] = field(repr=False)
-    residuals: list[np.ndarray] = field(repr=False)
+    CONDITION: ClassVar[str] = "information_condition"
+
     estimator: str = "kalman"
+    covariance: str = "observed information"
+    start_used: str = "output_error"
     sigma: dict[str, float] = field(default_factory=dict)
     meas_var: dict[str, float] = field(default_factory=dict)
     noise_ci95: dict[str, tuple[float, float]] = field(default_factory=dict)
@@ -1092,22 +1079,12 @@ class KalmanResult:
     innovations: list[np.ndarray] = field(default_factory=list, repr=False)
     innovation_var: list[np.ndarray] = field(default_factory=list, repr=False)
     one_step: list[np.ndarray] = field(default_factory=list, repr=False)
-    x0_estimated: list[tuple[str, ...]] = field(default_factory=list)
-    dt: list[float] = field(default_factory=list)
-    states: tuple[str, ...] = ()
     identified: dict[str, dict[str, Any]] = field(default_factory=dict)
     unknowns: tuple[str, ...] = ()
     covariance_log: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
     x0_mode: str = "estimated"
     start_theta: dict[str, float] = field(default_factory=dict)
     start_cost: float = math.nan
-    nfev: int = 0
-    njev: int = 0
-    covariance: str = "observed information"
-    start_used: str = "output_error"
-    start_costs: dict[str, float] = field(default_factory=dict)
-    bandwidths: list[int] = field(default_factory=list)
-    input_noise_sd: list[dict[str, float]] = field(default_factory=list)
     offsets: dict[str, dict[str, float]] = field(default_factory=dict)
 
     @property
@@ -1120,19 +1097,14 @@ class KalmanResult:
         """Schwarz's criterion 2 NLL + n_params log n_obs."""
         return 2.0 * self.cost + self.n_params * math.log(max(self.n_obs, 1))
 
-    def to_dict(self) -> dict[str, Any]:
-        """Plain floats, lists and strings in a stable order (YAML-ready)."""
+    def extra(self) -> dict[str, Any]:
+        """The noise parameters (sigma_<state>, s_<output>) with their intervals, the
+        measurement offsets, the likelihood and its criteria, the count of AIC and BIC and
+        how the initial states were taken."""
 
         def f(v):
             return float(v)
 
-        params = {}
-        for p, v in self.theta.items():
-            entry: dict[str, Any] = {"value": f(v), "estimated": p in self.free}
-            if p in self.free:
-                entry["ci95"] = [f(c) for c in self.ci95[p]]
-                entry["sd_log"] = f(self.sd_log[p])
-            params[p] = entry
         noise = {}
         for name, v in [(f"sigma_{s}", x) for s, x in self.sigma.items()] + [
             (f"s_{o}", x) for o, x in self.meas_var.items()
@@ -1143,42 +1115,17 @@ class KalmanResult:
                 entry["sd_log"] = f(self.noise_sd_log[name])
             noise[name] = entry
         return {
-            "estimator": self.estimator,
-            "structure": self.structure,
-            "parameters": params,
             "noise": noise,
             "noise_at_bound": list(self.noise_at_bound),
             "offsets": {
                 o: {k: f(x) for k, x in entry.items()} for o, entry in self.offsets.items()
             },
-            "free": list(self.free),
-            "correlation": [[f(c) for c in row] for row in np.asarray(self.correlation)],
-            "information_condition": f(self.cond),
-            "flags": [fl.to_dict() for fl in self.flags],
             "negative_log_likelihood": f(self.cost),
             "loglik": f(self.loglik),
             "aic": f(self.aic),
             "bic": f(self.bic),
-            "n_obs": int(self.n_obs),
             "n_params": int(self.n_params),
-            "success": bool(self.success),
-            "message": str(self.message),
-            "outputs": list(self.outputs),
             "x0_mode": self.x0_mode,
-            "experiments": [
-                {
-                    "name": name,
-                    "dt": f(dt),
-                    "x0": {s: f(v) for s, v in zip(self.states, x0, strict=True)},
-                    "x0_estimated": list(est),
-                }
-                for name, dt, x0, est in zip(
-                    self.names, self.dt, self.x0, self.x0_estimated, strict=True
-                )
-            ],
-            "input_noise_sd": [
-                {name: float(sd) for name, sd in record.items()} for record in self.input_noise_sd
-            ],
         }
 
 

@@ -38,14 +38,15 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from railtherm import models
+from railtherm.estimate import Estimate, Flag
 from railtherm.models import Structure
 
 __all__ = [
@@ -179,104 +180,16 @@ def experiment_from_table(
     return Experiment(name=name, dt=dt, u=u, y=y, x0=y[0].copy(), hold=hold)
 
 
-@dataclass(frozen=True)
-class Flag:
-    """An identifiability warning: a machine ``code``, the parameters concerned, a sentence."""
+@dataclass(kw_only=True)
+class FitResult(Estimate):
+    """The simulation-error estimate (eqs. 17-18 with K = 0), an :class:`Estimate` with
+    ``estimator`` output_error: ``cost`` = e^T e (eq. 17, K^2), ``cond`` the condition number
+    of the Jacobian of the log parameters, ``covariance`` "hac" or "iid", ``bandwidths`` the
+    HAC bandwidth of each record and output, ``input_noise_sd`` the declared input noise."""
 
-    code: str
-    parameters: tuple[str, ...]
-    message: str
+    CONDITION: ClassVar[str] = "jacobian_condition"
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"code": self.code, "parameters": list(self.parameters), "message": self.message}
-
-
-@dataclass
-class FitResult:
-    """The estimate. ``theta`` holds every parameter (fixed ones too); ``free`` the estimated
-    ones, in the order of ``correlation``; ``sd_log`` the standard deviation of log(theta);
-    ``ci95`` {param: (lo, hi)}; ``cost`` = e^T e (eq. 17, K^2); per-experiment lists
-    (experiment order): ``x0``, ``simulated`` (N x n_states), ``residuals`` (y - simulated,
-    N x n_states, NaN where not compared), ``dt``."""
-
-    structure: str
-    theta: dict[str, float]
-    free: tuple[str, ...]
-    fixed: dict[str, float]
-    ci95: dict[str, tuple[float, float]]
-    sd_log: dict[str, float]
-    correlation: np.ndarray
-    cond: float
-    flags: list[Flag]
-    cost: float
-    n_obs: int
-    n_unknowns: int
-    nfev: int
-    njev: int
-    success: bool
-    message: str
-    start_used: str
-    start_costs: dict[str, float]
-    covariance: str
-    outputs: tuple[str, ...]
-    names: list[str]
-    x0: list[np.ndarray]
-    x0_estimated: list[tuple[str, ...]]
-    simulated: list[np.ndarray] = field(repr=False)
-    residuals: list[np.ndarray] = field(repr=False)
-    dt: list[float] = field(default_factory=list)
-    states: tuple[str, ...] = ()
-    bandwidths: list[int] = field(default_factory=list)
-    input_noise_sd: list[dict[str, float]] = field(default_factory=list)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain floats, lists and strings in a stable order (YAML-ready)."""
-
-        def f(v):
-            return float(v)
-
-        params = {}
-        for p, v in self.theta.items():
-            entry: dict[str, Any] = {"value": f(v), "estimated": p in self.free}
-            if p in self.free:
-                lo, hi = self.ci95[p]
-                entry["ci95"] = [f(lo), f(hi)]
-                entry["sd_log"] = f(self.sd_log[p])
-            params[p] = entry
-        return {
-            "structure": self.structure,
-            "parameters": params,
-            "free": list(self.free),
-            "correlation": [[f(c) for c in row] for row in np.asarray(self.correlation)],
-            "jacobian_condition": f(self.cond),
-            "flags": [fl.to_dict() for fl in self.flags],
-            "cost": f(self.cost),
-            "n_obs": int(self.n_obs),
-            "n_unknowns": int(self.n_unknowns),
-            "nfev": int(self.nfev),
-            "njev": int(self.njev),
-            "success": bool(self.success),
-            "message": str(self.message),
-            "start_used": self.start_used,
-            "start_costs": {k: f(v) for k, v in self.start_costs.items()},
-            "covariance": self.covariance,
-            "outputs": list(self.outputs),
-            "experiments": [
-                {
-                    "name": name,
-                    "dt": f(dt),
-                    "x0": {s: f(v) for s, v in zip(self.states, x0, strict=True)},
-                    "x0_estimated": list(est),
-                }
-                for name, dt, x0, est in zip(
-                    self.names, self.dt, self.x0, self.x0_estimated, strict=True
-                )
-            ],
-            "hac_bandwidths": [int(b) for b in self.bandwidths],
-            "input_noise_sd": [
-                {name: float(sd) for name, sd in record.items()} for record in self.input_noise_sd
-            ],
-        }
+    estimator: str = "output_error"
 
 
 # ----------------------------------------------------------------------------------------------

@@ -33,7 +33,7 @@ def data(n_days: int = 5, dt: float = 1800.0):
 @pytest.mark.parametrize("names", [["I_sol"], ["I_roof", "I_side"]])
 def test_jacobian_matches_central_differences(base, names):
     s = models.structure_for(base, names)
-    theta = dict(BASE_THETA[base])
+    theta = dict(BASE_THETA.get(base, models.STRUCTURES[base].initial))  # any registered
     theta.update({f"a_{n}": 2.0 + i for i, n in enumerate(names)})
     A0, B0 = s.matrices(theta)
     assert B0.shape == (A0.shape[0], 2 + len(names))

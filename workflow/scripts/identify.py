@@ -28,6 +28,8 @@ for model in snakemake.params.models:
     ingest.write_tidy(series, snakemake.output[f"series_{model}"])
     fit = estimate["fit"]
     criterion = (
-        f"log-likelihood {fit['loglik']:.6g}" if "loglik" in fit else f"cost {fit['cost']:.6g}"
+        f"log-likelihood {fit['loglik']:.6g}"
+        if fit["estimator"] == "kalman"
+        else f"cost {fit['cost']:.6g}"
     )
     log.info("%s: %s, %s", model, estimate["k_source"], criterion)

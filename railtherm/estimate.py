@@ -1,0 +1,132 @@
+"""What every estimator returns: an :class:`Estimate` of a structure's parameters from a set of
+records, with its intervals, identifiability flags and the simulated series. The paper's
+simulation-error PEM (:class:`railtherm.pem.FitResult`) and the Kalman filter's maximum
+likelihood (:class:`railtherm.kalman.KalmanResult`) extend it; ``estimator`` says which."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+__all__ = ["Estimate", "Flag"]
+
+
+@dataclass(frozen=True)
+class Flag:
+    """An identifiability warning: a machine ``code``, the parameters concerned, a sentence."""
+
+    code: str
+    parameters: tuple[str, ...]
+    message: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"code": self.code, "parameters": list(self.parameters), "message": self.message}
+
+
+@dataclass(kw_only=True)
+class Estimate:
+    """The estimate of a structure's parameters, whatever the estimator.
+
+    ``theta`` holds every parameter (fixed ones too); ``free`` the estimated ones, in the
+    order of ``correlation``; ``sd_log`` the standard deviation of log(theta); ``ci95``
+    {param: (lo, hi)}; ``cond`` the conditioning of the problem (:attr:`CONDITION`); ``cost``
+    the minimised criterion (e^T e of eq. 17, K^2, or the negative log-likelihood);
+    ``n_obs`` the scalar measurements used and ``n_unknowns`` every estimated quantity.
+    Per record (lists in the order given): ``names``, ``dt``, ``x0`` (the initial state),
+    ``x0_estimated`` (its estimated states), ``simulated`` (N x n_states, the deterministic
+    simulation of eq. 15 at the estimate), ``residuals`` (measured - simulated, NaN where not
+    compared)."""
+
+    CONDITION: ClassVar[str] = "condition"  # the key of ``cond`` in :meth:`to_dict`
+
+    estimator: str
+    structure: str
+    theta: dict[str, float]
+    free: tuple[str, ...]
+    fixed: dict[str, float]
+    ci95: dict[str, tuple[float, float]]
+    sd_log: dict[str, float]
+    correlation: np.ndarray
+    cond: float
+    flags: list[Flag]
+    cost: float
+    n_obs: int
+    n_unknowns: int
+    success: bool
+    message: str
+    outputs: tuple[str, ...]
+    names: list[str]
+    x0: list[np.ndarray]
+    simulated: list[np.ndarray] = field(repr=False)
+    residuals: list[np.ndarray] = field(repr=False)
+    x0_estimated: list[tuple[str, ...]] = field(default_factory=list)
+    dt: list[float] = field(default_factory=list)
+    states: tuple[str, ...] = ()
+    nfev: int = 0
+    njev: int = 0
+    covariance: str = ""
+    start_used: str = ""
+    start_costs: dict[str, float] = field(default_factory=dict)
+    bandwidths: list[int] = field(default_factory=list)
+    input_noise_sd: list[dict[str, float]] = field(default_factory=list)
+
+    def parameter_entries(self) -> dict[str, dict[str, Any]]:
+        """{param: {value, estimated[, ci95, sd_log]}} in the structure's order."""
+        params = {}
+        for p, v in self.theta.items():
+            entry: dict[str, Any] = {"value": float(v), "estimated": p in self.free}
+            if p in self.free:
+                entry["ci95"] = [float(c) for c in self.ci95[p]]
+                entry["sd_log"] = float(self.sd_log[p])
+            params[p] = entry
+        return params
+
+    def experiment_entries(self) -> list[dict[str, Any]]:
+        """Per record: its name, step, initial state and which of its states were estimated."""
+        return [
+            {
+                "name": name,
+                "dt": float(dt),
+                "x0": {s: float(v) for s, v in zip(self.states, x0, strict=True)},
+                "x0_estimated": list(est),
+            }
+            for name, dt, x0, est in zip(
+                self.names, self.dt, self.x0, self.x0_estimated, strict=True
+            )
+        ]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats, lists and strings in a stable order (YAML-ready): the keys every
+        estimator writes; an estimator's own follow (:meth:`extra`)."""
+        common = {
+            "estimator": self.estimator,
+            "structure": self.structure,
+            "parameters": self.parameter_entries(),
+            "free": list(self.free),
+            "correlation": [[float(c) for c in row] for row in np.asarray(self.correlation)],
+            self.CONDITION: float(self.cond),
+            "flags": [fl.to_dict() for fl in self.flags],
+            "cost": float(self.cost),
+            "n_obs": int(self.n_obs),
+            "n_unknowns": int(self.n_unknowns),
+            "nfev": int(self.nfev),
+            "njev": int(self.njev),
+            "success": bool(self.success),
+            "message": str(self.message),
+            "start_used": self.start_used,
+            "start_costs": {k: float(v) for k, v in self.start_costs.items()},
+            "covariance": self.covariance,
+            "outputs": list(self.outputs),
+            "experiments": self.experiment_entries(),
+            "hac_bandwidths": [int(b) for b in self.bandwidths],
+            "input_noise_sd": [
+                {name: float(sd) for name, sd in record.items()} for record in self.input_noise_sd
+            ],
+        }
+        return {**common, **self.extra()}
+
+    def extra(self) -> dict[str, Any]:
+        """The estimator's own keys of :meth:`to_dict` (none here)."""
+        return {}
