@@ -216,9 +216,9 @@ def make_fleet(root: Path, n: int, figures: bool = True) -> Path:
 
 
 def model_keys() -> list[str]:
-    """The fits of the Armadillo Box (railtherm.identify.model_keys of its config)."""
+    """The fits of the Armadillo Box (railtherm.study.identify.model_keys of its config)."""
     sys.path.insert(0, str(REPO))
-    from railtherm.identify import model_keys as keys
+    from railtherm.study.identify import model_keys as keys
 
     return keys(yaml.safe_load(VEHICLE.read_text(encoding="utf-8")))
 

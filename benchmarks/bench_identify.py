@@ -6,8 +6,8 @@ wind tunnel into a scratch directory) and the Armadillo test cell of the validat
 data, one window, kA estimated jointly, initial states estimated), each window resampled onto
 N / (number of windows) points over the same programme (linear interpolation of every tidy
 column: the same experiment logged finer). Every phase is timed inside one call of
-:func:`railtherm.identify.identify` by wrapping the functions it calls; the bare fit is the
-same estimator alone (:func:`railtherm.identify.estimate_parameters`) with iid covariance (no
+:func:`railtherm.study.identify.identify` by wrapping the functions it calls; the bare fit is the
+same estimator alone (:func:`railtherm.study.identify.estimate_parameters`) with iid covariance (no
 HAC, no budget, no cross-validation). Best of ``--rounds`` (default 3).
 
     python benchmarks/bench_identify.py [--rounds 3] [--sizes 1000 10000 100000]
@@ -29,8 +29,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railtherm import cli, identify, run
+from railtherm import cli
 from railtherm.config import load_vehicle
+from railtherm.study import identify, run
 
 REPO = Path(__file__).resolve().parents[1]
 

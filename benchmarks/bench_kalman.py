@@ -12,8 +12,8 @@ and +10 degC), dt = 60 s up to N = 1e4, then dt = 6e5 s / N. Fixed seeds.
 
 Fits (two-stage, kA fixed at the truth; start="auto"; the same options for both):
 
-(o) ``railtherm.pem.fit``: output error (eq. 17, K = 0), covariance "hac";
-(k) ``railtherm.kalman.fit``: maximum likelihood with the Kalman filter (its output-error
+(o) ``railtherm.estimation.pem.fit``: output error (eq. 17, K = 0), covariance "hac";
+(k) ``railtherm.estimation.kalman.fit``: maximum likelihood with the Kalman filter (its output-error
     start included: (k) runs (o) first).
 
 Configurations: both states measured or T alone, initial states estimated (the Kalman fit's
@@ -36,7 +36,7 @@ import time
 import numpy as np
 from bench_pem import best_of, machine  # the timing and machine line of bench_pem
 
-from railtherm import kalman, models, pem
+from railtherm.estimation import kalman, models, pem
 
 TRUTH = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
 SIGMA = (2.0e-3, 1.0e-3)  # K / sqrt(s)

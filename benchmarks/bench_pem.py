@@ -13,7 +13,8 @@ Tram2 truth: kA 979.2 W/K, C 1.8e7 J/K, K_veh 974 W/K, C_veh 1e7 J/K), times
     timed and multiplied by the number of simulations (function evaluations, plus 3 per
     finite-difference Jacobian) that the full run needed at the largest fully run N: those rows
     are labelled "extrapolated".
-(b) railtherm's fit: ``railtherm.pem.fit`` of the second-order structure, two-stage (kA fixed
+(b) railtherm's fit: ``railtherm.estimation.pem.fit`` of the second-order structure, two-stage (kA
+fixed
     at the truth, as the kvalue stage would give it), start="auto", x0="measured",
     covariance="hac", from the paper's initial values.
 (c) the floor: one simulation pass over the same data by ``scipy.signal.lfilter``: the indoor
@@ -55,10 +56,10 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
-from railtherm import models
+from railtherm.estimation import models
 
 try:
-    from railtherm import pem
+    from railtherm.estimation import pem
 except ImportError:  # developed concurrently; the table then shows "n/a" for (b)
     pem = None
 
@@ -89,7 +90,7 @@ def zoh(theta: dict, dt: float) -> tuple[np.ndarray, np.ndarray]:
 
 def simulate_states(theta: dict, u: np.ndarray, dt: float, x0: np.ndarray) -> np.ndarray:
     """Exact ZOH simulation x[n+1] = Ad x[n] + Bd u[n], x[0] = x0, by modal lfilter (data
-    generation only; independent of railtherm.models/pem)."""
+    generation only; independent of railtherm.estimation.models/pem)."""
     Ad, Bd = zoh(theta, dt)
     lam, V = np.linalg.eig(Ad)
     lam, V = lam.real, V.real  # real distinct eigenvalues for this RC network
@@ -271,7 +272,7 @@ def main(argv: list[str] | None = None) -> int:
     self_check()
     print(f"# bench_pem{' --quick' if args.quick else ''}: {machine()}")
     if pem is None:
-        print("# railtherm.pem is not available: column t_b is n/a")
+        print("# railtherm.estimation.pem is not available: column t_b is n/a")
     t_start = time.perf_counter()
     header = (
         "| N | dt [s] | t_a baseline | t_b railtherm | t_c floor | t_b/t_c (floor passes) "

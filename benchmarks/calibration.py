@@ -36,7 +36,7 @@ starts it closer; the realised lag is in the CSV). Then a heating-power step up 
 the step back held 30 h, the two identification windows.
 
 Each vehicle is fitted as the study fits it (railtherm.config.load_vehicle, then
-railtherm.run.tidy_tables -> kvalue.for_vehicle -> identify.identify) once per setting: the
+railtherm.study.run.tidy_tables -> kvalue.for_vehicle -> identify.identify) once per setting: the
 estimator (output_error, kalman) x the mode (static: kA fixed from the static test, eq. 10;
 joint: kA estimated with the capacities) x the surface sensors (without: the YAML does not
 list them; with: it does, and T_veh is compared in eq. 17). ``--x0`` sets ``model.x0``.
@@ -402,8 +402,9 @@ def _interval_row(x: float, lo: float, hi: float, truth: float, identified: bool
 
 def fit_rows(truth: Truth, yaml_path: Path, setting: str) -> list[dict]:
     """Fit one vehicle file as the study does and compare k, C, K_veh, C_veh with the truth."""
-    from railtherm import identify, kvalue, run
     from railtherm.config import load_vehicle
+    from railtherm.estimation import kvalue
+    from railtherm.study import identify, run
 
     vehicle = load_vehicle(yaml_path, workdir=yaml_path.parent)
     started = time.process_time()

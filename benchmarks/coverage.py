@@ -31,8 +31,11 @@ import numpy as np
 import pandas as pd
 from calibration import collect, wilson  # benchmarks/ is the script's folder, first on sys.path
 
-from railtherm import identify, ingest, kvalue, synth
+from railtherm import synth
 from railtherm.config import load_study
+from railtherm.data import ingest
+from railtherm.estimation import kvalue
+from railtherm.study import identify
 
 REPO = Path(__file__).resolve().parents[1]
 PARAMETERS = ("C", "K_veh", "C_veh")

@@ -30,7 +30,7 @@ from calibration import collect  # noqa: E402
 from records import S2, noisy_power_record  # noqa: E402
 from records import TRAM2 as TRUTH  # noqa: E402
 
-from railtherm import kalman, pem  # noqa: E402
+from railtherm.estimation import kalman, pem  # noqa: E402
 
 NAMES = ("C", "K_veh", "C_veh")
 N = 1800

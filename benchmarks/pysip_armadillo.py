@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railtherm import kalman, models, pem
+from railtherm.estimation import kalman, models, pem
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "data" / "armadillo" / "armadillo_data_H2.csv"

@@ -18,7 +18,8 @@ at the campaign's noise levels and logger steps? Two truths:
 Experiment per seed (like the virtual campaign): 60 h; T_o steps between -10 and +10 degC
 (whole degrees, at least 5 K apart) held 12-20 h; Q_H steps between 0 and n heater groups
 (Tram2: 5 x 4 kW, Main2: 3 x 5 kW) held 3-8 h; every change on a multiple of 600 s (the
-largest logger step), so that simulating exactly (ZOH, ``railtherm.models.discretize_zoh``) at
+largest logger step), so that simulating exactly (ZOH,
+``railtherm.estimation.models.discretize_zoh``) at
 the logger step with the inputs held over each step makes the logged inputs (the value held
 from each logged instant) exact. Start at equilibrium with the first inputs (even seeds) or
 off it by uniform(-3, 3) K per state (odd seeds). Gaussian white noise of sd ``noise`` on T
@@ -29,7 +30,7 @@ Treatments:
 
 (a) ``finite_difference`` + mid inputs (railtherm's default), (b) ``finite_difference``
     without mid inputs, (c) ``smoothed_finite_difference`` + mid inputs: all by
-    ``railtherm.sindy.cross_check`` with ``Settings(n_bootstrap=50, ...)``;
+    ``railtherm.estimation.sindy.cross_check`` with ``Settings(n_bootstrap=50, ...)``;
 (d) discrete-time least squares x[k+1] = Phi x[k] + Gamma u[k], then A = logm(Phi)/h and
     B = A (Phi - I)^-1 Gamma (scipy.linalg.logm), then each equation's continuous
     coefficients below 0.1 x that equation's largest |coefficient| set to zero (no refit, no
@@ -56,7 +57,7 @@ import pysindy as ps
 import scipy
 from scipy.linalg import logm
 
-from railtherm import models, sindy
+from railtherm.estimation import models, sindy
 
 HOUR = 3600.0
 KW = 1000.0

@@ -21,11 +21,11 @@ _LAZY = {
     "load_study": "railtherm.config",
     "Vehicle": "railtherm.config",
     "Study": "railtherm.config",
-    "KValue": "railtherm.kvalue",
-    "Fit": "railtherm.fit",
-    "read_fit": "railtherm.fit",
-    "StateSpace": "railtherm.fit",
-    "fit_vehicle": "railtherm.run",
+    "KValue": "railtherm.estimation.kvalue",
+    "Fit": "railtherm.study.fit",
+    "read_fit": "railtherm.study.fit",
+    "StateSpace": "railtherm.study.fit",
+    "fit_vehicle": "railtherm.study.run",
 }
 __all__ = ["ConfigError", "DataError", "RailthermError", "__version__", *_LAZY]
 

@@ -3,20 +3,20 @@
 ``railtherm validate [--config config/config.yaml] [--headers-only] [VEHICLE.yaml ...]`` checks
 the study config and every vehicle it lists (or only the vehicle files given, with the study's
 defaults and campaign layouts when the study config exists), then reads every value of their
-raw files as the jobs ``clean`` and ``kvalue`` will (:mod:`railtherm.datacheck`). It prints
+raw files as the jobs ``clean`` and ``kvalue`` will (:mod:`railtherm.data.datacheck`). It prints
 ``ok: N vehicles, ...`` and exits 0, or prints the one-line error on stderr and exits 1.
 
 ``railtherm fit VEHICLE.yaml [--model order2] [--out DIR]`` runs one vehicle through the
-rules' chain (clean -> static k -> PEM fit -> check, :mod:`railtherm.run`), prints each fit's
+rules' chain (clean -> static k -> PEM fit -> check, :mod:`railtherm.study.run`), prints each fit's
 parameters and verdict and, with ``--out``, writes the rules' files. A raw file that the study's
 virtual wind tunnel plans but has not written is written first.
 
 ``railtherm audit PUBLISHED.yaml [--ranges config/audit.yaml] [--estimates results/tables]
 [--out results/audit] [--fail-on never|error|warning]`` runs the audit of published values
-(:mod:`railtherm.audit`) without the rest of the pipeline.
+(:mod:`railtherm.report.audit`) without the rest of the pipeline.
 
 ``railtherm new-vehicle RAW.csv [--out VEHICLE.yaml] [--id ID]`` writes a starter vehicle YAML
-for a raw logger file (:mod:`railtherm.starter`): the detected separator, decimal mark and time
+for a raw logger file (:mod:`railtherm.data.starter`): the detected separator, decimal mark and time
 format, a guess of the channel map from the column names, one identification window over the
 whole file, and TODOs for what the file cannot tell, which ``railtherm validate`` refuses until
 they are filled. It never overwrites a file; without ``--out`` it prints the YAML.
@@ -24,14 +24,15 @@ they are filled. It never overwrites a file; without ``--out`` it prints the YAM
 ``railtherm reference --class CLASS --mass-kg M --surface-m2 A [--k K] [--min-vehicles 2]
 [--exclude ID ...] [--config config/config.yaml] [--results results] [--out FILE]`` builds the
 second-order model of an unmeasured vehicle from its class's generalised parameters
-(:mod:`railtherm.classmodel`: c_veh, delta, kappa_veh and k over the class's usable vehicles of
+(:mod:`railtherm.study.classmodel`: c_veh, delta, kappa_veh and k over the class's usable vehicles
+of
 the committed ``results/tables/table2.csv``), with 95 % prediction intervals; it prints a
 summary and writes the YAML to ``--out`` (without ``--out``, prints the YAML).
 
 ``railtherm simulate PARAMS.yaml --scenario S.yaml [--scenario S2.yaml ...] [--draws 200]
-[--seed 0] [--out DIR] [--allow-unreachable]`` runs each scenario (:mod:`railtherm.scenario`)
+[--seed 0] [--out DIR] [--allow-unreachable]`` runs each scenario (:mod:`railtherm.study.scenario`)
 through a checked fit (``fit_<model>.yaml``) or a class reference model
-(:mod:`railtherm.simulate`) and prints its heat-up and cool-down times, energy, peak power and
+(:mod:`railtherm.study.simulate`) and prints its heat-up and cool-down times, energy, peak power and
 final temperature with 95 % bands from ``--draws`` parameter draws. With ``--out``, writes
 ``DIR/<scenario name>.csv`` (the series) and ``DIR/<scenario name>.yaml`` (the outcomes), and
 nothing if any scenario fails. A set point the heating cannot hold is an error unless
@@ -48,8 +49,9 @@ import os
 import sys
 from collections.abc import Sequence
 
-from railtherm import __version__, starter, structures
+from railtherm import __version__, structures
 from railtherm.config import Study, add_vehicle, load_study, read_yaml, study_context
+from railtherm.data import starter
 from railtherm.errors import ConfigError, RailthermError
 
 
@@ -76,7 +78,7 @@ def _references(args: argparse.Namespace, study: Study) -> int:
     config = read_yaml(os.path.join(args.directory, args.config), display=args.config)
     paths = ((config or {}).get("study") or {}).get("references") or []
     if paths:
-        from railtherm import identify, reference
+        from railtherm.study import identify, reference
 
         fits = [
             (vid, key) for vid, v in study.vehicles.items() for key in identify.model_keys(v.data)
@@ -94,7 +96,7 @@ def _validate(args: argparse.Namespace) -> int:
     if references:
         summary += f", {references} reference file{'' if references == 1 else 's'}"
     if not args.headers_only:
-        from railtherm.datacheck import check_values  # pandas only when reading values
+        from railtherm.data.datacheck import check_values  # pandas only when reading values
 
         windows, not_written = 0, []
         for vehicle in study.vehicles.values():
@@ -114,7 +116,7 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _audit(args: argparse.Namespace) -> int:
-    from railtherm import audit  # pandas only when auditing
+    from railtherm.report import audit  # pandas only when auditing
 
     estimates = args.estimates
     if estimates is not None and not os.path.isfile(os.path.join(estimates, "table2.csv")):
@@ -150,7 +152,7 @@ def _campaign_files(study: Study, workdir: str) -> list[str]:
 
 
 def _fit(args: argparse.Namespace) -> int:
-    from railtherm.run import fit_vehicle  # numpy, scipy and pandas only when fitting
+    from railtherm.study.run import fit_vehicle  # numpy, scipy and pandas only when fitting
 
     study = _study(args, [args.vehicle])
     for path in _campaign_files(study, args.directory):
@@ -180,11 +182,11 @@ def _fit(args: argparse.Namespace) -> int:
 
 def _reference_model(args: argparse.Namespace) -> int:
     """``railtherm reference``: the class reference model of an unmeasured vehicle
-    (:mod:`railtherm.classmodel`) from the study's Table 2 (``<results>/tables/table2.csv``,
+    (:mod:`railtherm.study.classmodel`) from the study's Table 2 (``<results>/tables/table2.csv``,
     committed; the per-vehicle fit files need not exist). With ``--out``,
     the summary on stdout and the YAML to the file; without, the YAML on stdout and the
     summary on stderr (so that ``> FILE`` keeps only the YAML)."""
-    from railtherm import classmodel  # numpy and scipy only when building one
+    from railtherm.study import classmodel  # numpy and scipy only when building one
 
     members = classmodel.members_from_study(args.config, args.results, workdir=args.directory)
     model = classmodel.build(
@@ -218,10 +220,10 @@ def _simulate(args: argparse.Namespace) -> int:
     """``railtherm simulate``: every scenario through one parameter set; the summaries on
     stdout and, with ``--out``, each scenario's series (CSV) and outcomes (YAML). Every
     scenario runs before anything is printed or written: a failing one leaves no output."""
-    from railtherm import simulate as sim  # numpy and pandas only when simulating
-    from railtherm.fit import write_yaml
-    from railtherm.scenario import load_scenario
-    from railtherm.tables import write_csv
+    from railtherm.report.tables import write_csv
+    from railtherm.study import simulate as sim  # numpy and pandas only when simulating
+    from railtherm.study.fit import write_yaml
+    from railtherm.study.scenario import load_scenario
 
     for option, value in (("--draws", args.draws), ("--seed", args.seed)):
         if value < 0:

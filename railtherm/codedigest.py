@@ -5,7 +5,8 @@ railtherm source file a rule's script can reach makes an edit of that code rerun
 jobs that run it. The files are derived from the imports, never listed by hand: the script's
 ``import railtherm...`` and ``from railtherm... import ...`` statements (at the top or inside a
 function), then those of each module reached, in turn. A package reached brings its
-``__init__.py`` (and a subpackage every module of it, whose relative imports stay inside); a
+``__init__.py`` (and a package that imports its modules by discovery, the structure registry,
+every module of it); a
 module that reads the package's JSON schemas (it names ``schemas``) brings those files.
 """
 
@@ -31,8 +32,11 @@ def _module_files(dotted: str) -> list[Path]:
     path = PACKAGE.joinpath(*parts)
     if path.with_suffix(".py").is_file():
         return [path.with_suffix(".py")]
-    if path.is_dir():
-        return sorted(path.rglob("*.py"))
+    if path.is_dir():  # a package: its __init__.py (whose own imports are followed), or,
+        init = path / "__init__.py"  # for one that imports its modules by discovery (the
+        if "pkgutil" in init.read_text(encoding="utf-8"):  # structure registry), every module
+            return sorted(path.rglob("*.py"))
+        return [init]
     return []
 
 

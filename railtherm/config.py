@@ -39,10 +39,10 @@ from typing import Any
 
 import pandas as pd
 
-from railtherm import codedigest, structures, timeaxis, units
-from railtherm.errors import ConfigError, DataError
-from railtherm.ingest import irradiance_names
-from railtherm.rawfile import (
+from railtherm import codedigest, structures
+from railtherm.data import timeaxis, units
+from railtherm.data.ingest import irradiance_names
+from railtherm.data.rawfile import (
     MAX_RAW_ROWS,
     MAX_ROWS,
     MIN_WINDOW_STEPS,
@@ -52,7 +52,8 @@ from railtherm.rawfile import (
     read_layout,
     separator_hint,
 )
-from railtherm.readers import elsewhere_hint
+from railtherm.data.readers import elsewhere_hint
+from railtherm.errors import ConfigError, DataError
 from railtherm.yamlio import (
     TYPE_WORDS,
     check_finite,
@@ -167,7 +168,7 @@ DEFAULTABLE = ("model", "cleaning", "instruments", "kvalue", "check")
 
 # Metadata a rail vehicle must give, with what needs it. An object of another class (a test
 # cell, a building) may leave out what means nothing for it: the quantity that needs it is
-# then not given (railtherm.aggregate), and the checks that read it are skipped with a note.
+# then not given (railtherm.study.aggregate), and the checks that read it are skipped with a note.
 METADATA = {
     "mass_kg": "the mass m_veh gives c_veh = C_veh / m_veh (eq. 24)",
     "surface_m2": "the surface A gives k = kA / A (eq. 10)",
@@ -688,7 +689,7 @@ def _check_record_size(file: str, layout: RawLayout) -> None:
 def _window_time(
     file: str, key: str, value: Any, tf: timeaxis.TimeFormat, layout: RawLayout
 ) -> Any:
-    """A window bound as the file's time type (:func:`railtherm.timeaxis.instant`): a
+    """A window bound as the file's time type (:func:`railtherm.data.timeaxis.instant`): a
     ``pandas.Timestamp`` for a file of instants, written in the file's notation or ISO 8601;
     float seconds for elapsed time, written as a number in the file's unit."""
     stamp = timeaxis.instant(file, key, value, tf)

@@ -2,7 +2,7 @@
 within a tolerance.
 
 A fresh run on another CPU gives the same tables in every word but not in every digit (numpy and
-OpenBLAS pick other SIMD kernels there; see railtherm/tables.py), so the tests compare:
+OpenBLAS pick other SIMD kernels there; see railtherm/report/tables.py), so the tests compare:
 
 - CSV: the same header and the same rows; a cell that is a number in both files agrees
   within ``RTOL`` (relative) or ``ATOL`` (absolute), an empty cell (NaN) only with an empty

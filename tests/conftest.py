@@ -31,10 +31,10 @@ def campaign_study(tmp_path_factory):
 def fitted(campaign_study, tmp_path_factory):
     """``fitted(vehicle, model) -> (fit yaml path, series csv path)``: a vehicle of the virtual
     campaign, or the Armadillo test cell of the validation study, fitted once per session by
-    :func:`railtherm.run.fit_vehicle` into a temporary results directory (as the rules
+    :func:`railtherm.study.run.fit_vehicle` into a temporary results directory (as the rules
     write it)."""
-    from railtherm import run
     from railtherm.config import add_vehicle, read_yaml, study_context
+    from railtherm.study import run
 
     root, _, study = campaign_study
     out = tmp_path_factory.mktemp("fits")

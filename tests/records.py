@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from railtherm import models
+from railtherm.estimation import models
 
 S2 = models.STRUCTURES["second_order"]
 # the campaign's Tram2 (W/K, J/K)

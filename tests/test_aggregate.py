@@ -1,9 +1,9 @@
-"""railtherm.aggregate: tables over vehicles."""
+"""railtherm.study.aggregate: tables over vehicles."""
 
 import pandas as pd
 import pytest
 
-from railtherm.aggregate import kvalue_table
+from railtherm.study.aggregate import kvalue_table
 from railtherm.synth import DEVIATION_EFFECT_ON_K
 
 

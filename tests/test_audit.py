@@ -18,9 +18,10 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from railtherm import audit, smallsample
-from railtherm.audit import Interval, Printed, Published
 from railtherm.errors import ConfigError
+from railtherm.report import audit
+from railtherm.report.audit import Interval, Printed, Published
+from railtherm.study import smallsample
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "config" / "published" / "paper.yaml"
@@ -466,7 +467,7 @@ def test_a_threshold_without_a_sourced_kind_is_a_config_error_naming_the_key(tmp
 
 
 def test_the_audit_module_does_not_import_scipy():
-    code = "import sys, railtherm.audit; print('scipy' in sys.modules)"
+    code = "import sys, railtherm.report.audit; print('scipy' in sys.modules)"
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     assert run.stdout.strip() == "False"

@@ -456,10 +456,10 @@ def test_headers_only_validate_leaves_values_to_the_jobs(tmp_path, monkeypatch, 
 
 def test_value_check_is_cached_by_content(tmp_path, monkeypatch):
     """The parse-time value check re-reads a study only when a config or raw byte changed."""
-    from railtherm import datacheck
     from railtherm.config import load_study, read_yaml
+    from railtherm.data import datacheck
+    from railtherm.data.rawfile import DigestCache
     from railtherm.errors import DataError
-    from railtherm.rawfile import DigestCache
 
     monkeypatch.chdir(tmp_path)
     setup_repo(tmp_path)

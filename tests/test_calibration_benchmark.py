@@ -12,8 +12,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import identify, kvalue, run
 from railtherm.config import load_vehicle
+from railtherm.estimation import kvalue
+from railtherm.study import identify, run
 
 BENCHMARK = Path(__file__).resolve().parents[1] / "benchmarks" / "calibration.py"
 

@@ -1,4 +1,4 @@
-"""The class reference model (railtherm.classmodel): a second-order parameter set for an
+"""The class reference model (railtherm.study.classmodel): a second-order parameter set for an
 unmeasured vehicle from its class's generalised parameters c_veh (eq. 24), delta (eq. 25),
 kappa_veh = K_veh / A and k, with 95 % prediction intervals for one new vehicle."""
 
@@ -14,20 +14,21 @@ import pytest
 import scipy.stats
 import yaml
 
-from railtherm import classmodel, metrics
-from railtherm import simulate as sim
-from railtherm.aggregate import SYNTHETIC_SOURCE
-from railtherm.classmodel import (
+from railtherm.cli import main
+from railtherm.errors import ConfigError
+from railtherm.estimation import metrics
+from railtherm.study import classmodel
+from railtherm.study import simulate as sim
+from railtherm.study.aggregate import SYNTHETIC_SOURCE
+from railtherm.study.classmodel import (
     ClassMember,
     build,
     member_from_fit,
     member_from_row,
     read_reference_model,
 )
-from railtherm.cli import main
-from railtherm.errors import ConfigError
-from railtherm.fit import Fit
-from railtherm.scenario import load_scenario
+from railtherm.study.fit import Fit
+from railtherm.study.scenario import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 MASS, SURFACE = 35_000.0, 300.0

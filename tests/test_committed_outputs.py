@@ -9,7 +9,8 @@ import pandas as pd
 import pytest
 from matplotlib.image import imread
 
-from railtherm import aggregate, tables
+from railtherm.report import tables
+from railtherm.study import aggregate
 
 REPO = Path(__file__).resolve().parents[1]
 TABLES = REPO / "results" / "tables"
@@ -137,7 +138,7 @@ COMMITTED_CSVS = [
 
 @pytest.mark.parametrize("path", COMMITTED_CSVS, ids=lambda p: str(p.relative_to(REPO)))
 def test_committed_csv_holds_numbers_at_the_tables_precision(path):
-    """Every committed CSV was written by railtherm.tables.write_csv (or holds no float with
+    """Every committed CSV was written by railtherm.report.tables.write_csv (or holds no float with
     more digits): a float cell has at most SIGNIFICANT_DIGITS significant digits."""
     too_long = []
     with path.open(encoding="utf-8", newline="") as stream:
@@ -148,8 +149,8 @@ def test_committed_csv_holds_numbers_at_the_tables_precision(path):
                 ):
                     too_long.append(f"row {n}, {column}: {cell}")
     assert not too_long, (
-        f"{len(too_long)} cells with more digits (write the table with railtherm.tables.write_csv "
-        f"and regenerate it), first: {too_long[:3]}"
+        f"{len(too_long)} cells with more digits (write the table with "
+        f"railtherm.report.tables.write_csv and regenerate it), first: {too_long[:3]}"
     )
 
 

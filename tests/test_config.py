@@ -16,8 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from railtherm.config import Vehicle, load_study, load_vehicle, read_yaml
+from railtherm.data.rawfile import DigestCache, RawLayout, read_layout
 from railtherm.errors import ConfigError, DataError
-from railtherm.rawfile import DigestCache, RawLayout, read_layout
 
 VEHICLE_FILE = "config/vehicles/V1.yaml"
 RAW_FILE = "data/V1.csv"

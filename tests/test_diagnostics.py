@@ -1,5 +1,6 @@
-"""railtherm.diagnostics: cumulated periodogram, likelihood-ratio tests, forward selection, and
-the innovation figure of railtherm.plots."""
+"""railtherm.estimation.diagnostics: cumulated periodogram, likelihood-ratio tests, forward
+selection, and
+the innovation figure of railtherm.report.plots."""
 
 import math
 
@@ -7,8 +8,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from railtherm import diagnostics, plots
-from railtherm.diagnostics import (
+from railtherm.estimation import diagnostics
+from railtherm.estimation.diagnostics import (
     cumulated_periodogram,
     forward_selection,
     information_criteria,
@@ -16,6 +17,7 @@ from railtherm.diagnostics import (
     residual_tests,
     selection_markdown,
 )
+from railtherm.report import plots
 
 SEEDS = 200
 
@@ -111,7 +113,7 @@ def test_constant_residuals_have_nothing_to_test():
 
 
 def test_residual_tests_reuse_the_metrics_ljung_box():
-    from railtherm.metrics import ljung_box
+    from railtherm.estimation.metrics import ljung_box
 
     e = ar1(400, 0.7, 2)
     both = residual_tests(e, lags=10)
@@ -279,7 +281,7 @@ def test_module_imports_without_scipy_stats():
     import subprocess
     import sys
 
-    code = "import sys, railtherm.diagnostics; print('scipy.stats' in sys.modules)"
+    code = "import sys, railtherm.estimation.diagnostics; print('scipy.stats' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 

@@ -14,10 +14,11 @@ import pandas as pd
 import pytest
 import yaml
 
-from railtherm import aggregate, identify, tableformat
 from railtherm.config import load_vehicle
 from railtherm.errors import ConfigError
-from railtherm.run import fit_vehicle
+from railtherm.report import tableformat
+from railtherm.study import aggregate, identify
+from railtherm.study.run import fit_vehicle
 
 REPO = Path(__file__).resolve().parents[1]
 ARMADILLO = REPO / "validation" / "config" / "vehicles" / "Armadillo.yaml"

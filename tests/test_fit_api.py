@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import models
 from railtherm.cli import main
-from railtherm.fit import read_fit
+from railtherm.estimation import models
+from railtherm.study.fit import read_fit
 
 REPO = Path(__file__).resolve().parents[1]
 

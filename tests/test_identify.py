@@ -1,12 +1,13 @@
-"""railtherm.identify: a vehicle's windows and k stage -> fits, budget, verdict."""
+"""railtherm.study.identify: a vehicle's windows and k stage -> fits, budget, verdict."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import identify, models
 from railtherm.config import section_defaults
 from railtherm.errors import DataError
+from railtherm.estimation import models
+from railtherm.study import identify
 
 TRUTH = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
 A = 306.0

@@ -4,7 +4,10 @@ the second-order PEM fit of every vehicle, compared with the declared truth."""
 import numpy as np
 import pytest
 
-from railtherm import aggregate, identify, ingest, kvalue, models, pem, synth
+from railtherm import synth
+from railtherm.data import ingest
+from railtherm.estimation import kvalue, models, pem
+from railtherm.study import aggregate, identify
 
 
 @pytest.fixture(scope="module")

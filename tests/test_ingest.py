@@ -1,4 +1,5 @@
-"""railtherm.ingest: raw CWT files -> tidy tables, against hand arithmetic and known signals."""
+"""railtherm.data.ingest: raw CWT files -> tidy tables, against hand arithmetic and known
+signals."""
 
 from __future__ import annotations
 
@@ -14,8 +15,9 @@ import pytest
 from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 
-from railtherm import ingest, synth
+from railtherm import synth
 from railtherm.config import load_vehicle
+from railtherm.data import ingest
 from railtherm.errors import ConfigError, DataError
 from railtherm.synth.physics import meter_scale
 

@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import models, pem
+from railtherm.estimation import models, pem
 
 IE = models.STRUCTURES["interior_envelope"]
 TRUTH = {"C": 2.0e5, "K_i": 1500.0, "C_e": 1.5e6, "K_o": 600.0, "a_I_sol": 3.0}

@@ -14,10 +14,11 @@ import yaml
 from cell_case import write_cell
 from test_inputs import assert_jacobian_matches_central_differences
 
-from railtherm import identify, models
 from railtherm.config import load_vehicle
 from railtherm.errors import ConfigError
-from railtherm.run import fit_vehicle
+from railtherm.estimation import models
+from railtherm.study import identify
+from railtherm.study.run import fit_vehicle
 
 BASE_THETA = {
     "second_order": {"kA": 60.0, "C": 2.0e6, "K_veh": 300.0, "C_veh": 1.2e7},

@@ -1,4 +1,5 @@
-"""railtherm.kalman: the stochastic grey-box estimator (Kalman-filter PEM, maximum likelihood)."""
+"""railtherm.estimation.kalman: the stochastic grey-box estimator (Kalman-filter PEM, maximum
+likelihood)."""
 
 import math
 from pathlib import Path
@@ -11,7 +12,8 @@ from records import noisy_power_record
 from scipy.integrate import quad_vec
 from scipy.linalg import expm
 
-from railtherm import identify, kalman, models, pem
+from railtherm.estimation import kalman, models, pem
+from railtherm.study import identify
 
 REPO = Path(__file__).resolve().parents[1]
 S2 = models.STRUCTURES["second_order"]
@@ -382,7 +384,7 @@ def armadillo_record(power_timing: str | None = None) -> pem.Experiment:
     """The Armadillo record as the validation study builds it (first-order hold), or with
     the power declared by ``power_timing`` (a mean over a logger interval: zero-order hold)."""
     from railtherm import load_vehicle
-    from railtherm.run import tidy_tables
+    from railtherm.study.run import tidy_tables
 
     vehicle = load_vehicle(REPO / "validation" / "config" / "vehicles" / "Armadillo.yaml")
     if power_timing is not None:
@@ -513,7 +515,7 @@ def test_result_fields_series_and_yaml():
 def test_innovations_are_white_where_simulation_residuals_are_not():
     """On data of the stochastic model the standardised innovations pass the Ljung-Box test,
     the output-error residuals of the same record fail it by far."""
-    from railtherm import metrics
+    from railtherm.estimation import metrics
 
     e = sde_experiment(n=2000, seed=500)
     r = kalman.fit(S2, [e], fixed={"kA": TRAM2["kA"]})

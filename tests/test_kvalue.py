@@ -1,4 +1,5 @@
-"""railtherm.kvalue: the static k value (eq. 10), its verdict and its uncertainty budget."""
+"""railtherm.estimation.kvalue: the static k value (eq. 10), its verdict and its uncertainty
+budget."""
 
 import math
 
@@ -9,9 +10,9 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from railtherm import kvalue
 from railtherm.config import section_defaults
 from railtherm.errors import DataError
+from railtherm.estimation import kvalue
 
 SETTINGS = section_defaults("kvalue")  # the schema defaults
 NO_INSTRUMENT_ERRORS = {"temperature_u_K": 0.0, "power_u_rel": 0.0, "surface_u_rel": 0.0}
@@ -317,7 +318,8 @@ def test_k_scales_as_one_over_a_and_linearly_in_q_h(A, factor, Q_H, dT, seed):
 def test_a_k_outside_the_physical_range_is_flagged_in_the_k_table():
     """kW logged as W: k a thousand times too small. The static test may still find the
     window steady; the k table says the number is implausible, as the fit's verdict does."""
-    from railtherm import aggregate, kvalue
+    from railtherm.estimation import kvalue
+    from railtherm.study import aggregate
 
     t = np.arange(0, 8 * 3600 + 1, 60.0)
     window = pd.DataFrame(

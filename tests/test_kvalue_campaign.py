@@ -3,7 +3,10 @@ vehicles with the library alone, and compare with the declared truth."""
 
 import pytest
 
-from railtherm import aggregate, ingest, kvalue, synth
+from railtherm import synth
+from railtherm.data import ingest
+from railtherm.estimation import kvalue
+from railtherm.study import aggregate
 
 
 @pytest.fixture(scope="module")

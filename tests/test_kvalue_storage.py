@@ -9,8 +9,9 @@ import pytest
 from test_identify import TRUTH, A
 from test_identify import vehicle as identify_vehicle
 
-from railtherm import identify, kvalue, models, pem
 from railtherm.config import section_defaults
+from railtherm.estimation import kvalue, models, pem
+from railtherm.study import identify
 
 STEP = 120.0
 T_O = -10.0

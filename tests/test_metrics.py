@@ -1,4 +1,5 @@
-"""railtherm.metrics: R^2 (eq. 21), the NRMSE fit, residual whiteness, AIC/BIC, the verdict."""
+"""railtherm.estimation.metrics: R^2 (eq. 21), the NRMSE fit, residual whiteness, AIC/BIC, the
+verdict."""
 
 import math
 
@@ -8,7 +9,7 @@ from hypothesis import assume, given
 from hypothesis import strategies as st
 from scipy import stats
 
-from railtherm import metrics
+from railtherm.estimation import metrics
 
 Y = [1.0, 2.0, 3.0, 4.0]
 YHAT = [1.0, 2.0, 3.0, 5.0]  # SS_res = 1, SS_tot = 5 (eqs. 22, 23)

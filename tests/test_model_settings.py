@@ -9,10 +9,11 @@ from pathlib import Path
 import pytest
 import yaml
 
-from railtherm import identify, structures
+from railtherm import structures
 from railtherm.config import load_vehicle
 from railtherm.errors import ConfigError
-from railtherm.run import tidy_tables
+from railtherm.study import identify
+from railtherm.study.run import tidy_tables
 
 REPO = Path(__file__).resolve().parents[1]
 SOLAR = REPO / "validation" / "config" / "vehicles" / "Armadillo_solar.yaml"

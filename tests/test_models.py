@@ -1,11 +1,12 @@
-"""railtherm.models: the paper's structures (eqs. 13, 14) and exact ZOH discretisation."""
+"""railtherm.estimation.models: the paper's structures (eqs. 13, 14) and exact ZOH
+discretisation."""
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from railtherm import models
+from railtherm.estimation import models
 
 
 def test_zoh_matches_analytic_first_order_step_response():

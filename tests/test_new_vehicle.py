@@ -14,7 +14,7 @@ import yaml
 from test_validation import renamed_copy
 
 from railtherm.cli import main
-from railtherm.starter import GUESSED, channel_group, starter_vehicle
+from railtherm.data.starter import GUESSED, channel_group, starter_vehicle
 
 REPO = Path(__file__).resolve().parents[1]
 RAW = REPO / "data" / "armadillo" / "armadillo_data_H2.csv"

@@ -13,8 +13,8 @@ import pytest
 import yaml
 from snakemake_run import make_study, snakemake
 
-from railtherm import ingest
 from railtherm.config import load_vehicle
+from railtherm.data import ingest
 from railtherm.errors import ConfigError, DataError
 
 pytestmark = pytest.mark.bad_input

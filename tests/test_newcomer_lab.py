@@ -13,9 +13,10 @@ import pandas as pd
 import pytest
 import yaml
 
-from railtherm import fit_vehicle, load_vehicle, models
+from railtherm import fit_vehicle, load_vehicle
+from railtherm.data.starter import starter_vehicle
 from railtherm.errors import ConfigError
-from railtherm.starter import starter_vehicle
+from railtherm.estimation import models
 
 pytest.importorskip("python_calamine")
 pytest.importorskip("xlsxwriter")

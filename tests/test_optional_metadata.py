@@ -20,11 +20,13 @@ from test_identify import TABLES, TRUTH, vehicle
 from test_kvalue import COUNTS, INSTRUMENTS, SETTINGS, window
 from test_study_tables import fit, kv
 
-from railtherm import aggregate, audit, identify, kvalue, plots, tableformat
 from railtherm.cli import main
 from railtherm.config import load_vehicle, metadata_classes, section_defaults
 from railtherm.errors import ConfigError
-from railtherm.fit import read_fit
+from railtherm.estimation import kvalue
+from railtherm.report import audit, plots, tableformat
+from railtherm.study import aggregate, identify
+from railtherm.study.fit import read_fit
 
 REPO = Path(__file__).resolve().parents[1]
 ARMADILLO = REPO / "validation" / "config" / "vehicles" / "Armadillo.yaml"

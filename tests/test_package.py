@@ -79,7 +79,7 @@ def test_no_import_cycle_among_railtherm_modules():
 
 def test_table_building_does_not_depend_on_the_campaign_generator():
     graph = _imports()
-    assert "synth" not in graph["aggregate"] and "synth" not in graph["plots"]
+    assert "synth" not in graph["study.aggregate"] and "synth" not in graph["report.plots"]
 
 
 def test_entry_points_are_importable_from_the_package():

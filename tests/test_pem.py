@@ -1,4 +1,4 @@
-"""railtherm.pem: simulation-error PEM (eqs. 15-18, K = 0) with intervals and flags."""
+"""railtherm.estimation.pem: simulation-error PEM (eqs. 15-18, K = 0) with intervals and flags."""
 
 import math
 
@@ -7,7 +7,7 @@ import pytest
 import yaml
 from records import noisy_power_record
 
-from railtherm import models, pem
+from railtherm.estimation import models, pem
 
 S1, S2 = models.STRUCTURES["first_order"], models.STRUCTURES["second_order"]
 TRAM2 = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}

@@ -1,4 +1,4 @@
-"""railtherm.plots: the k-window figure renders, is not blank and is byte-deterministic."""
+"""railtherm.report.plots: the k-window figure renders, is not blank and is byte-deterministic."""
 
 import io
 import os
@@ -11,8 +11,9 @@ import pandas as pd
 import pytest
 from matplotlib.image import imread
 
-from railtherm import kvalue, plots
 from railtherm.config import section_defaults
+from railtherm.estimation import kvalue
+from railtherm.report import plots
 
 SETTINGS = section_defaults("kvalue")  # the schema defaults
 INSTRUMENTS = {"temperature_u_K": 0.1, "power_u_rel": 0.01, "surface_u_rel": 0.0}
@@ -467,7 +468,7 @@ def test_footer_figures_are_byte_identical_across_processes(tmp_path):
     them the SVG clip-path ids); the settled layout is rounded, so every process agrees."""
     script = (
         "import sys; sys.path.insert(0, sys.argv[1]); import test_plots as t; "
-        "from railtherm import plots; "
+        "from railtherm.report import plots; "
         "plots.save_figure(plots.fit_figure(t.series(), t.FIT, 'x', synthetic=True), sys.argv[2])"
     )
     here = str(Path(__file__).resolve().parent)
@@ -488,7 +489,7 @@ def test_vehicle_figures_draws_the_k_figure_and_each_fit_from_their_files(tmp_pa
     data, the title naming the model and estimator, and innovations only for the Kalman fit."""
     import yaml
 
-    from railtherm import ingest
+    from railtherm.data import ingest
 
     rec = record()
     win = k_window(rec)

@@ -1,5 +1,5 @@
-"""The study's prediction tables: scenarios per vehicle (railtherm.predictions) and the
-leave-one-out validation of the class reference model (railtherm.classvalidation)."""
+"""The study's prediction tables: scenarios per vehicle (railtherm.study.predictions) and the
+leave-one-out validation of the class reference model (railtherm.study.classvalidation)."""
 
 from __future__ import annotations
 
@@ -9,10 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import classvalidation, models, predictions
-from railtherm.classmodel import ClassMember
-from railtherm.fit import Fit
-from railtherm.scenario import Controller, Initial, Scenario
+from railtherm.estimation import models
+from railtherm.study import classvalidation, predictions
+from railtherm.study.classmodel import ClassMember
+from railtherm.study.fit import Fit
+from railtherm.study.scenario import Controller, Initial, Scenario
 
 MASS, SURFACE = 40_000.0, 300.0
 T_O = -20.0  # degC: the scenarios' outdoor air and soak

@@ -1,4 +1,4 @@
-"""Raw files of every kind read by configuration alone (railtherm.readers): one measured
+"""Raw files of every kind read by configuration alone (railtherm.data.readers): one measured
 recording (the Armadillo Box, data/armadillo) written as a cp1252 CSV with ';' and decimal
 commas, gzip-compressed, as a spreadsheet, a MATLAB file and R data gives the same tidy table as
 the plain CSV original; the vehicle configs differ only in their format and channel keys. Each
@@ -16,11 +16,11 @@ import pytest
 import scipy.io
 import yaml
 
-from railtherm import ingest, readers
 from railtherm.cli import main
 from railtherm.config import load_vehicle
+from railtherm.data import ingest, readers
+from railtherm.data.rawfile import read_columns, read_layout
 from railtherm.errors import ConfigError, DataError
-from railtherm.rawfile import read_columns, read_layout
 
 python_calamine = pytest.importorskip("python_calamine")
 rdata = pytest.importorskip("rdata")

@@ -72,10 +72,21 @@ def test_every_rule_digests_the_code_its_own_script_reaches(rule, script, named)
 
 def test_a_module_imported_only_inside_a_function_is_covered(tmp_path):
     script = tmp_path / "job.py"
-    script.write_text("def later():\n    from railtherm import timeaxis\n", encoding="utf-8")
+    script.write_text("def later():\n    from railtherm.data import timeaxis\n", encoding="utf-8")
     names = {p.relative_to(PACKAGE).as_posix() for p in code_files(script)}
-    assert {"timeaxis.py", "__init__.py"} <= names
-    assert "plots.py" not in names  # only what is reached
+    assert {"data/timeaxis.py", "data/__init__.py", "__init__.py"} <= names
+    assert "report/plots.py" not in names  # only what is reached
+    assert "data/ingest.py" not in names  # a package reached brings its __init__, not all
+
+
+def test_the_structure_registry_brings_every_structure(tmp_path):
+    """The registry imports its modules by discovery: a script that reaches it reruns when
+    any structure's file changes, a new one included."""
+    script = tmp_path / "job.py"
+    script.write_text("from railtherm import structures\n", encoding="utf-8")
+    names = {p.relative_to(PACKAGE).as_posix() for p in code_files(script)}
+    found = {f"structures/{p.name}" for p in (PACKAGE / "structures").glob("*.py")}
+    assert found <= names and "structures/second_order.py" in found
 
 
 def test_the_digest_follows_the_bytes_of_the_code(tmp_path):
@@ -83,7 +94,7 @@ def test_the_digest_follows_the_bytes_of_the_code(tmp_path):
     script.write_text("from railtherm import errors\n", encoding="utf-8")
     assert code_digest(script) == code_digest(script)
     other = tmp_path / "other.py"
-    other.write_text("from railtherm import timeaxis\n", encoding="utf-8")
+    other.write_text("from railtherm.data import timeaxis\n", encoding="utf-8")
     assert code_digest(other) != code_digest(script)
 
 
@@ -104,7 +115,7 @@ def _snakemake(repo: Path, study: Path, *args: str) -> subprocess.CompletedProce
 def test_editing_a_module_a_rule_reaches_reruns_that_rule(tmp_path):
     """A one-vehicle study fits its second-order model with a copy of the repository, and
     makes the campaign's ground truth; nothing is then to be done. After a comment is appended
-    to metrics.py in the copy (reached by the identify script through railtherm.identify's
+    to metrics.py in the copy (reached by the identify script through railtherm.study.identify's
     imports, named by no rule), exactly the identify and check jobs are planned again, because
     their code changed: not the upstream synthesize, clean and kvalue jobs, nor the ground
     truth, whose scripts do not reach metrics.py."""
@@ -127,7 +138,7 @@ def test_editing_a_module_a_rule_reaches_reruns_that_rule(tmp_path):
     assert "Nothing to be done" in same.stdout + same.stderr
     for script in ("clean.py", "synthesize.py", "kvalue.py", "ground_truth.py"):
         assert "metrics.py" not in {p.name for p in code_files(SCRIPTS / script)}
-    with open(repo / "railtherm" / "metrics.py", "a", encoding="utf-8") as stream:
+    with open(repo / "railtherm" / "estimation" / "metrics.py", "a", encoding="utf-8") as stream:
         stream.write("\n# an edit\n")
     edited = _snakemake(repo, study, "-n", *targets)
     assert edited.returncode == 0, edited.stderr[-3000:]

@@ -1,4 +1,4 @@
-"""railtherm.pem's automatic start and bounded initial states on a small test box.
+"""railtherm.estimation.pem's automatic start and bounded initial states on a small test box.
 
 The structures' initial values are the paper's, for a rail vehicle (kA 1000 W/K, capacities
 1e5-1e6 J/K). A test box loses 4 W/K: started there, the fit is 250 times off in kA. With
@@ -16,8 +16,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import identify, models, pem
 from railtherm.config import section_defaults
+from railtherm.estimation import models, pem
+from railtherm.study import identify
 
 DT = 300.0  # s
 N = 3000  # 10.4 days

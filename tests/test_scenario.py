@@ -1,4 +1,4 @@
-"""Simulation scenarios as data (railtherm.scenario): the shipped ones, every kind of profile,
+"""Simulation scenarios as data (railtherm.study.scenario): the shipped ones, every kind of profile,
 and the bad scenarios, each stopped by one message naming the file, the key and the value."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from railtherm.errors import ConfigError
-from railtherm.scenario import (
+from railtherm.study.scenario import (
     CP_AIR_J_KG_K,
     RHO_AIR_KG_M3,
     Controller,

@@ -1,4 +1,4 @@
-"""Predictions from identified models (railtherm.simulate): consistency with the fits' own
+"""Predictions from identified models (railtherm.study.simulate): consistency with the fits' own
 simulations, the energy balance, the analytic first-order heat-up, the controllers, the
 unreachable set point and the bands."""
 
@@ -12,9 +12,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import simulate as sim
-from railtherm.fit import Fit, read_fit
-from railtherm.scenario import Controller, Initial, Scenario
+from railtherm.study import simulate as sim
+from railtherm.study.fit import Fit, read_fit
+from railtherm.study.scenario import Controller, Initial, Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,5 +1,5 @@
 """``railtherm simulate``: scenarios through a checked fit or a class reference model
-(railtherm.simulate), the summaries on stdout and, with --out, each scenario's series and
+(railtherm.study.simulate), the summaries on stdout and, with --out, each scenario's series and
 outcomes; a mistake is one line on stderr, exit 1 and nothing written."""
 
 from __future__ import annotations

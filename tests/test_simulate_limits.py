@@ -1,5 +1,5 @@
-"""The bands' physical limits and when a prediction carries no band (railtherm.simulate,
-railtherm.predictions, railtherm.classvalidation): draws truncated at the air's capacity
+"""The bands' physical limits and when a prediction carries no band (railtherm.study.simulate,
+railtherm.study.predictions, railtherm.study.classvalidation): draws truncated at the air's capacity
 rho c_p V, no band from a fit in doubt or from a class statistic of two vehicles, the
 declared truth against the reference band, and deterministic draws."""
 
@@ -12,13 +12,14 @@ import pytest
 import yaml
 from test_predictions import T_O, _member, scenario
 
-from railtherm import classvalidation, models, predictions
-from railtherm import simulate as sim
-from railtherm.classmodel import ClassMember
 from railtherm.errors import ConfigError
-from railtherm.fit import Fit
-from railtherm.identify import RHO_CP_AIR
-from railtherm.scenario import Scenario
+from railtherm.estimation import models
+from railtherm.study import classvalidation, predictions
+from railtherm.study import simulate as sim
+from railtherm.study.classmodel import ClassMember
+from railtherm.study.fit import Fit
+from railtherm.study.identify import RHO_CP_AIR
+from railtherm.study.scenario import Scenario
 
 TARGET, POWER = 15.0, 60_000.0
 VOLUME = 89.4  # m³

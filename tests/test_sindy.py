@@ -10,7 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import ingest, models, sindy
+from railtherm.data import ingest
+from railtherm.estimation import models, sindy
 
 TRAM2 = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
 
@@ -163,9 +164,10 @@ def test_campaign_vehicles_get_the_verdicts_their_declared_deviations_call_for(c
 
 def test_without_the_stage_pysindy_is_never_imported():
     code = (
-        "import sys, railtherm, railtherm.cli, railtherm.config, railtherm.ingest, "
-        "railtherm.kvalue, railtherm.identify, railtherm.pem, railtherm.aggregate, "
-        "railtherm.plots, railtherm.audit, railtherm.synth; "
+        "import sys, railtherm, railtherm.cli, railtherm.config, railtherm.data.ingest, "
+        "railtherm.estimation.kvalue, railtherm.study.identify, railtherm.estimation.pem, "
+        "railtherm.study.aggregate, "
+        "railtherm.report.plots, railtherm.report.audit, railtherm.synth; "
         "print('pysindy' in sys.modules)"
     )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

@@ -1,4 +1,4 @@
-"""railtherm.smallsample: statistics for two to five vehicles per class."""
+"""railtherm.study.smallsample: statistics for two to five vehicles per class."""
 
 import math
 
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from railtherm import smallsample
+from railtherm.study import smallsample
 
 
 def test_t_interval_by_hand():

@@ -167,7 +167,7 @@ def test_the_interior_fittings_structure_recovers_its_truth():
     noise on T and T_veh (T_f not measured) and fitted with kA fixed (the paper's two-stage
     fit): every parameter within its 95 % interval's reach of the truth, and the fit nests
     the second-order model."""
-    from railtherm import models, pem
+    from railtherm.estimation import models, pem
 
     s = structures.by_key("interior_fittings")
     assert s.states == ("T", "T_veh", "T_f") and ("order2", "interior_fittings", 1) in (

@@ -1,4 +1,5 @@
-"""railtherm.aggregate: the study's Tables 1-3, class statistics and class test (section 6)."""
+"""railtherm.study.aggregate: the study's Tables 1-3, class statistics and class test (section
+6)."""
 
 import math
 
@@ -6,7 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from railtherm import aggregate, pem, smallsample, tableformat
+from railtherm.estimation import pem
+from railtherm.report import tableformat
+from railtherm.study import aggregate, smallsample
 
 
 def fit(

@@ -1,5 +1,5 @@
 """Surface sensors as the measured envelope state of the interior-envelope structure
-(``model.envelope_sensors: surface``, railtherm.identify.envelope_tables): T_e compared in
+(``model.envelope_sensors: surface``, railtherm.study.identify.envelope_tables): T_e compared in
 eq. 17 like T_veh in eqs. 7-8, through the whole chain (raw file -> config -> cleaning -> PEM
 fit), and the config's checks."""
 
@@ -13,10 +13,11 @@ import pytest
 import yaml
 from cell_case import write_cell
 
-from railtherm import identify, models
 from railtherm.config import load_vehicle
 from railtherm.errors import ConfigError
-from railtherm.run import fit_vehicle, tidy_tables
+from railtherm.estimation import models
+from railtherm.study import identify
+from railtherm.study.run import fit_vehicle, tidy_tables
 
 TRUTH = {"C": 2.0e6, "K_i": 400.0, "C_e": 1.5e7, "K_o": 70.0}
 DT = 1800.0

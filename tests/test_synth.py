@@ -14,7 +14,7 @@ from scipy.linalg import expm
 
 from railtherm import synth
 from railtherm.errors import ConfigError
-from railtherm.models import second_order
+from railtherm.estimation.models import second_order
 from railtherm.synth import physics
 
 TRUTH = {
@@ -302,7 +302,7 @@ def test_auto_hold_reaches_95_percent_of_the_step(tmp_path):
 def _read_layout(path, spec):
     lg = spec["logger"]
     try:
-        from railtherm.rawfile import read_layout
+        from railtherm.data.rawfile import read_layout
     except ImportError:
         read_layout = None
     if read_layout is not None:

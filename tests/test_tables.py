@@ -1,4 +1,5 @@
-"""railtherm.tables: CSV tables at a fixed number of significant digits, written atomically."""
+"""railtherm.report.tables: CSV tables at a fixed number of significant digits, written
+atomically."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from railtherm import tables
+from railtherm.report import tables
 
 finite = st.floats(-1e300, 1e300)  # rounding 1.5e308 to 2e308 would overflow
 any_float = st.floats(allow_nan=True, allow_infinity=True)

@@ -14,11 +14,12 @@ import yaml
 from test_identify import TABLES, k_result, vehicle
 from test_optional_metadata import armadillo_copy
 
-from railtherm import identify, metrics
 from railtherm.cli import main
 from railtherm.config import load_study, load_vehicle, section_defaults
 from railtherm.errors import ConfigError, DataError
-from railtherm.fit import read_fit
+from railtherm.estimation import metrics
+from railtherm.study import identify
+from railtherm.study.fit import read_fit
 from railtherm.yamlio import packaged_schema
 
 REPO = Path(__file__).resolve().parents[1]
@@ -46,7 +47,7 @@ def test_every_threshold_has_a_default_a_reason_and_a_line_in_the_docs():
 
 def test_every_threshold_the_code_reads_is_a_setting():
     """Whatever the verdict's code looks up in its thresholds is a key of the schema."""
-    source = (REPO / "railtherm" / "identify.py").read_text(encoding="utf-8")
+    source = (REPO / "railtherm" / "study" / "identify.py").read_text(encoding="utf-8")
     read = set(re.findall(r'thresholds\["(\w+)"\]', source))
     read |= set(re.findall(r'get\("check"\) or \{\}\)\.get\("(\w+)"', source))
     assert read and read <= set(CHECK), read - set(CHECK)

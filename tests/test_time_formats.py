@@ -1,4 +1,4 @@
-"""A lab's timestamps read by configuration alone (railtherm.timeaxis behind the raw-file
+"""A lab's timestamps read by configuration alone (railtherm.data.timeaxis behind the raw-file
 path): one measured recording (the Armadillo Box, data/armadillo), written as an ISO 8601 CSV
 original and again in every time notation and file kind - German dates in a cp1252 CSV with
 ';' and decimal commas (plain and gzip), elapsed hours, Unix epoch seconds, spreadsheet serial
@@ -22,12 +22,12 @@ import pytest
 import scipy.io
 import yaml
 
-from railtherm import ingest
 from railtherm.cli import main
 from railtherm.config import load_vehicle
+from railtherm.data import ingest
+from railtherm.data.starter import starter_vehicle
 from railtherm.errors import ConfigError, DataError
-from railtherm.run import fit_vehicle
-from railtherm.starter import starter_vehicle
+from railtherm.study.run import fit_vehicle
 
 rdata = pytest.importorskip("rdata")
 pytest.importorskip("python_calamine")

@@ -1,4 +1,4 @@
-"""railtherm.timeaxis: every declared time notation names the same instants."""
+"""railtherm.data.timeaxis: every declared time notation names the same instants."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from railtherm.data.timeaxis import declared, fix, instant, parse, recognise, seconds, time_format
 from railtherm.errors import ConfigError, DataError
-from railtherm.timeaxis import declared, fix, instant, parse, recognise, seconds, time_format
 
 START = pd.Timestamp("2024-01-15 08:00:00")
 STEPS_S = np.arange(0, 6 * 3600 + 1, 600.0)  # 6 h at 10 min

@@ -1,6 +1,6 @@
 """The validation study on real measured data (the Armadillo Box, data/armadillo): a data set
 is added by config alone, its estimates agree with pySIP's published analysis, and the
-reference comparison (railtherm.reference) is honest about its inputs."""
+reference comparison (railtherm.study.reference) is honest about its inputs."""
 
 from __future__ import annotations
 
@@ -15,8 +15,10 @@ import yaml
 from compare_outputs import assert_outputs_agree
 from snakemake_run import snakemake
 
-from railtherm import config, identify, ingest, reference, structures
+from railtherm import config, structures
+from railtherm.data import ingest
 from railtherm.errors import ConfigError
+from railtherm.study import identify, reference
 
 REPO = Path(__file__).resolve().parents[1]
 VALIDATION = REPO / "validation"

@@ -17,7 +17,7 @@ CONDUCTANCE_UNIT = "W/K"
 @dataclass(frozen=True, kw_only=True)
 class Structure:
     """A grey-box structure dx/dt = A(theta) x + B(theta) u, u = ``inputs`` (T_o, Q_H, then
-    any irradiance channels of :func:`railtherm.models.with_irradiance`), y = x.
+    any irradiance channels of :func:`railtherm.estimation.models.with_irradiance`), y = x.
 
     ``build(**theta) -> (A, B)`` and ``jacobian(**theta) -> {param: (dA, dB)}`` take the
     parameters by name; ``initial`` holds the start values (the paper's, section 5.3) and
@@ -25,7 +25,7 @@ class Structure:
     ``air`` names the air node's capacity, the parameter through which heating and any solar
     gain enter the air node (state 0): B[0, 1] = 1 / theta[air]. ``capacities`` (J/K) and
     ``conductances`` (W/K) name the parameters of each kind: the automatic start of
-    :func:`railtherm.pem.fit` scales them to the data (the time constants C / K and the
+    :func:`railtherm.estimation.pem.fit` scales them to the data (the time constants C / K and the
     overall kA of eq. 10); any other parameter (an aperture, m2) is neither. ``envelope``
     names the envelope node's capacity (state 1: C_veh of T_veh, C_e of T_e), through which
     solar gain declared on the envelope enters, B[1, j] = a_j / theta[envelope]; empty for a
@@ -52,7 +52,7 @@ class Structure:
       each at len(loss_path) times the record's kA) and ``kA_expression`` how kA follows;
     - ``nests``: {key of a smaller structure: the number of this structure's parameters on
       the boundary of its search where it reduces to that one}: the likelihood-ratio tests
-      of the model selection (:func:`railtherm.diagnostics.forward_selection`).
+      of the model selection (:func:`railtherm.estimation.diagnostics.forward_selection`).
     """
 
     parameters: tuple[str, ...]

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from railtherm.errors import ConfigError
-from railtherm.models import second_order
+from railtherm.estimation.models import second_order
 from railtherm.yamlio import deep_merge, packaged_schema, read_yaml, validate_schema
 
 SOURCE_PREFIXES = ("published:", "implied:", "assumption:")

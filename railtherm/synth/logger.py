@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from railtherm.data.rawfile import RawLayout
 from railtherm.errors import ConfigError
-from railtherm.models import lfilter
-from railtherm.rawfile import RawLayout
+from railtherm.estimation.models import lfilter
 from railtherm.synth.campaign import _deviation, vehicle_spec
 from railtherm.synth.physics import _interval_mean, _rngs, _run_cached, meter_scale
 

@@ -1,4 +1,4 @@
-# The audit of published reference values (railtherm.audit): consistency, plausibility,
+# The audit of published reference values (railtherm.report.audit): consistency, plausibility,
 # fitness as a reference, units, and reproduction by this study's re-estimates.
 
 

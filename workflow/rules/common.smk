@@ -12,20 +12,21 @@ try:  # where Snakemake looks up an input or params function's parameters, job b
 except ImportError:  # another Snakemake: inspected at every job, as usual
     overwrite_function_params = None
 
-from railtherm import identify as rt_identify
-from railtherm import reference as rt_reference
-from railtherm import codedigest, ingest, synth
+from railtherm.study import identify as rt_identify
+from railtherm.study import reference as rt_reference
+from railtherm import codedigest, synth
+from railtherm.data import ingest
 from railtherm.config import load_study
-from railtherm.datacheck import check_study_values
+from railtherm.data.datacheck import check_study_values
 from railtherm.errors import RailthermError
-from railtherm.rawfile import DigestCache
-from railtherm.scenario import load_scenario
+from railtherm.data.rawfile import DigestCache
+from railtherm.study.scenario import load_scenario
 
 # where a conda job's post-deploy script finds the repository to install railtherm from
 os.environ.setdefault("RAILTHERM_REPO", str(Path(workflow.basedir).resolve()))
 
 # railtherm's parse caches: a study parsed again validates only what changed (railtherm.config
-# VehicleCache, railtherm.rawfile DigestCache, railtherm.datacheck check_study_values)
+# VehicleCache, railtherm.data.rawfile DigestCache, railtherm.data.datacheck check_study_values)
 CACHE_DIR = ".snakemake/railtherm"
 
 try:
@@ -101,7 +102,7 @@ def tidy_tables(vehicle):
 
 @functools.cache
 def table_sources(vehicle):
-    """{tidy table: the raw file it is cut from} of a vehicle (railtherm.ingest.window_spec)."""
+    """{tidy table: the raw file it is cut from} of a vehicle (railtherm.data.ingest.window_spec)."""
     v = STUDY.vehicles[vehicle]
     return {w: v.raw_files[ingest.window_spec(v.data, w)[0]] for w in tidy_tables(vehicle)}
 

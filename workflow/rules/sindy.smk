@@ -1,4 +1,4 @@
-# The optional SINDy cross-check of the grey-box structure (railtherm.sindy; config `sindy:`).
+# The optional SINDy cross-check of the grey-box structure (railtherm.estimation.sindy; config `sindy:`).
 
 
 # The SINDy fits of up to sindy.vehicles_per_job vehicles share one job: pysindy's import

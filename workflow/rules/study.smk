@@ -2,7 +2,7 @@
 # figures of each vehicle; captions for `snakemake --report` in workflow/report.
 
 
-# Every figure of one vehicle in one job: the static k test (railtherm.plots.kvalue_figure), the
+# Every figure of one vehicle in one job: the static k test (railtherm.report.plots.kvalue_figure), the
 # fit of each model (fit_figure) and the innovations of each Kalman-filter fit
 # (innovation_figure). The figures are their own job: editing the plotting code redraws them
 # without recomputing k or a fit. A rule's outputs are fixed, so vehicles with another set of

@@ -1,7 +1,9 @@
 """Adapter for rule aggregate: Tables 1-3, class statistics and the class test (CSV, MD, TeX)."""
 
-from railtherm import aggregate, logs, tableformat
 from railtherm import io as rt_io
+from railtherm import logs
+from railtherm.report import tableformat
+from railtherm.study import aggregate
 
 log = logs.to_file(snakemake.log[0])
 vehicles = snakemake.params.vehicles

@@ -2,7 +2,8 @@
 
 from pathlib import Path
 
-from railtherm import audit, logs
+from railtherm import logs
+from railtherm.report import audit
 
 log = logs.to_file(snakemake.log[0])
 estimates = str(Path(snakemake.input.estimates[0]).parent) if snakemake.input.estimates else None

@@ -2,9 +2,10 @@
 
 import pandas as pd
 
-from railtherm import identify, logs
 from railtherm import io as rt_io
-from railtherm.fit import Fit
+from railtherm import logs
+from railtherm.study import identify
+from railtherm.study.fit import Fit
 
 log = logs.to_file(snakemake.log[0])
 for model in snakemake.params.models:

@@ -1,7 +1,8 @@
 """Adapter for rule clean: every tidy, uniformly sampled table of one vehicle, each raw file
-read once (railtherm.ingest.clean_windows)."""
+read once (railtherm.data.ingest.clean_windows)."""
 
-from railtherm import ingest, logs
+from railtherm import logs
+from railtherm.data import ingest
 
 log = logs.to_file(snakemake.log[0])
 vehicle = snakemake.params.vehicle

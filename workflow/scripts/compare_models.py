@@ -2,8 +2,10 @@
 
 from pathlib import Path
 
-from railtherm import aggregate, logs, tableformat, tables
 from railtherm import io as rt_io
+from railtherm import logs
+from railtherm.report import tableformat, tables
+from railtherm.study import aggregate
 
 log = logs.to_file(snakemake.log[0])
 fits = [rt_io.read_result(p) for p in snakemake.input.fits]

@@ -2,7 +2,8 @@
 
 import pandas as pd
 
-from railtherm import logs, plots
+from railtherm import logs
+from railtherm.report import plots
 
 log = logs.to_file(snakemake.log[0])
 series = {

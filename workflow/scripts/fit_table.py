@@ -2,8 +2,10 @@
 
 import pandas as pd
 
-from railtherm import aggregate, logs, tables
 from railtherm import io as rt_io
+from railtherm import logs
+from railtherm.report import tables
+from railtherm.study import aggregate
 
 log = logs.to_file(snakemake.log[0])
 fits = [rt_io.read_result(path) for path in snakemake.input.fits]

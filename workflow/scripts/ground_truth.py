@@ -1,6 +1,7 @@
 """Adapter for rule ground_truth: the campaign's declared truth as tables (SI units)."""
 
-from railtherm import logs, synth, tables
+from railtherm import logs, synth
+from railtherm.report import tables
 
 log = logs.to_file(snakemake.log[0])
 campaign = synth.load_campaign(snakemake.input[0])

@@ -1,7 +1,9 @@
 """Adapter for rule identify: PEM fit of each of a vehicle's models to its windows."""
 
-from railtherm import identify, ingest, logs
 from railtherm import io as rt_io
+from railtherm import logs
+from railtherm.data import ingest
+from railtherm.study import identify
 
 log = logs.to_file(snakemake.log[0])
 tables = {

@@ -1,7 +1,9 @@
 """Adapter for rule kvalue: static k (eq. 10), its steady-state verdict and u(k)."""
 
-from railtherm import ingest, kvalue, logs
 from railtherm import io as rt_io
+from railtherm import logs
+from railtherm.data import ingest
+from railtherm.estimation import kvalue
 
 log = logs.to_file(snakemake.log[0])
 vehicle = snakemake.params.vehicle

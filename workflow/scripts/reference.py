@@ -4,8 +4,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from railtherm import aggregate, ingest, logs, reference, tables
 from railtherm import io as rt_io
+from railtherm import logs
+from railtherm.data import ingest
+from railtherm.report import tables
+from railtherm.study import aggregate, reference
 
 log = logs.to_file(snakemake.log[0])
 refs, parts, vehicles = [], [], {}

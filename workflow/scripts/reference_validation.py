@@ -1,7 +1,8 @@
 """Adapter for rule reference_validation: the class reference model, leave-one-out."""
 
-from railtherm import aggregate, classvalidation, logs
-from railtherm.scenario import load_scenario
+from railtherm import logs
+from railtherm.study import aggregate, classvalidation
+from railtherm.study.scenario import load_scenario
 
 log = logs.to_file(snakemake.log[0])
 vehicles = snakemake.params.vehicles

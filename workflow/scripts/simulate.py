@@ -1,8 +1,10 @@
 """Adapter for rule simulate: the study's scenarios through every vehicle's identified model."""
 
-from railtherm import aggregate, logs, plots, predictions, tables
-from railtherm.fit import read_fit
-from railtherm.scenario import load_scenario
+from railtherm import logs
+from railtherm.report import plots, tables
+from railtherm.study import aggregate, predictions
+from railtherm.study.fit import read_fit
+from railtherm.study.scenario import load_scenario
 
 log = logs.to_file(snakemake.log[0])
 vehicles = snakemake.params.vehicles

@@ -1,7 +1,9 @@
 """Adapter for rule sindy: the SINDy cross-check of each vehicle of a batch (sindy.yaml)."""
 
-from railtherm import ingest, logs, sindy
 from railtherm import io as rt_io
+from railtherm import logs
+from railtherm.data import ingest
+from railtherm.estimation import sindy
 
 log = logs.to_file(snakemake.log[0])
 p = snakemake.params.settings

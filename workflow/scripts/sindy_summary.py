@@ -2,8 +2,11 @@
 
 from pathlib import Path
 
-from railtherm import aggregate, logs, plots, sindy, tables
 from railtherm import io as rt_io
+from railtherm import logs
+from railtherm.estimation import sindy
+from railtherm.report import plots, tables
+from railtherm.study import aggregate
 
 log = logs.to_file(snakemake.log[0])
 results = {

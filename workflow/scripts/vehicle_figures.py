@@ -1,8 +1,10 @@
-"""Adapter for rule vehicle_figures: every figure of one vehicle (railtherm.plots.vehicle_figures)
+"""Adapter for rule vehicle_figures: every figure of one vehicle
+(railtherm.report.plots.vehicle_figures)
 - the record with the k window and the k-test verdict, measured vs simulated temperatures with
 residuals and inputs per fit, and the one-step innovations of each Kalman-filter fit."""
 
-from railtherm import logs, plots
+from railtherm import logs
+from railtherm.report import plots
 
 log = logs.to_file(snakemake.log[0])
 inputs, outputs = snakemake.input, snakemake.output

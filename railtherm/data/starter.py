@@ -1,6 +1,6 @@
 """A starter vehicle YAML for a raw logger file: ``railtherm new-vehicle RAW``.
 
-Any file railtherm reads is read whole (:mod:`railtherm.readers`: CSV, plain or gzip; a
+Any file railtherm reads is read whole (:mod:`railtherm.data.readers`: CSV, plain or gzip; a
 workbook, whose table - sheet and header row - is the first with a time-named column unless
 ``--sheet``/``--header-row`` say; MATLAB and R data), so ranges, gaps and a repeated hour
 anywhere in the record are seen. The file format is detected, the rest is guessed or left as
@@ -10,14 +10,14 @@ an explicit TODO:
   cannot decide: the candidate that splits the header into the most columns);
 - **decimal mark** ``.`` or ``,``: the one with which pandas reads more columns as numbers
   (``.`` when both read alike, and always with the separator ``,``);
-- **gzip** by the extension ``.gz`` (pandas reads it as :mod:`railtherm.rawfile` does);
+- **gzip** by the extension ``.gz`` (pandas reads it as :mod:`railtherm.data.rawfile` does);
 - **time column**: the first column whose name looks like a time (time, zeit, date, datum,
   stamp), else the first column; its **format** is ``seconds`` if every value is a number
   (with a comment to check the unit: minutes, hours, days, epoch or serial_days read numbers
   too, and no file tells which), ``iso`` if every value is an ISO 8601 timestamp, else the
-  first of :data:`railtherm.timeaxis.COMMON_PATTERNS` (``%d.%m.%Y %H:%M:%S`` and other
+  first of :data:`railtherm.data.timeaxis.COMMON_PATTERNS` (``%d.%m.%Y %H:%M:%S`` and other
   German, British and US notations) that reads every value, each parsed by
-  :func:`railtherm.rawfile.read_layout` exactly as the validator will; otherwise a TODO. For
+  :func:`railtherm.data.rawfile.read_layout` exactly as the validator will; otherwise a TODO. For
   instants a commented ``timezone``/``dst`` line says how to declare a logger clock on local
   time; where the clock steps back an hour once (the end of summer time) they are declared,
   ``dst: infer`` with the zone the column's name states (``Europe/Berlin``, ``CST/CDT``,
@@ -52,10 +52,9 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from railtherm import timeaxis, units
 from railtherm.config import CHANNEL_GROUPS
-from railtherm.errors import ConfigError, DataError
-from railtherm.rawfile import (
+from railtherm.data import timeaxis, units
+from railtherm.data.rawfile import (
     RawLayout,
     csv_error,
     parse_times,
@@ -63,7 +62,8 @@ from railtherm.rawfile import (
     read_layout,
     separator_hint,
 )
-from railtherm.readers import header_rows, read_table, reader_kind
+from railtherm.data.readers import header_rows, read_table, reader_kind
+from railtherm.errors import ConfigError, DataError
 from railtherm.yamlio import packaged_schema
 
 TODO = "TODO"
@@ -150,7 +150,7 @@ class Detected:
     time_problem: str = ""
     time_column_known: bool = True  # False: the guessed column is no time (it does not increase)
     sample: pd.DataFrame = field(default_factory=pd.DataFrame)  # the whole record
-    kind: str = "csv"  # the reader (railtherm.readers)
+    kind: str = "csv"  # the reader (railtherm.data.readers)
     given: dict[str, Any] = field(default_factory=dict)  # sheet, header_row, encoding
     repeated_hour: str | None = None  # a time the clock steps back an hour to (DST's end)
     zone: str | None = None  # the time zone the time column's name states
@@ -289,7 +289,7 @@ def _time_order(
 
 def detect(raw_path: str | os.PathLike[str], given: Mapping[str, Any] | None = None) -> Detected:
     """Separator, decimal mark (a CSV file), time column and format, and the time span of a
-    raw file of any reader's kind (:mod:`railtherm.readers`). ``given``: the reader's
+    raw file of any reader's kind (:mod:`railtherm.data.readers`). ``given``: the reader's
     settings the user knows (``sheet``, ``header_row``, ``encoding``); a workbook's sheet and
     header row are otherwise found (:func:`_table_sheet`). Every row is read.
 

@@ -5,7 +5,7 @@ Formatting for readers (:func:`to_markdown`, :func:`to_latex`) follows the paper
 k with two decimals, C and C_veh as 1.8x10^7, K_veh as an integer with thousands separators,
 R^2 with three decimals, c_veh as an integer and delta with two decimals; intervals in
 brackets beside the value. The CSV files hold the numbers at six significant digits
-(railtherm.tables).
+(railtherm.report.tables).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import models, pem
-from railtherm.metrics import ACCEPTABLE
-from railtherm.smallsample import t_interval, two_class_test
+from railtherm.estimation import models, pem
+from railtherm.estimation.metrics import ACCEPTABLE
+from railtherm.study.smallsample import t_interval, two_class_test
 from railtherm.yamlio import packaged_schema
 
 COVERAGE_FACTOR = 2.0  # expanded uncertainty U = 2 u: about 95 % for a normal distribution
@@ -29,7 +29,8 @@ K_TOLERANCE_REL = 0.03  # agreement floor: within 3 % of the truth counts as agr
 def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame | None = None):
     """One row per vehicle: the static k (eq. 10), u(k), the verdict, and the truth if known.
 
-    ``results`` maps vehicle id -> the dict of its kvalue.yaml (railtherm.kvalue); ``truth`` is
+    ``results`` maps vehicle id -> the dict of its kvalue.yaml (railtherm.estimation.kvalue);
+    ``truth`` is
     the campaign's ground_truth.csv (synthetic vehicles only). A vehicle agrees with its truth
     when |k - k_truth| <= max(u_k, 3 % k_truth) (u_k the standard uncertainty; U_k = 2 u_k, the
     expanded one, is listed too). ``note`` names the declared deviations that bias k, says when
@@ -116,8 +117,10 @@ def fit_structure(fit: Mapping[str, Any]) -> models.Structure | None:
 
 def judged_parameters(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
     """{param: identification} of a written fit: each estimated parameter as
-    :func:`railtherm.pem.parameter_identification` judges it, then the structure's coupled
-    parameters together (``Structure.coupled``, :func:`railtherm.pem.coupled_identification`):
+    :func:`railtherm.estimation.pem.parameter_identification` judges it, then the structure's
+    coupled
+    parameters together (``Structure.coupled``,
+    :func:`railtherm.estimation.pem.coupled_identification`):
     a capacity or the internal conductance coupled to one the data do not determine is not an
     estimate either. A fixed parameter (kA from the static test) is identified."""
     judged = {
@@ -134,7 +137,7 @@ def judged_parameters(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
 def fit_totals(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
     """The totals of a written fit (``totals``: C_total = C + C_veh with its 95 % interval),
     as recorded, or computed from its parameters, correlation and systematic effects
-    (:func:`railtherm.pem.total_capacity`) for a fit written without them."""
+    (:func:`railtherm.estimation.pem.total_capacity`) for a fit written without them."""
     if fit.get("totals"):
         return dict(fit["totals"])
     structure = fit_structure(fit)
@@ -266,7 +269,7 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
         T = dict(fit["measures"]["T"]["overall"])
         estimator = fit.get("estimator", "output_error")
         if estimator == "kalman":  # the criteria of its likelihood, the tests of its innovations
-            from railtherm.diagnostics import information_criteria
+            from railtherm.estimation.diagnostics import information_criteria
 
             T |= information_criteria(fit["loglik"], fit["n_params"], fit["n_obs"])
             T["p"] = fit["n_params"]
@@ -387,7 +390,8 @@ def quantity(value: float, ci95: Sequence[float], judged: Mapping[str, Any]) -> 
     """The table columns of one quantity: ``q``, ``q_lo``, ``q_hi`` (NaN when not identified:
     such a value is never printed, averaged or compared as an estimate), ``q_status``
     ("estimated" or "not identified: <reason>"), and ``q_limit`` with ``q_limit_kind`` ("upper"
-    / "lower" / "none"): the one-sided limit the data do give (railtherm.pem.identification)."""
+    / "lower" / "none"): the one-sided limit the data do give
+    (railtherm.estimation.pem.identification)."""
     if judged.get("identified", True):
         lo, hi = (float(c) for c in ci95)
         return {"": float(value), "_lo": lo, "_hi": hi, "_status": ESTIMATED}
@@ -718,7 +722,7 @@ def class_test(
     (needs 3 vehicles per group: with 2, one sample sd is a single difference and the test
     has almost no power) and the exact two-sided Mann-Whitney U test, each run only when it
     can reach significance at ``alpha`` - the exact test's smallest attainable p is
-    2 / C(n_a + n_b, n_a) (railtherm.smallsample: 0.2 at 3 vs 2), so with fewer vehicles
+    2 / C(n_a + n_b, n_a) (railtherm.study.smallsample: 0.2 at 3 vs 2), so with fewer vehicles
     "no significant difference" would be certain before any data; the conclusion then reads
     "not testable". A plain conclusion from the tests that ran."""
     a_name, b_name = groups

@@ -9,7 +9,7 @@ CTSM-R and pySIP report them, computed from plain arrays and numbers:
   whiteness test: it sees a slow periodic error that the autocorrelation spreads thinly over
   many lags.
 * :func:`residual_tests`: that test beside the Ljung-Box portmanteau test (Ljung & Box 1978),
-  which is :func:`railtherm.metrics.ljung_box` itself (not a second implementation).
+  which is :func:`railtherm.estimation.metrics.ljung_box` itself (not a second implementation).
 * :func:`likelihood_ratio`: the likelihood-ratio test of two nested models (Wilks 1938), with
   the chi-bar-squared null distribution when parameters of the larger model lie on the
   boundary of the smaller (Self & Liang 1987).
@@ -18,7 +18,8 @@ CTSM-R and pySIP report them, computed from plain arrays and numbers:
   2011, *Identifying suitable models for the heat dynamics of buildings*, Energy and Buildings
   43); :func:`selection_markdown` renders the steps as a table.
 * :func:`information_criteria`: AIC (Akaike 1974) and BIC (Schwarz 1978) from a
-  log-likelihood. :func:`railtherm.metrics.aic` / :func:`~railtherm.metrics.bic` are the same
+  log-likelihood. :func:`railtherm.estimation.metrics.aic` /
+  :func:`~railtherm.estimation.metrics.bic` are the same
   criteria for output-error fits, from the sum of squared residuals (Gaussian likelihood with
   the variance profiled out, constants dropped); these take the log-likelihood itself, as a
   Kalman-filter fit gives it. Differences between models agree; absolute values do not.
@@ -37,7 +38,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from railtherm.metrics import Whiteness, ljung_box
+from railtherm.estimation.metrics import Whiteness, ljung_box
 
 __all__ = [
     "Candidate",
@@ -225,7 +226,8 @@ def cumulated_periodogram(
 @dataclass(frozen=True)
 class ResidualTests:
     """The two whiteness tests of one residual series: Ljung-Box (time domain,
-    :class:`railtherm.metrics.Whiteness`) and the cumulated periodogram (frequency domain)."""
+    :class:`railtherm.estimation.metrics.Whiteness`) and the cumulated periodogram (frequency
+    domain)."""
 
     ljung_box: Whiteness
     periodogram: CpgTest
@@ -253,7 +255,8 @@ def residual_tests(
     alpha: float = 0.05,
     method: Literal["exact", "asymptotic"] = "exact",
 ) -> ResidualTests:
-    """Ljung-Box (Ljung & Box 1978, :func:`railtherm.metrics.ljung_box`: ``lags``, default
+    """Ljung-Box (Ljung & Box 1978, :func:`railtherm.estimation.metrics.ljung_box`: ``lags``,
+    default
     min(20, m // 5), and ``fitted`` parameters subtracted from its degrees of freedom) and the
     cumulated periodogram test (:func:`cumulated_periodogram`, ``method``) of one residual
     series, both at level ``alpha``.

@@ -15,8 +15,9 @@ temperature T, n = 1..m, and e(n) = y(n) - yhat(n) the (simulation-error) residu
 * :func:`autocorrelation` of the residuals (FFT) and :func:`ljung_box`, a whiteness test.
   Simulation-error residuals of slow thermal data are almost never white (any small model error
   leaves a slow, smooth residual), so the Ljung-Box p-value is nearly always ~0 on real data and
-  is reported for information; the *autocorrelation time* tau (``railtherm.kvalue``'s
-  :func:`~railtherm.acf.autocorrelation_time`, Geyer's initial positive sequence) says how
+  is reported for information; the *autocorrelation time* tau (``railtherm.estimation.kvalue``'s
+  :func:`~railtherm.estimation.acf.autocorrelation_time`, Geyer's initial positive sequence) says
+  how
   coloured they are: the residuals carry about m / tau independent samples.
 * :func:`aic` and :func:`bic` from SSR, m, p under a Gaussian likelihood, to compare the first
   and the second order on the same data (lower is better; only differences matter).
@@ -35,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from railtherm.acf import autocorrelation, autocorrelation_time, deviations
+from railtherm.estimation.acf import autocorrelation, autocorrelation_time, deviations
 
 __all__ = [
     "ACCEPTABLE",

@@ -22,8 +22,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import identify, metrics, pem, structures
+from railtherm import structures
 from railtherm.errors import ConfigError
+from railtherm.estimation import metrics, pem
+from railtherm.study import identify
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 
 __all__ = ["compare", "load_reference", "markdown", "published_parameters", "simulate_published"]
@@ -123,9 +125,10 @@ def simulate_published(
 
 
 def _row(quantity, label, published, fit_entry, simulated=None, judged=None) -> dict[str, Any]:
-    """One quantity; a fitted value the data do not determine (railtherm.pem.identification),
+    """One quantity; a fitted value the data do not determine
+    (railtherm.estimation.pem.identification),
     or coupled to one they do not determine (``judged``: the fit's judgement with its
-    structure's coupling, railtherm.aggregate.judged_parameters), has no value, no interval
+    structure's coupling, railtherm.study.aggregate.judged_parameters), has no value, no interval
     and is within nothing: its ``status`` says why."""
     value = np.nan if fit_entry is None else float(fit_entry["value"])
     lo, hi = (np.nan, np.nan)
@@ -171,7 +174,7 @@ def compare(
     printed = reference.get("metrics") or {}
     simulated = simulate_published(reference, tables, vehicle_data) or {}
     fitted = fit["parameters"]
-    from railtherm.aggregate import judged_parameters
+    from railtherm.study.aggregate import judged_parameters
 
     judged = judged_parameters(fit)
     # every published parameter (a quantity railtherm does not estimate stays blank), then kA

@@ -1,6 +1,6 @@
 """Simulation-error prediction error method (paper section 5.3, eqs. 15-18 with K = 0).
 
-The model (a :class:`railtherm.models.Structure`) is simulated exactly (zero-order hold,
+The model (a :class:`railtherm.estimation.models.Structure`) is simulated exactly (zero-order hold,
 eq. 15) from each experiment's initial state, and the criterion J(theta) = e^T e (eq. 17) over
 the compared outputs (eq. 18; outputs in K, equal weights for every output and sample; rows
 where the measurement is NaN are skipped) is minimised in log parameters, with bounds, fixed
@@ -45,9 +45,9 @@ from typing import Any, ClassVar
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from railtherm import models
-from railtherm.estimate import Estimate, Flag
-from railtherm.models import Structure
+from railtherm.estimation import models
+from railtherm.estimation.estimate import Estimate, Flag
+from railtherm.estimation.models import Structure
 
 __all__ = [
     "Experiment",
@@ -89,7 +89,7 @@ class Experiment:
     measured / not used), ``x0`` the measured initial state (NaN entries are estimated) or
     None (the first row of ``y``). ``hold``: how the inputs run between samples,
     "zero_order" (u[n] held over [t_n, t_n + dt), eq. 15) or "first_order" (u[n] the value
-    at t_n, linear to u[n+1]; :mod:`railtherm.models`)."""
+    at t_n, linear to u[n+1]; :mod:`railtherm.estimation.models`)."""
 
     name: str
     dt: float
@@ -100,12 +100,14 @@ class Experiment:
 
     @property
     def forcing(self) -> np.ndarray:
-        """The rows the discrete model multiplies by Bd (:func:`railtherm.models.forcing`)."""
+        """The rows the discrete model multiplies by Bd
+        (:func:`railtherm.estimation.models.forcing`)."""
         return models.forcing(self.u, self.hold)
 
     @property
     def step_u(self) -> np.ndarray:
-        """Each input's mean over [t_n, t_n + dt) (:func:`railtherm.models.step_means`)."""
+        """Each input's mean over [t_n, t_n + dt)
+        (:func:`railtherm.estimation.models.step_means`)."""
         return models.step_means(self.u, self.hold)
 
     def __post_init__(self):
@@ -147,7 +149,7 @@ def experiment_from_table(
     inputs: Sequence[str] = ("T_o", "Q_H"),
     hold: str = "zero_order",
 ):
-    """An :class:`Experiment` from a tidy table (railtherm.ingest.read_tidy).
+    """An :class:`Experiment` from a tidy table (railtherm.data.ingest.read_tidy).
 
     ``inputs``: the structure's inputs, "T_o" and "Q_H" first, then any further tidy columns
     (irradiance, e.g. "I_sol"). Zero-order ``hold`` (eq. 15): Q_H[n] is already the mean
@@ -337,7 +339,8 @@ class _Problem:
     def cost_x0_projected(self, v) -> tuple[float, np.ndarray]:
         """e^T e at the parameters of v with the estimated initial states at their best
         (within their bounds), and that v. The outputs are linear in x0 (x[n] depends on x0
-        through Ad^n, :func:`railtherm.models.free_response_head`), so for fixed parameters
+        through Ad^n, :func:`railtherm.estimation.models.free_response_head`), so for fixed
+        parameters
         the best initial states are one small linear least-squares problem per experiment:
         a start's cost is judged with the initial states the data give it, not a guess."""
         _, sims = self._evaluate(v, derivatives=False)
@@ -822,7 +825,8 @@ def _noise_energy(structure, prob, theta, levels) -> float:
     squares, over the compared samples, of the simulated outputs' response to the white
     noise on input k (eq. 15's ZOH model), i.e. sum over outputs i and lags l of
     sigma_k^2 h_ik(l)^2 times the number of compared samples t > l, with the impulse
-    response h(l) = Ad^l Bd (:func:`railtherm.models.free_response_head`, one discretisation
+    response h(l) = Ad^l Bd (:func:`railtherm.estimation.models.free_response_head`, one
+    discretisation
     per step length)."""
     total, impulse = 0.0, {}
     for e, rows, sigma in zip(prob.exps, prob.rows, levels, strict=True):
@@ -1127,7 +1131,8 @@ def _scale_aware_start(
     """The automatic start when not every state is measured (no equation-error start).
 
     Centre, from the data alone: every free conductance equal and every free capacity
-    equal. The overall kA (:func:`railtherm.models.steady_state_kA`) is kA_ref, that of the
+    equal. The overall kA (:func:`railtherm.estimation.models.steady_state_kA`) is kA_ref, that of
+    the
     heat balance (:func:`heat_balance_kA`) when the free conductances set it (doubling them
     doubles it), else that of the initial values with the fixed ones (the static kA of the
     two-stage method), which the free conductances then equal; the capacities share C_bar, the
@@ -1459,7 +1464,7 @@ def total_capacity(
 
     Sigma the fit's statistical covariance of the log parameters (``sd_log`` and
     ``correlation`` over ``free``), e the signed systematic effects of each source
-    (``effects_log``, railtherm.identify.systematic_budget). A part at a bound of the search
+    (``effects_log``, railtherm.study.identify.systematic_budget). A part at a bound of the search
     (its entry's ``at_bound``, :func:`identification`) is held there: the sum is conditional
     on it (its variance and effects left out, ``note`` says so); a part at an upper bound, or
     every part at a bound, leaves the sum not identified, and a part with an unbounded

@@ -1,16 +1,16 @@
 """Stochastic grey-box estimator: the prediction error method with a Kalman gain (paper
 eqs. 15-18 with K estimated through a noise model, not fixed to 0), by maximum likelihood.
 
-Model (continuous-discrete, any :class:`railtherm.models.Structure`)::
+Model (continuous-discrete, any :class:`railtherm.estimation.models.Structure`)::
 
     dx = (A(theta) x + B(theta) u) dt + Sigma dw,   Sigma = diag(sigma_i)   (one per state)
     y_k = C x_k + v_k,                              v_k ~ N(0, S), S = diag(s_j)
 
 C selects the compared outputs (states). The input is held over each step (zero-order hold,
-as :mod:`railtherm.pem`) or linear between samples (first-order hold: u_k below is then
-[u_k; u_{k+1}], :func:`railtherm.models.forcing`), so the exact discrete model is
-x_{k+1} = Ad x_k + Bd u_k + w_k with (Ad, Bd) of :func:`railtherm.models.discretize` and
-w_k ~ N(0, Qd), Qd by Van Loan's method (:func:`railtherm.models.discretize_noise`).
+as :mod:`railtherm.estimation.pem`) or linear between samples (first-order hold: u_k below is then
+[u_k; u_{k+1}], :func:`railtherm.estimation.models.forcing`), so the exact discrete model is
+x_{k+1} = Ad x_k + Bd u_k + w_k with (Ad, Bd) of :func:`railtherm.estimation.models.discretize` and
+w_k ~ N(0, Qd), Qd by Van Loan's method (:func:`railtherm.estimation.models.discretize_noise`).
 
 Likelihood: the Kalman filter's innovations eps_k = y_k - C x_{k|k-1} and their covariances
 R_k = C P_{k|k-1} C^T + S give the exact negative log-likelihood
@@ -22,7 +22,8 @@ single outputs of a row, without a measurement skip the update. Once the predict
 P_k has reached the solution P of the discrete algebraic Riccati equation of the row's
 measurement pattern (``scipy.linalg.solve_discrete_are``; relative 1e-10), the filter is the
 time-invariant recursion x_{k+1} = F x_k + Bd u_k + L y_k (F = Ad - L C, L = Ad P C^T R^-1),
-run without a Python loop by the modal ``lfilter`` machinery of :mod:`railtherm.models`. An
+run without a Python loop by the modal ``lfilter`` machinery of :mod:`railtherm.estimation.models`.
+An
 estimated initial state starts with the stationary prior covariance P_0 = P (no transient at
 all); a measured one with the measurement variances. A run that starts off the stationary
 covariance (a measured initial state, the first rows after a gap) is filtered with the
@@ -38,13 +39,14 @@ the record's last run whatever its length, and for an earlier run whose transien
 within it (the next run then starts as the time-varying filter's would).
 
 Gradient: exact, by forward sensitivities of the filter recursions (the derivatives of Ad, Bd
-from the block exponential of :func:`railtherm.models.discretize`, of Qd from Van Loan's
+from the block exponential of :func:`railtherm.estimation.models.discretize`, of Qd from Van Loan's
 exponential, of the stationary P from the Lyapunov equation the differentiated Riccati
 equation is, ``scipy.linalg.solve_discrete_lyapunov``), in log parameters. The same
 sensitivities give the Fisher information, the Hessian of a trust-region scoring step
 (``scipy.optimize.minimize``, trust-exact); L-BFGS-B finishes with bounds when the optimum
 lies on one. Covariance: the inverse of the observed information (forward differences of the
-analytic gradient) at the optimum; 95 % intervals in log parameters as in :mod:`railtherm.pem`,
+analytic gradient) at the optimum; 95 % intervals in log parameters as in
+:mod:`railtherm.estimation.pem`,
 whose flags are reused.
 """
 
@@ -60,10 +62,10 @@ import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_discrete_are, solve_discrete_lyapunov
 from scipy.optimize import minimize
 
-from railtherm import models, pem
-from railtherm.estimate import Estimate
-from railtherm.models import Structure
-from railtherm.pem import Experiment
+from railtherm.estimation import models, pem
+from railtherm.estimation.estimate import Estimate
+from railtherm.estimation.models import Structure
+from railtherm.estimation.pem import Experiment
 
 __all__ = [
     "KalmanResult",
@@ -110,7 +112,8 @@ class _Modes:
     are conjugate, so x = sum over the kept modes of weight Re(v_i z_i), weight 2 for a pair):
     one ``scipy.signal.lfilter`` per kept mode for all channels. A Kalman predictor's F =
     Ad - L C often has a complex pair where Ad has none. When V is ill-conditioned or the
-    eigenvalues are repeated, the complex Schur form of :func:`railtherm.models.modal_form`
+    eigenvalues are repeated, the complex Schur form of
+    :func:`railtherm.estimation.models.modal_form`
     is used instead (every mode, complex, weight 1: x = Re(sum of Q_i z_i))."""
 
     def __init__(self, F: np.ndarray):
@@ -664,7 +667,7 @@ def _steady_run(
 ) -> tuple[float, np.ndarray, np.ndarray]:
     """Rows k..k1-1 with the stationary filter: x_{j+1} = F x_j + Bd u_j + L y_j and its
     sensitivities dx_{j+1} = F dx_j + dF x_j + dBd u_j + dL y_j, each one modal lfilter per
-    mode for all channels (:func:`railtherm.models.propagate`); R is constant, so
+    mode for all channels (:func:`railtherm.estimation.models.propagate`); R is constant, so
 
         NLL = 1/2 (n_rows (log det R + n_o log 2 pi) + sum eps^T R^-1 eps),
         dNLL = 1/2 n_rows tr(R^-1 dR) - 1/2 tr(R^-1 dR R^-1 E) + sum (R^-1 eps)^T deps,
@@ -1021,7 +1024,8 @@ def negative_log_likelihood(
 
 
 def _default_outputs(structure: Structure, experiments: Sequence[Experiment]) -> tuple[str, ...]:
-    """Every state with a finite measurement in some experiment (as :func:`railtherm.pem.fit`)."""
+    """Every state with a finite measurement in some experiment (as
+    :func:`railtherm.estimation.pem.fit`)."""
     n = len(structure.states)
     return tuple(
         s
@@ -1037,13 +1041,13 @@ def _default_outputs(structure: Structure, experiments: Sequence[Experiment]) ->
 @dataclass(kw_only=True)
 class KalmanResult(Estimate):
     """The maximum-likelihood estimate of the stochastic grey-box model, an
-    :class:`~railtherm.estimate.Estimate` with ``estimator`` kalman.
+    :class:`~railtherm.estimation.estimate.Estimate` with ``estimator`` kalman.
 
     As every estimate for the structure's parameters: ``theta`` (all, fixed
     ones too), ``free`` (estimated, in the order of ``correlation``), ``fixed``, ``ci95``,
     ``sd_log``, ``correlation``, ``cond`` (square root of the condition number of the observed
     information of the log parameters, the analogue of cond(J)), ``flags``, ``identified``
-    ({param: :func:`railtherm.pem.identification`}). ``cost`` is the minimised negative
+    ({param: :func:`railtherm.estimation.pem.identification`}). ``cost`` is the minimised negative
     log-likelihood and ``loglik`` = -cost; ``n_obs`` the scalar measurements used,
     ``n_unknowns`` = ``n_params`` every estimated quantity (parameters, noise parameters,
     initial states: the count of AIC = 2 cost + 2 n_params and BIC).
@@ -1177,19 +1181,21 @@ def fit(
     """Maximum-likelihood fit of the stochastic model of ``structure`` to ``experiments``
     jointly (shared parameters, each experiment its own initial state).
 
-    fixed / initial / bounds: as :func:`railtherm.pem.fit` for the structure's parameters,
+    fixed / initial / bounds: as :func:`railtherm.estimation.pem.fit` for the structure's
+    parameters,
     and may also name the noise parameters of :func:`noise_names` (``sigma_<state>`` in
     K/sqrt(s), ``s_<output>`` in K^2; ``fixed={"sigma_T": 0.0}`` removes the diffusion of T).
     outputs: the compared states (default: every state with a measurement). x0:
     ``"estimated"`` (every initial state estimated, prior covariance the stationary P of the
     filter) or ``"measured"`` (the first measurement with its variance s_j as prior; a state
     without one is estimated). start: passed to the output-error fit
-    (:func:`railtherm.pem.fit`, ``"auto"`` or ``"initial"``) whose optimum starts theta and
+    (:func:`railtherm.estimation.pem.fit`, ``"auto"`` or ``"initial"``) whose optimum starts theta
+    and
     the initial states; the measurement variances start at the output-error residual variance,
     the diffusions at sigma_initial (K/sqrt(s), one value or {state: value}), by default
     sigma_i^2 dt = SIGMA_START^2 times the mean of those variances. input_noise: {input name:
     the standard deviation of its white measurement noise, one value or one per experiment},
-    as :func:`railtherm.pem.fit` takes it: compensated in the estimate and added to the
+    as :func:`railtherm.estimation.pem.fit` takes it: compensated in the estimate and added to the
     covariance (:func:`_input_noise_terms`). offsets: {compared output: sd (K)} - a constant
     offset of that output's readings (y = x + b + v, one output at most), estimated with the
     Gaussian prior b ~ N(0, sd^2): the calibration offset of a sensor group relative to the

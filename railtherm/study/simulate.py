@@ -1,12 +1,12 @@
 """Predictions from an identified model: a scenario run through eqs. 7-8 (or 9, or any further
 structure), with 95 % bands.
 
-A scenario (:mod:`railtherm.scenario`) gives the outdoor temperature T_o, the heating (a fixed
+A scenario (:mod:`railtherm.study.scenario`) gives the outdoor temperature T_o, the heating (a fixed
 power series, or a thermostat or PI controller to a set point with a power limit), the further
 heat flows of eq. 1 (passengers, auxiliaries, door openings as heat or as air exchange),
 irradiance, the initial state and the duration. :func:`simulate` runs it through a parameter
-set - a checked fit (:class:`railtherm.fit.Fit`) or a class reference model
-(:class:`railtherm.classmodel.ReferenceModel`) - and reports T(t), every further state
+set - a checked fit (:class:`railtherm.study.fit.Fit`) or a class reference model
+(:class:`railtherm.study.classmodel.ReferenceModel`) - and reports T(t), every further state
 (T_veh), the heating power, its energy (kWh) and peak, and the heat-up and cool-down times to
 the scenario's thresholds.
 
@@ -30,13 +30,13 @@ correlation) plus each systematic error source of the type-B budget as one commo
 of every parameter it moves (kA of the static test included); for the stochastic (kalman)
 estimator, each draw also carries the identified process noise (the diffusion Sigma of the
 state equation, discretised exactly). For a class reference model, the draws come from the
-spread of the class's vehicles (:meth:`railtherm.classmodel.ReferenceModel.draws`). A result
+spread of the class's vehicles (:meth:`railtherm.study.classmodel.ReferenceModel.draws`). A result
 some draws do not reach within the duration has an open upper band ("> duration").
 
 **Physical limits of the draws.** A drawn parameter set is a vehicle only if every capacity
 and conductance is finite and positive and the air node's capacity (C of eqs. 7-8, C_bar of
 eq. 9) is at least that of the air it holds, rho c_p V (V the vehicle's ``volume_m3``,
-rho c_p = :data:`railtherm.identify.RHO_CP_AIR`). With C >= rho c_p V no draw heats up
+rho c_p = :data:`railtherm.study.identify.RHO_CP_AIR`). With C >= rho c_p V no draw heats up
 faster than the air alone would: C dT/dt <= Q_H while T lies above T_o and T_veh, so a rise
 by Delta T at power P takes at least rho c_p V Delta T / P. Draws beyond the limits are
 rejected and replaced by further draws from the same generator (rejection sampling: the
@@ -66,9 +66,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import models
 from railtherm.errors import ConfigError
-from railtherm.scenario import Scenario
+from railtherm.estimation import models
+from railtherm.study.scenario import Scenario
 
 __all__ = [
     "NotPredictable",
@@ -318,10 +318,10 @@ def _bounded(draws: Mapping[str, np.ndarray], centre: Mapping[str, float]) -> di
 
 
 def parameter_set(params: Any) -> ParameterSet:
-    """The :class:`ParameterSet` of a :class:`railtherm.fit.Fit` or a class reference model
-    (:class:`railtherm.classmodel.ReferenceModel`)."""
-    from railtherm.fit import Fit
-    from railtherm.metrics import ACCEPTABLE
+    """The :class:`ParameterSet` of a :class:`railtherm.study.fit.Fit` or a class reference model
+    (:class:`railtherm.study.classmodel.ReferenceModel`)."""
+    from railtherm.estimation.metrics import ACCEPTABLE
+    from railtherm.study.fit import Fit
 
     if isinstance(params, Fit):
         withheld = (
@@ -350,7 +350,7 @@ def parameter_set(params: Any) -> ParameterSet:
             not_identified=not_identified,
             band_withheld=withheld,
         )
-    from railtherm import classmodel
+    from railtherm.study import classmodel
 
     if isinstance(params, classmodel.ReferenceModel):
         structure = models.structure_for(params.structure)
@@ -372,8 +372,8 @@ def parameter_set(params: Any) -> ParameterSet:
 
 
 def air_capacity(volume_m3: float | None, label: str = "volume_m3") -> float | None:
-    """rho c_p V (J/K) of ``volume_m3``: :func:`railtherm.identify.air_capacity`."""
-    from railtherm.identify import air_capacity as capacity
+    """rho c_p V (J/K) of ``volume_m3``: :func:`railtherm.study.identify.air_capacity`."""
+    from railtherm.study.identify import air_capacity as capacity
 
     return capacity(volume_m3, label)
 
@@ -431,11 +431,11 @@ def load_parameters(path: str | os.PathLike[str]) -> ParameterSet:
     name = str(path)
     data = read_yaml(path)
     if isinstance(data, dict) and data.get("kind") == "class_reference_model":
-        from railtherm import classmodel
+        from railtherm.study import classmodel
 
         return parameter_set(classmodel.read_reference_model(path))
     if isinstance(data, dict) and {"vehicle", "parameters", "structure"} <= set(data):
-        from railtherm.fit import Fit
+        from railtherm.study.fit import Fit
 
         return parameter_set(Fit(data))
     keys = sorted(data) if isinstance(data, dict) else type(data).__name__

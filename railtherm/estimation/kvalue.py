@@ -2,7 +2,7 @@
 GUM uncertainty budget.
 
 Eq. 10, 0 = Q_H - k A (T - T_o), holds only at rest (dT/dt = 0). Over a steady window of a tidy
-table (columns ``time``, ``T``, ``T_veh``, ``T_o``, ``Q_H``; see :mod:`railtherm.ingest`)::
+table (columns ``time``, ``T``, ``T_veh``, ``T_o``, ``Q_H``; see :mod:`railtherm.data.ingest`)::
 
     k = mean(Q_H) / (A (mean(T) - mean(T_o)))          (eq. 10)        kA = k A
 
@@ -72,8 +72,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm.acf import autocorrelation_time
 from railtherm.errors import DataError
+from railtherm.estimation.acf import autocorrelation_time
 
 __all__ = [
     "Budget",

@@ -40,8 +40,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from railtherm.data.readers import line_of
 from railtherm.errors import ConfigError, DataError
-from railtherm.readers import line_of
 
 ELAPSED_UNITS_S = {"seconds": 1.0, "minutes": 60.0, "hours": 3600.0, "days": 86400.0}
 NAMED_ABSOLUTE = ("iso", "epoch", "epoch_ms", "serial_days")

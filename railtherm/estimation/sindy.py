@@ -311,7 +311,7 @@ def cross_check(
 
 def _param(fit: Mapping[str, Any], name: str) -> tuple[float, float, float]:
     """(value, lo, hi) of a fit parameter; NaN throughout for one the data do not determine
-    (railtherm.pem.identification), so no coefficient is implied from it."""
+    (railtherm.estimation.pem.identification), so no coefficient is implied from it."""
     entry = fit["parameters"][name]
     if entry.get("identified", True) is False:  # as judged by the fit; the interval
         # arithmetic below copes with an unbounded interval of an older fit itself

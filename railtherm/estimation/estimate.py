@@ -1,7 +1,8 @@
 """What every estimator returns: an :class:`Estimate` of a structure's parameters from a set of
 records, with its intervals, identifiability flags and the simulated series. The paper's
-simulation-error PEM (:class:`railtherm.pem.FitResult`) and the Kalman filter's maximum
-likelihood (:class:`railtherm.kalman.KalmanResult`) extend it; ``estimator`` says which."""
+simulation-error PEM (:class:`railtherm.estimation.pem.FitResult`) and the Kalman filter's maximum
+likelihood (:class:`railtherm.estimation.kalman.KalmanResult`) extend it; ``estimator`` says
+which."""
 
 from __future__ import annotations
 

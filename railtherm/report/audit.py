@@ -48,7 +48,7 @@ from typing import Any
 import pandas as pd
 
 from railtherm.errors import ConfigError
-from railtherm.smallsample import two_class_test
+from railtherm.study.smallsample import two_class_test
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 
 SEVERITIES = ("error", "warning", "info")
@@ -652,8 +652,8 @@ class ClassTest:
     """Welch's t-test and the exact two-sided Mann-Whitney U test of two classes.
 
     A test runs only when it can say something at α (Welch: at least three values per class,
-    railtherm.smallsample.WELCH_MIN; Mann-Whitney: its smallest attainable p-value below α,
-    railtherm.smallsample.smallest_mann_whitney_p). ``verdict`` on a claim that the
+    railtherm.study.smallsample.WELCH_MIN; Mann-Whitney: its smallest attainable p-value below α,
+    railtherm.study.smallsample.smallest_mann_whitney_p). ``verdict`` on a claim that the
     difference is not significant: ``contradicted`` when both tests ran and both give p < α,
     ``not testable: too few vehicles`` when neither could run, else ``not contradicted``."""
 
@@ -675,7 +675,7 @@ def class_test(
 ) -> ClassTest:
     """Welch's t-test (unequal variances) and the exact two-sided Mann-Whitney U test of the
     values ``a`` of class ``names[0]`` against ``b`` of ``names[1]`` at level ``alpha``
-    (railtherm.smallsample.two_class_test), with their arithmetic."""
+    (railtherm.study.smallsample.two_class_test), with their arithmetic."""
     test = two_class_test(a, b, alpha)
     na, nb = len(a), len(b)
     name_a, name_b = names
@@ -1373,7 +1373,8 @@ def check_separators(pub: Published, ranges: Mapping[str, Any] | None = None) ->
 
 REESTIMATED = ("k", "C", "K_veh", "C_veh", "c_veh", "delta")
 # An interval spanning more than a factor UNBOUNDED in total (hi / lo) is no estimate
-# (railtherm.pem.identification): the data do not determine the value, and it is not compared.
+# (railtherm.estimation.pem.identification): the data do not determine the value, and it is not
+# compared.
 UNBOUNDED = 1000.0
 TOTAL = "C_total"  # C + C_veh of the re-estimates' Table 2: the capacity the data determine
 AGREES, DIFFERS, NOT_COMPARABLE = "agrees", "differs", "not comparable"

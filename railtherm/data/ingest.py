@@ -1,6 +1,6 @@
 """Cleaning raw climatic-wind-tunnel recordings into tidy, uniformly sampled tables.
 
-A raw file (CSV, plain or ``.gz``, or any kind :mod:`railtherm.readers` reads) is read by
+A raw file (CSV, plain or ``.gz``, or any kind :mod:`railtherm.data.readers` reads) is read by
 :func:`read_raw`; :func:`tidy` cuts one window out of it and returns the tidy table every later
 stage consumes; :func:`clean_window` does both for a window named in the vehicle config, and
 :func:`write_tidy` writes the table.
@@ -76,7 +76,7 @@ into the rows of the window is a :class:`~railtherm.errors.DataError` naming the
 column and the time of the gap. Gaps elsewhere in the file do not matter.
 
 Units: each channel's ``scale * raw + offset`` (when declared) in its declared unit, converted
-to degC (from K or degF), W (from kW) or W/m2 (from kW/m2) by :func:`railtherm.units.to_si`.
+to degC (from K or degF), W (from kW) or W/m2 (from kW/m2) by :func:`railtherm.data.units.to_si`.
 Raw-data problems raise :class:`~railtherm.errors.DataError`; a window that does not fit the
 data (outside it, empty, unknown name) raises :class:`~railtherm.errors.ConfigError` naming the
 raw file and the window's key.
@@ -93,10 +93,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import timeaxis, units
+from railtherm.data import timeaxis, units
+from railtherm.data.rawfile import parse_times, read_columns, separator_hint
+from railtherm.data.readers import elsewhere_hint, line_of, read_table, reader_kind
 from railtherm.errors import ConfigError, DataError
-from railtherm.rawfile import parse_times, read_columns, separator_hint
-from railtherm.readers import elsewhere_hint, line_of, read_table, reader_kind
 
 __all__ = [
     "TIDY_COLUMNS",
@@ -155,8 +155,8 @@ def read_raw(
     """Read a raw file into a DataFrame indexed by its time in seconds.
 
     ``fmt`` is the vehicle's ``format`` section: the kind of file (CSV, plain or ``.gz``; Excel;
-    MATLAB; R) and how to read it (:mod:`railtherm.readers`), decimal, and ``time`` (column,
-    format, timezone, dst; :mod:`railtherm.timeaxis`). The index (``t_s``, float) is the time
+    MATLAB; R) and how to read it (:mod:`railtherm.data.readers`), decimal, and ``time`` (column,
+    format, timezone, dst; :mod:`railtherm.data.timeaxis`). The index (``t_s``, float) is the time
     column in seconds: elapsed time in seconds (the numbers themselves for ``seconds``,
     converted from minutes, hours or days), seconds since the first row for instants (iso, a
     strftime pattern, epoch, serial_days). The time column is kept as text (the raw labels);
@@ -303,7 +303,7 @@ def _window_key(vehicle_data: dict[str, Any], window: dict[str, Any] | None) -> 
 
 
 def _bound(file: str, key: str, value: Any, tf: timeaxis.TimeFormat, origin: Any) -> float:
-    """A window bound (in the file's notation or ISO 8601, :func:`railtherm.timeaxis.instant`)
+    """A window bound (in the file's notation or ISO 8601, :func:`railtherm.data.timeaxis.instant`)
     in the raw index's seconds."""
     t = timeaxis.instant(file, key, value, tf)
     if not tf.absolute:
@@ -596,7 +596,7 @@ def tidy(
 
     ``vehicle_data`` is the validated vehicle config as plain data (``Vehicle.data``);
     ``window`` is a window of it (``start``/``end`` in the file's time notation, or ISO 8601
-    for a file of instants; :func:`railtherm.timeaxis.instant`) or ``None`` for
+    for a file of instants; :func:`railtherm.data.timeaxis.instant`) or ``None`` for
     the whole recording; ``file`` names the raw file in messages, ``window_key`` the window
     (default: found in ``vehicle_data``, e.g. ``windows.kvalue``).
 

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from railtherm import io as results_io
-from railtherm import models, pem
+from railtherm.estimation import models, pem
 
 
 @dataclass(frozen=True)

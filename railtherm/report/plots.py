@@ -37,12 +37,15 @@ from matplotlib.layout_engine import ConstrainedLayoutEngine, PlaceHolderLayoutE
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
 
-from railtherm import aggregate, ingest, pem, structures
 from railtherm import io as rt_io
-from railtherm.acf import autocorrelation
-from railtherm.diagnostics import cumulated_periodogram
-from railtherm.kvalue import KValue
-from railtherm.metrics import ACCEPTABLE, IN_DOUBT, ljung_box
+from railtherm import structures
+from railtherm.data import ingest
+from railtherm.estimation import pem
+from railtherm.estimation.acf import autocorrelation
+from railtherm.estimation.diagnostics import cumulated_periodogram
+from railtherm.estimation.kvalue import KValue
+from railtherm.estimation.metrics import ACCEPTABLE, IN_DOUBT, ljung_box
+from railtherm.study import aggregate
 
 __all__ = [
     "fit_figure",
@@ -689,7 +692,7 @@ def _limits(values: np.ndarray, log: bool, pad: float = 0.07) -> tuple[float, fl
 
 def _identified(table3: pd.DataFrame, quantity: str) -> np.ndarray:
     """Rows whose ``quantity`` the data determine: Table 3's ``<q>_status``, or for a table
-    without it a finite value with a bounded interval (railtherm.pem.identification)."""
+    without it a finite value with a bounded interval (railtherm.estimation.pem.identification)."""
     values = table3[quantity].to_numpy(dtype=float)
     ok = np.isfinite(values)
     if f"{quantity}_status" in table3:
@@ -1115,11 +1118,13 @@ def innovation_figure(
     the filter's predicted standard deviation of each innovation (same shapes as
     ``innovations``, or a scalar per output), and without it the residuals are scaled by
     their sample standard deviation around their mean. Middle: their autocorrelation
-    (:func:`railtherm.acf.autocorrelation`) at lags 1..``max_lag`` samples (default
+    (:func:`railtherm.estimation.acf.autocorrelation`) at lags 1..``max_lag`` samples (default
     min(40, m // 4)) with the white-noise band +-z_(1-alpha/2) / sqrt(m) (95 % at the default
-    alpha) and the Ljung-Box p-value (Ljung & Box 1978, :func:`railtherm.metrics.ljung_box`).
+    alpha) and the Ljung-Box p-value (Ljung & Box 1978,
+    :func:`railtherm.estimation.metrics.ljung_box`).
     Right: the cumulated periodogram against frequency (cycles per sample) with its
-    Kolmogorov-Smirnov band and p-value (:func:`railtherm.diagnostics.cumulated_periodogram`,
+    Kolmogorov-Smirnov band and p-value
+    (:func:`railtherm.estimation.diagnostics.cumulated_periodogram`,
     exact method; NaN rows dropped there, while the autocorrelation counts them as zero
     deviations so that lags stay lags in time).
 
@@ -1249,7 +1254,7 @@ def scenario_figure(
     note: str | None = None,
 ) -> Figure:
     """One scenario through every vehicle's identified model (``runs``: vehicle ->
-    :class:`railtherm.simulate.SimulationResult`): (a) the indoor air temperature T(t) with
+    :class:`railtherm.study.simulate.SimulationResult`): (a) the indoor air temperature T(t) with
     its 95 % band, the heat-up threshold dashed, each line faint once it reaches the threshold
     (where a thermostat holds it, switching every few steps); (b) the heating energy since the
     start (kWh, the integral of the held power: readable where a thermostat switches)."""
@@ -1292,7 +1297,7 @@ def reference_validation_figure(
     table: pd.DataFrame, *, synthetic: bool = False, note: str | None = None
 ) -> Figure:
     """The leave-one-out validation of the class reference model (``table``: rows of
-    :func:`railtherm.classvalidation.leave_one_out`): (a) the heat-up time predicted from the
+    :func:`railtherm.study.classvalidation.leave_one_out`): (a) the heat-up time predicted from the
     other vehicles (with its 95 % prediction band) against the vehicle's own identified
     model's, the 1:1 line, a band open above drawn to the axis top with an arrow; (b) the
     RMSE of T over the vehicle's identification windows: its own fit and the reference models

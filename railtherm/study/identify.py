@@ -2,7 +2,8 @@
 
 Stage two of the paper's two-stage approach (section 5.2): with kA = k A fixed from the
 standardized static test (eq. 10), the heat capacities are estimated by simulation-error PEM
-(eqs. 15-20, railtherm.pem): C_bar for the first-order model (eq. 19), C, K_veh and C_veh for
+(eqs. 15-20, railtherm.estimation.pem): C_bar for the first-order model (eq. 19), C, K_veh and
+C_veh for
 the second-order model (eq. 20). When the static k is not usable (its window failed the
 steady-state test and was not forced) or the config asks for it (``model.mode: joint``), kA is
 estimated with the capacities; every output says which way k was obtained.
@@ -19,9 +20,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import ingest, metrics, models, pem, structures
+from railtherm import structures
+from railtherm.data import ingest
 from railtherm.errors import ConfigError, DataError
-from railtherm.kvalue import COMPONENTS, sensor_counts, sensor_u_K, storage_corrected_kA
+from railtherm.estimation import metrics, models, pem
+from railtherm.estimation.kvalue import COMPONENTS, sensor_counts, sensor_u_K, storage_corrected_kA
 from railtherm.yamlio import packaged_schema, validate_schema
 
 KA_BOUNDS = (1.0, 1.0e5)  # W/K, for joint estimation when the config gives none nor a scale
@@ -39,8 +42,9 @@ def conductance_bounds(kA_start: float | None) -> tuple[float, float]:
     return (kA_start / CONDUCTANCE_SPAN, kA_start * CONDUCTANCE_SPAN)
 
 
-# the estimators of model.estimator: the paper's simulation-error PEM (K = 0, railtherm.pem)
-# and the Kalman-filter maximum-likelihood PEM of the stochastic model (railtherm.kalman)
+# the estimators of model.estimator: the paper's simulation-error PEM (K = 0,
+# railtherm.estimation.pem)
+# and the Kalman-filter maximum-likelihood PEM of the stochastic model (railtherm.estimation.kalman)
 ESTIMATORS = ("output_error", "kalman")
 KALMAN_SUFFIX = "_kalman"  # the model key of a kalman fit: order2_kalman, fit_order2_kalman.yaml
 
@@ -78,7 +82,8 @@ def model_key(order: int | str) -> str:
 
 
 def irradiance_inputs(vehicle_data: Mapping[str, Any]) -> list[str]:
-    """The vehicle's irradiance inputs as :func:`railtherm.models.structure_for` takes them:
+    """The vehicle's irradiance inputs as :func:`railtherm.estimation.models.structure_for` takes
+    them:
     I_<name> for a gain into the air node, I_<name>@envelope or I_<name>@both for one declared
     on the envelope node or shared (``channels.irradiance[i].node``, default air)."""
     names = ingest.irradiance_names(vehicle_data)
@@ -339,7 +344,8 @@ def air_capacity(volume_m3: Any, source: str = "volume_m3") -> float | None:
 
 def input_noise(structure, vehicle_data, exps) -> dict[str, list[float]]:
     """The declared white noise of the measured inputs per record, as
-    :func:`railtherm.pem.fit` takes it (``input_noise``): T_o, the mean of the outdoor-air
+    :func:`railtherm.estimation.pem.fit` takes it (``input_noise``): T_o, the mean of the
+    outdoor-air
     sensors, ``instruments.outdoor_noise_K`` / sqrt(n_eff); Q_H, the sum of the power
     channels, ``instruments.power_noise_rel`` times the record's rms Q_H / sqrt(n) (each
     meter's noise relative to its own reading, the channels taken as equal shares). Empty
@@ -704,7 +710,8 @@ def storage_corrected_k(
     K_veh mean(T - T_veh) / mean(T - T_o). The first balance takes C, K_veh, C_veh from the
     joint fit (kA free, started at eq. 10's); then the second-order model (eqs. 7-8) is fitted
     with the corrected kA fixed (stage two, warm-started), the k window's energy balance under
-    that model gives a new kA (:func:`railtherm.kvalue.storage_corrected_kA`), and the two
+    that model gives a new kA (:func:`railtherm.estimation.kvalue.storage_corrected_kA`), and the
+    two
     steps alternate until kA moves by less than ``STORAGE_TOLERANCE`` u(kA)
     (at most ``MAX_STORAGE_ITERATIONS`` fits). u(kA) is eq. 10's budget with its storage bound
     replaced by the correction's own standard uncertainty: the regression's (T_veh's start D0
@@ -998,9 +1005,9 @@ def innovation_tests(
 ) -> dict[str, dict[str, Any]]:
     """Whiteness of each output's standardised one-step innovations (innovation / its
     sd), the windows one after the other: Ljung-Box and the cumulated periodogram test of
-    CTSM-R (:func:`railtherm.diagnostics.residual_tests`) at level ``alpha``. A correct
+    CTSM-R (:func:`railtherm.estimation.diagnostics.residual_tests`) at level ``alpha``. A correct
     stochastic model leaves white innovations."""
-    from railtherm import diagnostics
+    from railtherm.estimation import diagnostics
 
     tests = {}
     for state in outputs:
@@ -1027,11 +1034,11 @@ def innovation_reasons(estimate: Mapping[str, Any], thresholds: Mapping[str, Any
 def estimate_parameters(structure: models.Structure, exps: Sequence, options: Mapping[str, Any]):
     """The fit of ``structure`` to ``exps`` by the estimator ``options["estimator"]``:
     output_error (default; the paper's simulation-error PEM, eqs. 17-18 with K = 0,
-    :func:`railtherm.pem.fit`) or kalman (the Kalman-filter PEM of the stochastic model,
-    eq. 16 with K from the filter, maximum likelihood, :func:`railtherm.kalman.fit`)."""
+    :func:`railtherm.estimation.pem.fit`) or kalman (the Kalman-filter PEM of the stochastic model,
+    eq. 16 with K from the filter, maximum likelihood, :func:`railtherm.estimation.kalman.fit`)."""
     options = dict(options)
     if options.pop("estimator", "output_error") == "kalman":
-        from railtherm import kalman
+        from railtherm.estimation import kalman
 
         options.pop("covariance", None)  # the observed information gives the covariance
         return kalman.fit(structure, exps, **options)
@@ -1216,7 +1223,7 @@ def systematic_budget(
     warm["covariance"] = "iid"
     effects: dict[str, dict[str, float]] = {p: {} for p in result.free}
     # the same sources' effect on kA where the static test fixes it (eq. 10): with the free
-    # parameters' effects, the joint distribution a prediction samples (railtherm.simulate)
+    # parameters' effects, the joint distribution a prediction samples (railtherm.study.simulate)
     fixed_effects: dict[str, dict[str, float]] = {}
     sources = error_sources(structure, options, vehicle_data, kvalue, storage)
     for source in sources:
@@ -1278,15 +1285,17 @@ def judge_identification(
     budget: Mapping[str, Any] | None = None,
 ) -> None:
     """Mark every estimated parameter of ``fitted`` (a ``FitResult.to_dict()`` with combined
-    intervals) with :func:`railtherm.pem.identification`, and judge the width of the interval
+    intervals) with :func:`railtherm.estimation.pem.identification`, and judge the width of the
+    interval
     a reader sees - the combined one - rather than the fit's statistical one: the
     ``wide_interval`` flags are replaced by flags on the combined intervals.
 
     With the ``structure``: its coupled parameters (``Structure.coupled``, the dynamic part)
-    are judged together (:func:`railtherm.pem.coupled_identification`), and each of its
+    are judged together (:func:`railtherm.estimation.pem.coupled_identification`), and each of its
     totals (``Structure.totals``: C_total = C + C_veh, the capacity eq. 9 lumps into C_bar)
     is written under ``fitted["totals"]`` with its 95 % interval
-    (:func:`railtherm.pem.total_capacity`, ``budget`` the systematic budget). ``physical``:
+    (:func:`railtherm.estimation.pem.total_capacity`, ``budget`` the systematic budget).
+    ``physical``:
     {param: what its lower bound is} for a bound the metadata make physical
     (:func:`physical_bounds`), named in the reason."""
     physical = dict(physical or {})

@@ -17,9 +17,12 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-from railtherm import identify, ingest, kvalue, structures
+from railtherm import structures
 from railtherm.config import Vehicle
-from railtherm.fit import Fit, write_yaml
+from railtherm.data import ingest
+from railtherm.estimation import kvalue
+from railtherm.study import identify
+from railtherm.study.fit import Fit, write_yaml
 
 
 @dataclass
@@ -50,7 +53,7 @@ def fit_vehicle(
     workdir: str | os.PathLike[str] = ".",
 ) -> VehicleResult:
     """Clean, static k, fit and check ``models`` (default: every model the config asks for,
-    :func:`railtherm.identify.model_keys`). ``out``: a results directory to write the rules'
+    :func:`railtherm.study.identify.model_keys`). ``out``: a results directory to write the rules'
     files into (``vehicles/<id>/clean/<window>.csv``, ``kvalue.yaml``,
     ``identify/<model>.yaml`` and ``_series.csv``, ``fit_<model>.yaml``)."""
     keys = list(models) if models else identify.model_keys(vehicle.data)

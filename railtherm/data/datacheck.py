@@ -16,9 +16,11 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from railtherm import codedigest, ingest, kvalue, timeaxis
+from railtherm import codedigest
 from railtherm.config import Study, Vehicle
-from railtherm.rawfile import DigestCache
+from railtherm.data import ingest, timeaxis
+from railtherm.data.rawfile import DigestCache
+from railtherm.estimation import kvalue
 
 
 @dataclass

@@ -32,7 +32,8 @@ vehicles' fits; each fit's own 95 % interval is not added (it is mostly much nar
 spread between vehicles).
 
 A vehicle is usable when its checked second-order fit is acceptable
-(:data:`railtherm.metrics.ACCEPTABLE`), every one of ``kA``, ``C``, ``K_veh`` and ``C_veh`` is
+(:data:`railtherm.estimation.metrics.ACCEPTABLE`), every one of ``kA``, ``C``, ``K_veh`` and
+``C_veh`` is
 identified (no estimate at a bound of the search) and its config gives ``mass_kg`` and
 ``surface_m2``. The study's members (:func:`members_from_study`, ``railtherm reference``) come
 from its committed Table 2 (``results/tables/table2.csv``: k, C, K_veh, C_veh with their
@@ -54,9 +55,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from railtherm import metrics, models, pem
 from railtherm.errors import ConfigError
-from railtherm.fit import Fit, write_yaml
+from railtherm.estimation import metrics, models, pem
+from railtherm.study.fit import Fit, write_yaml
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 
 __all__ = [
@@ -154,10 +155,10 @@ def _metadata(vehicle: Mapping[str, Any], key: str) -> float | None:
 
 
 def _kind(reason: str) -> str:
-    """The kind of a "not identified" reason (:func:`railtherm.pem.identification`): an
+    """The kind of a "not identified" reason (:func:`railtherm.estimation.pem.identification`): an
     estimate at a bound of the search ("at its lower search bound 1e+04"), a 95 % interval
     unbounded or wider than a factor 1000 in total (also without a reason), or a parameter
-    coupled to one of those (:func:`railtherm.pem.coupled_identification`)."""
+    coupled to one of those (:func:`railtherm.estimation.pem.coupled_identification`)."""
     if "coupled to" in reason:
         return COUPLED
     if "unbounded" in reason or "spans a factor" in reason:
@@ -176,7 +177,8 @@ def _member(
 
     ``estimates``: kA, C, K_veh and C_veh (None where not identified or not known);
     ``not_identified``: parameter -> kind (:data:`AT_BOUND` or :data:`UNBOUNDED`); ``verdict``
-    the fit's (:data:`railtherm.metrics.ACCEPTABLE` to be usable). c_veh by eq. 24, delta by
+    the fit's (:data:`railtherm.estimation.metrics.ACCEPTABLE` to be usable). c_veh by eq. 24,
+    delta by
     eq. 25. A parameter of the dynamic part (C, K_veh, C_veh: ``Structure.coupled``) coupled to
     one not identified is not identified either (:data:`COUPLED`). Usable: acceptable, every
     parameter identified and estimated, mass and surface given; ``why`` one phrase per kind of
@@ -239,7 +241,7 @@ def _unidentified(fit: Fit) -> dict[str, str]:
 
 def member_from_fit(fit: Fit, vehicle: Mapping[str, Any]) -> ClassMember:
     """The :class:`ClassMember` of one vehicle: its checked second-order fit (``fit_order2.yaml``
-    or ``fit_order2_kalman.yaml``, :func:`railtherm.fit.read_fit`) and its vehicle config as a
+    or ``fit_order2_kalman.yaml``, :func:`railtherm.study.fit.read_fit`) and its vehicle config as a
     dict (``id``, ``class``, ``mass_kg``, ``surface_m2``). c_veh by eq. 24, delta by eq. 25."""
     vid = str(vehicle.get("id"))
     if fit.vehicle != vid:
@@ -282,7 +284,8 @@ def member_from_row(
     row: Mapping[str, Any], vehicle: Mapping[str, Any], table: str = "table2.csv"
 ) -> ClassMember:
     """The :class:`ClassMember` of one vehicle from its row of Table 2 (``table2.csv`` of
-    :func:`railtherm.aggregate.table2`, as a dict: column -> cell, an empty cell "" or NaN) and
+    :func:`railtherm.study.aggregate.table2`, as a dict: column -> cell, an empty cell "" or NaN)
+    and
     its vehicle config as a dict (``class``, ``mass_kg``, ``surface_m2``, ``synthetic``; the
     id, if given, must be the row's). ``kA = k * A`` (eq. 5); a status other than "estimated"
     ("not identified: <reason>") makes the parameter not identified; the row's verdict is the
@@ -291,7 +294,7 @@ def member_from_row(
     Raises a one-line :class:`ConfigError` for a row that disagrees with the config (another
     vehicle or class, k "not given" though the config gives ``surface_m2``: a Table 2 older
     than the config) or an estimate that is not a positive number."""
-    from railtherm.aggregate import ESTIMATED, NOT_GIVEN_PREFIX, SYNTHETIC_SOURCE
+    from railtherm.study.aggregate import ESTIMATED, NOT_GIVEN_PREFIX, SYNTHETIC_SOURCE
 
     vid = str(_cell(row, "vehicle", table))
     if vehicle.get("id") is not None and str(vehicle["id"]) != vid:

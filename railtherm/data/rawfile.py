@@ -4,7 +4,7 @@ A layout comes either from reading an existing file (:func:`read_layout`, in rai
 checks) or, for files the virtual climatic wind tunnel has not written yet, from the campaign
 (:func:`railtherm.synth.planned_layouts`). Both give the same answer for the same file.
 Files of every kind the vehicle's ``format`` declares (CSV, Excel, MATLAB, R) are read by
-:mod:`railtherm.readers`.
+:mod:`railtherm.data.readers`.
 """
 
 from __future__ import annotations
@@ -20,19 +20,19 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import timeaxis
-from railtherm.errors import DataError
+from railtherm.data import timeaxis
 
-# csv_error stays importable from here, where it was before railtherm.readers
-from railtherm.readers import csv_error as csv_error
-from railtherm.readers import elsewhere_hint, read_header, read_table
+# csv_error stays importable from here, where it was before railtherm.data.readers
+from railtherm.data.readers import csv_error as csv_error
+from railtherm.data.readers import elsewhere_hint, read_header, read_table
+from railtherm.errors import DataError
 
 
 @dataclass(frozen=True)
 class RawLayout:
     """Columns and time span of one raw file.
 
-    ``time_format`` is the declared ``format.time.format`` (:mod:`railtherm.timeaxis`).
+    ``time_format`` is the declared ``format.time.format`` (:mod:`railtherm.data.timeaxis`).
     ``t_first``/``t_last`` are ``pandas.Timestamp`` for a format of instants (iso, a strftime
     pattern, epoch, serial_days; in UTC when the file's times carry an offset or a declared
     ``format.time.timezone``) and float seconds for elapsed time (seconds, minutes, hours,
@@ -88,7 +88,7 @@ def read_columns(
 ) -> tuple[str, ...]:
     """Column names of a raw file: the header line of a plain or gzip-compressed CSV file
     (``separator``, default ``,``), or of a file of any kind ``fmt`` (a vehicle's ``format``
-    section: ``reader``, ``encoding``, ``sheet``, ... see :mod:`railtherm.readers`) declares.
+    section: ``reader``, ``encoding``, ``sheet``, ... see :mod:`railtherm.data.readers`) declares.
 
     Raises :class:`DataError` naming the file when it cannot be read, is empty, or has a
     column name twice (a channel map could not tell the two apart).
@@ -128,9 +128,9 @@ def read_layout(
     """Columns and time span of a raw file, reading its header and only its time column.
 
     ``fmt`` is a vehicle's ``format`` section (the kind of file and how to read it, see
-    :mod:`railtherm.readers`; its ``time`` gives the time column, format, timezone and DST
+    :mod:`railtherm.data.readers`; its ``time`` gives the time column, format, timezone and DST
     rule); the arguments given put their value over it (CSV: ``separator`` default ``,``,
-    ``decimal`` default ``.``). ``time_format`` is any notation of :mod:`railtherm.timeaxis`:
+    ``decimal`` default ``.``). ``time_format`` is any notation of :mod:`railtherm.data.timeaxis`:
     ``"iso"`` or a strftime pattern, ``"epoch"``, ``"epoch_ms"`` or ``"serial_days"``
     (instants, returned as ``pandas.Timestamp``), or ``"seconds"``, ``"minutes"``,
     ``"hours"``, ``"days"`` (elapsed time, returned as float seconds); ``decimal`` is
@@ -179,9 +179,9 @@ def parse_times(
     time_format: str | Mapping[str, Any] | timeaxis.TimeFormat,
     decimal: str,
 ) -> pd.Series:
-    """Parse a time column by :func:`railtherm.timeaxis.parse`: ``pandas.Timestamp`` for
+    """Parse a time column by :func:`railtherm.data.timeaxis.parse`: ``pandas.Timestamp`` for
     instants, float seconds for elapsed time. ``time_format`` is a format name, a config's
-    ``format.time`` mapping or a :class:`~railtherm.timeaxis.TimeFormat`. :class:`DataError`
+    ``format.time`` mapping or a :class:`~railtherm.data.timeaxis.TimeFormat`. :class:`DataError`
     naming the first value that does not parse and its line."""
     if not isinstance(time_format, timeaxis.TimeFormat):
         time_format = timeaxis.time_format(time_format)

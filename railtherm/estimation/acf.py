@@ -1,8 +1,9 @@
 """Sample autocorrelation of a series and its integrated autocorrelation time.
 
-Used for residual whiteness (Ljung-Box, :mod:`railtherm.metrics`), for the effective number of
+Used for residual whiteness (Ljung-Box, :mod:`railtherm.estimation.metrics`), for the effective
+number of
 independent samples of a fit's residuals, and for the drift and scatter terms of the static k
-test (:mod:`railtherm.kvalue`). numpy only.
+test (:mod:`railtherm.estimation.kvalue`). numpy only.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """The study's tables for readers: the paper's number formats, Markdown and LaTeX.
 
-:mod:`railtherm.aggregate` builds the tables (numbers, intervals, the "not identified" state
+:mod:`railtherm.study.aggregate` builds the tables (numbers, intervals, the "not identified" state
 and the class statistics); this module only formats them: values with their 95 % intervals in
 the paper's notation, a value the data do not determine as a one-sided limit (≤, ≥), the
 captions and notes, and the files (CSV at a stated precision through
-:func:`railtherm.tables.write_csv`, Markdown, LaTeX).
+:func:`railtherm.report.tables.write_csv`, Markdown, LaTeX).
 """
 
 from __future__ import annotations
@@ -15,9 +15,10 @@ from typing import Any
 
 import pandas as pd
 
-from railtherm import pem, structures
-from railtherm.aggregate import ESTIMATED, NOT_GIVEN, is_not_given, selectable
-from railtherm.tables import round_significant, write_csv
+from railtherm import structures
+from railtherm.estimation import pem
+from railtherm.report.tables import round_significant, write_csv
+from railtherm.study.aggregate import ESTIMATED, NOT_GIVEN, is_not_given, selectable
 
 ESTIMATOR_LABEL = {"output_error": "output error", "kalman": "Kalman ML"}
 
@@ -25,12 +26,13 @@ ESTIMATOR_LABEL = {"output_error": "output error", "kalman": "Kalman ML"}
 def model_selection_markdown(fits: Sequence[Mapping[str, Any]], alpha: float = 0.05) -> str:
     """Per vehicle with two or more kalman fits that are acceptable and converged (a fit in
     doubt or unconverged is no candidate): the forward selection of its nested
-    structures by likelihood-ratio tests (:func:`railtherm.diagnostics.forward_selection`,
+    structures by likelihood-ratio tests
+    (:func:`railtherm.estimation.diagnostics.forward_selection`,
     :func:`railtherm.structures.nesting`: each structure's ``nests``, e.g. the first-order
     model is the limit of the second-order model as K_veh -> 0 and of the interior-envelope
     model as K_i -> infinity); empty when no vehicle has them."""
-    from railtherm import diagnostics
-    from railtherm.identify import split_key
+    from railtherm.estimation import diagnostics
+    from railtherm.study.identify import split_key
 
     by_vehicle: dict[str, list] = {}
     for fit in fits:
@@ -493,7 +495,7 @@ _NOT_GIVEN_QUANTITIES = {
 
 def not_given_notes(name: str, tables: Mapping[str, pd.DataFrame]) -> list[str]:
     """One note per quantity of table ``name`` that some vehicles do not have for want of
-    metadata (:data:`railtherm.aggregate.NOT_GIVEN`): which vehicles, which key, why; none
+    metadata (:data:`railtherm.study.aggregate.NOT_GIVEN`): which vehicles, which key, why; none
     when every vehicle gives it. Read from Table 2 (k) and Table 3 (c_veh)."""
     notes = []
     for q, key in _NOT_GIVEN_QUANTITIES.get(name, ()):

@@ -1,5 +1,5 @@
 """How good is the class generalisation? A leave-one-out validation of the class reference
-model (:mod:`railtherm.classmodel`; the paper's c_veh and delta, eqs. 24-25, section 6.3).
+model (:mod:`railtherm.study.classmodel`; the paper's c_veh and delta, eqs. 24-25, section 6.3).
 
 For each vehicle with an acceptable fit, the reference model of its class is built without
 it (and, as a comparator, the model of every rail class pooled), from its mass and surface
@@ -9,7 +9,7 @@ run where no heat-up test is). That model then
 - predicts the vehicle's identification windows (the measured T_o and Q_H, from the same
   initial state as the vehicle's own fit): the RMSE of T against the measurement, beside
   the RMSE of the vehicle's own fit (eq. 15, K = 0);
-- predicts a scenario (:mod:`railtherm.scenario`): the heat-up time and the energy with
+- predicts a scenario (:mod:`railtherm.study.scenario`): the heat-up time and the energy with
   their 95 % prediction bands, beside the same scenario through the vehicle's own
   identified model.
 
@@ -18,7 +18,7 @@ minimum (``reference_model.min_vehicles``). A model resting on fewer than
 :data:`MIN_BAND_VEHICLES` other vehicles gives its central prediction without a band: the
 class spread from two vehicles is a t with one degree of freedom (a Cauchy), whose band
 reaches any value (``band_note`` says so). The bands' draws are held to the physical limits
-(:mod:`railtherm.simulate`: C at least the capacity of the vehicle's air, ρ c_p V); where the
+(:mod:`railtherm.study.simulate`: C at least the capacity of the vehicle's air, ρ c_p V); where the
 vehicle's data are synthetic, its declared truth (the virtual campaign's parameters) is run
 through the same scenario (``heat_up_true_h``) and compared with the reference band.
 """
@@ -32,11 +32,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm import classmodel, models
-from railtherm import simulate as sim
 from railtherm.errors import ConfigError
-from railtherm.fit import Fit
-from railtherm.scenario import Scenario
+from railtherm.estimation import models
+from railtherm.study import classmodel
+from railtherm.study import simulate as sim
+from railtherm.study.fit import Fit
+from railtherm.study.scenario import Scenario
 
 __all__ = ["leave_one_out", "window_rmse", "summary_lines", "validation_markdown"]
 
@@ -377,7 +378,7 @@ def validation_markdown(table: pd.DataFrame, scenario: Scenario, source: str) ->
     lines += ["", "Summary:", "", *summary_lines(table), ""]
     lines += [
         "- Bands: 95 % prediction bands of a new vehicle of the class (the spread of the "
-        "other vehicles' generalised parameters, Student t), railtherm.classmodel.",
+        "other vehicles' generalised parameters, Student t), railtherm.study.classmodel.",
         "- inside: the vehicle's own identified heat-up time lies within the reference "
         "model's band; truth inside: the heat-up time of the vehicle's declared true parameters "
         "(synthetic data only) lies within it.",
@@ -419,11 +420,11 @@ def study_leave_one_out(
     **options: Any,
 ) -> pd.DataFrame:
     """:func:`leave_one_out` over a study's files: the members from its Table 2
-    (:func:`railtherm.classmodel.member_from_row` with each vehicle's config in ``vehicles``),
+    (:func:`railtherm.study.classmodel.member_from_row` with each vehicle's config in ``vehicles``),
     each vehicle's second-order fit file and series table (in the order of ``vehicles``), the
     vehicles' volumes and, for a synthetic campaign, the truth of ``truth_file``. ``options``
     go to :func:`leave_one_out` (min_vehicles, draws, seed)."""
-    from railtherm.fit import read_fit
+    from railtherm.study.fit import read_fit
 
     rows = pd.read_csv(table2).to_dict("records")
     members = [
@@ -449,7 +450,7 @@ def write_validation(
 ) -> None:
     """The leave-one-out table as CSV (4 significant digits) and Markdown, and its figure
     (``figure``: the path without suffix; PNG and SVG)."""
-    from railtherm import plots, tables
+    from railtherm.report import plots, tables
 
     tables.write_csv(table, csv, digits=4)
     with open(md, "w", encoding="utf-8") as stream:

@@ -5,11 +5,11 @@ A fit whose parameters the data do not all determine is not simulated: its row s
 parameter is not identified. A fit whose verdict is not "fit acceptable" gives its central
 prediction without a band (column ``no_band`` says why; marked :data:`DOUBT_MARK` in the
 Markdown table). The bands' parameter draws are held to the physical limits (C at least the
-capacity of the air in the vehicle's ``volume_m3``, :mod:`railtherm.simulate`); column
+capacity of the air in the vehicle's ``volume_m3``, :mod:`railtherm.study.simulate`); column
 ``draws_rejected_pct`` gives the share of draws rejected there. A set point the heating
 cannot hold is reported as "unreachable", with the load it would need. Times are written in
 hours, energy in kWh and power in kW, at 4 significant digits in the CSV
-(:func:`railtherm.tables.write_csv`).
+(:func:`railtherm.report.tables.write_csv`).
 """
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ from typing import Any
 
 import pandas as pd
 
-from railtherm import simulate as sim
-from railtherm import tableformat
-from railtherm.fit import Fit
-from railtherm.scenario import Scenario
+from railtherm.report import tableformat
+from railtherm.study import simulate as sim
+from railtherm.study.fit import Fit
+from railtherm.study.scenario import Scenario
 
 __all__ = ["DOUBT_MARK", "OUTCOMES", "outcome_text", "scenario_markdown", "scenario_table"]
 
@@ -192,7 +192,7 @@ def scenario_markdown(
     parts += [
         f"- Bands: 2.5 and 97.5 % quantiles of {draws} runs with parameter sets drawn from each "
         "fit's statistical covariance and its systematic (type B) error sources, kA of the "
-        "static test included (railtherm.simulate). The draws are truncated at the physical "
+        "static test included (railtherm.study.simulate). The draws are truncated at the physical "
         "limits by rejection sampling: every capacity and conductance > 0, and C at least the "
         "capacity of the vehicle's air, ρ c_p V, so that no draw heats up faster than the air "
         "alone would"

@@ -9,7 +9,7 @@ A scenario file (``railtherm/schemas/scenario.schema.yaml``; the shipped ones ar
   number of steps;
 - ``outdoor``: the outdoor temperature T_o, exactly one of ``constant_C``, ``steps``
   (``[{at_h: 0, C: -20}, {at_h: 6, C: -10}]``) or ``file`` (a column of a CSV, Excel, MATLAB
-  or R file, read by :mod:`railtherm.readers` and :mod:`railtherm.timeaxis` like a raw
+  or R file, read by :mod:`railtherm.data.readers` and :mod:`railtherm.data.timeaxis` like a raw
   measurement file);
 - ``heating``: exactly one of ``power_W``, ``steps`` (value key ``W``), ``file`` or
   ``controller`` (``type`` thermostat or pi, ``setpoint_C``, ``power_max_W``,
@@ -50,9 +50,9 @@ from typing import Any
 
 import numpy as np
 
-from railtherm import ingest, timeaxis
+from railtherm.data import ingest, timeaxis
+from railtherm.data.rawfile import read_columns
 from railtherm.errors import ConfigError, DataError
-from railtherm.rawfile import read_columns
 from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_schema
 
 __all__ = [
@@ -343,7 +343,7 @@ def _steps(ctx: _Context, key: str, steps: Sequence[Mapping[str, Any]], value_ke
 
 def _file(ctx: _Context, key: str, spec: Mapping[str, Any], nonnegative: str) -> np.ndarray:
     """A column of a profile file, read as a raw measurement file is
-    (:func:`railtherm.ingest.read_raw`) and interpolated linearly onto the grid points."""
+    (:func:`railtherm.data.ingest.read_raw`) and interpolated linearly onto the grid points."""
     given = spec["path"]
     path = os.path.join(ctx.directory, given)
     if not os.path.isfile(path):

@@ -1,0 +1,7 @@
+"""The report: the study's figures and tables, and the audit of published values.
+
+- :mod:`~railtherm.report.plots`: every figure;
+- :mod:`~railtherm.report.tables`, :mod:`~railtherm.report.tableformat`: the tables (CSV and
+  Markdown at stated precision);
+- :mod:`~railtherm.report.audit`: the audit of the paper's published values.
+"""
