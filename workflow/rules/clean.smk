@@ -1,7 +1,9 @@
-# Raw CWT files -> tidy, uniformly sampled tables (railtherm.data.ingest): one job per vehicle writes
+# Raw CWT files -> tidy, uniformly sampled tables (railtherm.data.ingest): one job per vehicle
+# writes
 # every table of that vehicle (its windows, the k window and the whole record), each raw file
 # read once. A rule's outputs are fixed, so vehicles whose tables have other names get a rule of
-# their own: `clean` for the first set of names, `clean_2`, ... (rule_groups in common.smk).
+# their own: `clean` for the first set of names, `clean_2`, ... (StudyPlan.rule_groups,
+# railtherm.study.plan).
 
 for _rule, _tables, _constraint in rule_groups("clean", tidy_tables):
 

@@ -4,7 +4,7 @@
 # One identify job and one check job per vehicle, each over all of the vehicle's models: a
 # job's time is mostly its interpreter and imports, so a vehicle's fits share them. A rule's
 # outputs are fixed, so vehicles with another set of models get rules of their own
-# (`identify_2`, `check_2`, ...; rule_groups in common.smk).
+# (`identify_2`, `check_2`, ...; StudyPlan.rule_groups, railtherm.study.plan).
 for _rule, _keys, _constraint in rule_groups("identify", model_keys):
 
     rule:

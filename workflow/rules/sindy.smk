@@ -1,4 +1,5 @@
-# The optional SINDy cross-check of the grey-box structure (railtherm.estimation.sindy; config `sindy:`).
+# The optional SINDy cross-check of the grey-box structure (railtherm.estimation.sindy; config
+# `sindy:`).
 
 
 # The SINDy fits of up to sindy.vehicles_per_job vehicles share one job: pysindy's import
@@ -10,7 +11,7 @@ for _rule, _batch in sindy_batches():
         name: _rule
         input:
             **{
-                f"windows_{vid}": list(_identification_tables(vid))
+                f"windows_{vid}": list(PLAN.identification_tables(vid))
                 for vid in _batch
             },
             **{

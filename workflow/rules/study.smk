@@ -2,12 +2,14 @@
 # figures of each vehicle; captions for `snakemake --report` in workflow/report.
 
 
-# Every figure of one vehicle in one job: the static k test (railtherm.report.plots.kvalue_figure), the
+# Every figure of one vehicle in one job: the static k test (railtherm.report.plots.kvalue_figure),
+# the
 # fit of each model (fit_figure) and the innovations of each Kalman-filter fit
 # (innovation_figure). The figures are their own job: editing the plotting code redraws them
 # without recomputing k or a fit. A rule's outputs are fixed, so vehicles with another set of
 # figures (no k window, other models) get a rule of their own: `vehicle_figures`,
-# `vehicle_figures_2`, ... (rule_groups in common.smk). study.figures: false plans none.
+# `vehicle_figures_2`, ... (StudyPlan.rule_groups, railtherm.study.plan). study.figures: false
+# plans none.
 for _rule, (_has_k, _keys), _constraint in rule_groups("vehicle_figures", figure_signature):
     _kalman = [key for key in _keys if key.endswith(rt_identify.KALMAN_SUFFIX)]
 
@@ -234,7 +236,7 @@ rule reference:
         windows=[
             f"results/vehicles/{ref['vehicle']}/clean/{window}.csv"
             for _, ref in REFERENCES
-            for window in identification_windows(ref["vehicle"])
+            for window in PLAN.identification_windows(ref["vehicle"])
         ],
     output:
         csv=report(
@@ -250,7 +252,7 @@ rule reference:
         windows=[
             {
                 window: f"results/vehicles/{ref['vehicle']}/clean/{window}.csv"
-                for window in identification_windows(ref["vehicle"])
+                for window in PLAN.identification_windows(ref["vehicle"])
             }
             for _, ref in REFERENCES
         ],
