@@ -30,7 +30,7 @@ Treatments:
 
 (a) ``finite_difference`` + mid inputs (railtherm's default), (b) ``finite_difference``
     without mid inputs, (c) ``smoothed_finite_difference`` + mid inputs: all by
-    ``railtherm.estimation.sindy.cross_check`` with ``Settings(n_bootstrap=50, ...)``;
+    ``railtherm.study.sindy.cross_check`` with ``Settings(n_bootstrap=50, ...)``;
 (d) discrete-time least squares x[k+1] = Phi x[k] + Gamma u[k], then A = logm(Phi)/h and
     B = A (Phi - I)^-1 Gamma (scipy.linalg.logm), then each equation's continuous
     coefficients below 0.1 x that equation's largest |coefficient| set to zero (no refit, no
@@ -57,7 +57,8 @@ import pysindy as ps
 import scipy
 from scipy.linalg import logm
 
-from railtherm.estimation import models, sindy
+from railtherm.estimation import models
+from railtherm.study import sindy
 
 HOUR = 3600.0
 KW = 1000.0

@@ -28,8 +28,8 @@ def campaign_study(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def fitted(campaign_study, tmp_path_factory):
-    """``fitted(vehicle, model) -> (fit yaml path, series csv path)``: a vehicle of the virtual
+def fit_files(campaign_study, tmp_path_factory):
+    """``fit_files(vehicle, model) -> (fit yaml path, series csv path)``: a vehicle of the virtual
     campaign, or the Armadillo test cell of the validation study, fitted once per session by
     :func:`railtherm.study.run.fit_vehicle` into a temporary results directory (as the rules
     write it)."""

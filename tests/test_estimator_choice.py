@@ -24,7 +24,7 @@ REPO = Path(__file__).resolve().parents[1]
 ARMADILLO = REPO / "validation" / "config" / "vehicles" / "Armadillo.yaml"
 
 
-def armadillo(tmp_path: Path, **model) -> Path:
+def armadillo_vehicle_file(tmp_path: Path, **model) -> Path:
     data = yaml.safe_load(ARMADILLO.read_text(encoding="utf-8"))
     data["model"] |= model
     data["raw_files"] = {"h2": str(REPO / "data" / "armadillo" / "armadillo_data_H2.csv")}
@@ -54,14 +54,14 @@ def test_model_keys_name_each_estimator_once():
 @pytest.mark.bad_input
 def test_an_unknown_estimator_is_refused(tmp_path):
     with pytest.raises(ConfigError, match="estimator"):
-        load_vehicle(armadillo(tmp_path, estimator="ekf"), workdir=tmp_path)
+        load_vehicle(armadillo_vehicle_file(tmp_path, estimator="ekf"), workdir=tmp_path)
 
 
 @pytest.fixture(scope="module")
 def both(tmp_path_factory):
     root = tmp_path_factory.mktemp("estimators")
     vehicle = load_vehicle(
-        armadillo(root, orders=[1], estimator=["output_error", "kalman"]), workdir=root
+        armadillo_vehicle_file(root, orders=[1], estimator=["output_error", "kalman"]), workdir=root
     )
     return fit_vehicle(vehicle, out=root / "out", workdir=root), root
 

@@ -1,46 +1,38 @@
-"""Issue 4's recovery acceptance on the virtual campaign, library only: clean, static k, then
+"""The recovery of the virtual campaign, library only: clean, static k, then
 the second-order PEM fit of every vehicle, compared with the declared truth."""
 
 import numpy as np
 import pytest
+from chain import checked_fit
 
 from railtherm import synth
 from railtherm.data import ingest
-from railtherm.estimation import kvalue, models, pem
-from railtherm.study import aggregate, identify
+from railtherm.estimation import models, pem
+from railtherm.study import aggregate
 
 
 @pytest.fixture(scope="module")
-def fitted(campaign_study):
-    """(identification table, {vehicle: estimate}) of the whole campaign."""
+def campaign_fits(campaign_study):
+    """(identification table, {vehicle: checked second-order fit}) of the whole campaign,
+    each vehicle through the workflow's chain (tests/chain.py; kA storage-corrected from the
+    k window)."""
     root, campaign, study = campaign_study
-    fits, estimates = [], {}
-    for vehicle in study.vehicles.values():
-        data = vehicle.data
-
-        def clean(name, data=data, vehicle=vehicle):
-            key, _, _ = ingest.window_spec(data, name)
-            return ingest.clean_window(root / vehicle.raw_files[key], data, name)
-
-        k = kvalue.for_vehicle(clean("kvalue"), data, source=vehicle.id).to_dict()
-        tables = {w["name"]: clean(w["name"]) for w in data["windows"]["identification"]}
-        # as the workflow runs it: kA storage-corrected from the k window
-        storage = identify.storage_corrected_k(tables, clean("kvalue"), data, k)
-        estimate, series = identify.identify(tables, data, k, 2, storage)
-        estimates[vehicle.id] = estimate
-        fits.append(identify.check(estimate, series, data["check"]))
+    fits = {
+        vid: checked_fit(vehicle, "order2", workdir=root)[0]
+        for vid, vehicle in study.vehicles.items()
+    }
     truth = synth.ground_truth_table(campaign)
-    return aggregate.fit_table(fits, truth).set_index("vehicle"), estimates
+    return aggregate.fit_table(list(fits.values()), truth).set_index("vehicle"), fits
 
 
 @pytest.fixture(scope="module")
-def table(fitted):
-    return fitted[0]
+def table(campaign_fits):
+    return campaign_fits[0]
 
 
 @pytest.fixture(scope="module")
-def estimates(fitted):
-    return fitted[1]
+def estimates(campaign_fits):
+    return campaign_fits[1]
 
 
 def test_vehicles_without_deviations_are_fitted_well_within_their_intervals(table, estimates):
@@ -53,7 +45,7 @@ def test_vehicles_without_deviations_are_fitted_well_within_their_intervals(tabl
     covered = []
     for vid, row in clean.iterrows():
         for p in ("C", "K_veh", "C_veh"):
-            entry = estimates[vid]["fit"]["parameters"][p]
+            entry = estimates[vid]["parameters"][p]
             z = np.log(entry["value"] / row[f"{p}_truth"]) / entry["sd_log_total"]
             assert abs(z) < 3.5, (vid, p, z)
             covered.append(entry["ci95"][0] <= row[f"{p}_truth"] <= entry["ci95"][1])

@@ -397,7 +397,7 @@ def armadillo_record(power_timing: str | None = None) -> pem.Experiment:
 
 
 @pytest.fixture(scope="module")
-def armadillo():
+def armadillo_experiment():
     """The Armadillo record with P_hea as the mean over the step that follows each sample
     (a zero-order hold of the samples)."""
     return armadillo_record("mean_following")
@@ -415,11 +415,13 @@ def pysip_terms(r):
     }
 
 
-def test_armadillo_like_pysip_zero_order_hold(armadillo):
+def test_armadillo_like_pysip_zero_order_hold(armadillo_experiment):
     """pySIP's own fit set up alike (232 rows, the last a glitch of +0.84 K dropped; indoor
     state from its first measurement; diffusion on the envelope only; zero-order hold, as
     pySIP re-run with hold_order=0): the same estimates to 1 %."""
-    e = pem.Experiment("h2", armadillo.dt, armadillo.u[:-1], armadillo.y[:-1])
+    e = pem.Experiment(
+        "h2", armadillo_experiment.dt, armadillo_experiment.u[:-1], armadillo_experiment.y[:-1]
+    )
     r = kalman.fit(SIE, [e], x0="measured", fixed={"sigma_T": 0.0})
     assert r.success and not r.flags
     kA = SIE.overall_kA(r.theta)
@@ -466,12 +468,12 @@ def test_armadillo_as_the_validation_study_declares_it():
     assert terms["kA"][0] == pytest.approx(PYSIP["kA"], rel=0.05)
 
 
-def test_armadillo_with_the_power_held_over_the_following_step(armadillo):
+def test_armadillo_with_the_power_held_over_the_following_step(armadillo_experiment):
     """The record with the power held over the following step (all 233 rows):
     kA within 5 % of pySIP's and R_o, C_w, C_i within 15 %; R_i, the fast air-to-envelope
     resistance, follows the hold assumption (as pySIP's own zero-order-hold re-run does) and
     lies 40-50 % below the first-order-hold value."""
-    r = kalman.fit(SIE, [armadillo])
+    r = kalman.fit(SIE, [armadillo_experiment])
     assert r.success
     terms = pysip_terms(r)
     assert terms["kA"][0] == pytest.approx(PYSIP["kA"], rel=0.05)

@@ -31,7 +31,7 @@ def vehicle_file(tmp_path: Path, model: dict, defaults: dict | None = None):
     return load_vehicle(path, defaults=defaults, workdir=tmp_path)
 
 
-def fitted(tmp_path: Path, vehicle, order: int) -> dict:
+def fit_of(tmp_path: Path, vehicle, order: int) -> dict:
     windows = {w["name"]: w["name"] for w in vehicle.windows["identification"]}
     tables = tidy_tables(vehicle, tmp_path)
     estimate, _ = identify.identify(
@@ -51,7 +51,7 @@ def test_kA_and_aperture_bounds_reach_the_fit(tmp_path):
     }
     vehicle = vehicle_file(tmp_path, model)
     assert vehicle.model["initial"] == {"kA": 80.0, "a_I_sol": 2.0}
-    fit = fitted(tmp_path, vehicle, 2)
+    fit = fit_of(tmp_path, vehicle, 2)
     assert fit["parameters"]["kA"]["value"] == pytest.approx(60.0, rel=1e-4)
     assert fit["parameters"]["a_I_sol"]["value"] == pytest.approx(0.5, rel=1e-4)
     pinned = {p for f in fit["flags"] if f["code"] == "at_bound" for p in f["parameters"]}
@@ -62,10 +62,10 @@ def test_initial_values_start_the_fit(tmp_path):
     """start: initial begins at model.initial. Given the optimum of a first fit (kA and the
     aperture included), the second starts where the first ended."""
     model = {"orders": [2], "structures": [], "start": "initial"}
-    first = fitted(tmp_path, vehicle_file(tmp_path, model), 2)
+    first = fit_of(tmp_path, vehicle_file(tmp_path, model), 2)
     optimum = {p: first["parameters"][p]["value"] for p in first["free"]}
     assert set(optimum) == {"kA", "C", "K_veh", "C_veh", "a_I_sol"}
-    second = fitted(tmp_path, vehicle_file(tmp_path, {**model, "initial": optimum}), 2)
+    second = fit_of(tmp_path, vehicle_file(tmp_path, {**model, "initial": optimum}), 2)
     assert second["start_costs"]["initial"] < 0.1 * first["start_costs"]["initial"]
     assert second["nfev"] < first["nfev"]
     assert second["cost"] == pytest.approx(first["cost"], rel=1e-6)
@@ -136,7 +136,7 @@ def test_a_study_default_aperture_is_ignored_where_no_input_has_it(tmp_path):
     defaults = {"model": {"initial": {"a_I_sol": 3.0}}}
     vehicle = load_vehicle(path, defaults=defaults, workdir=tmp_path)
     assert vehicle.model["initial"]["a_I_sol"] == 3.0
-    fit = fitted(tmp_path, vehicle, 1)
+    fit = fit_of(tmp_path, vehicle, 1)
     assert "a_I_sol" not in fit["parameters"]
 
 

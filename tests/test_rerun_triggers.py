@@ -111,6 +111,7 @@ def _snakemake(repo: Path, study: Path, *args: str) -> subprocess.CompletedProce
     )
 
 
+@pytest.mark.slow
 @pytest.mark.workflow
 def test_editing_a_module_a_rule_reaches_reruns_that_rule(tmp_path):
     """A one-vehicle study fits its second-order model with a copy of the repository, and

@@ -87,11 +87,11 @@ def first_order_fit(kA: float = 800.0, C_bar: float = 3.0e7) -> Fit:
         ("Armadillo", "interior_envelope_kalman"),
     ],
 )
-def test_fitted_window_reproduces_the_fits_own_simulation(fitted, vehicle: str, model: str):
-    """A fitted model run over its own identification window with the measured inputs (the
+def test_fitted_window_reproduces_the_fits_own_simulation(fit_files, vehicle: str, model: str):
+    """A fit_files model run over its own identification window with the measured inputs (the
     held T_o and Q_H, or their samples under the fit's first-order hold) from the fit's
     initial state reproduces the fit's simulated series."""
-    path, series_path = fitted(vehicle, model)
+    path, series_path = fit_files(vehicle, model)
     fit = read_fit(path)
     series = pd.read_csv(series_path)
     name = series["window"].iloc[-1]
@@ -250,8 +250,8 @@ def test_air_exchange_adds_its_conductance_to_the_losses():
 
 
 # ------------------------------------------------------------------------ bands
-def test_bands_of_a_fit_contain_the_prediction_and_are_reproducible(fitted):
-    fit = read_fit(fitted("Metro1", "order2")[0])
+def test_bands_of_a_fit_contain_the_prediction_and_are_reproducible(fit_files):
+    fit = read_fit(fit_files("Metro1", "order2")[0])
     ctl = Controller(kind="pi", setpoint_C=15.0, power_max_W=60_000.0)
     sc = scenario(24 * 3600.0, 120.0, -20.0, controller=ctl, heat_up_to_C=15.0)
     a = sim.simulate(fit, sc, draws=100, seed=1)
@@ -264,9 +264,9 @@ def test_bands_of_a_fit_contain_the_prediction_and_are_reproducible(fitted):
     assert "systematic error sources (type B)" in a.band_sources
 
 
-def test_band_follows_the_fits_uncertainty(fitted):
+def test_band_follows_the_fits_uncertainty(fit_files):
     """The band of the heat-up time is the fit's: it narrows with the fit's uncertainty."""
-    fit = read_fit(fitted("Metro1", "order2")[0])
+    fit = read_fit(fit_files("Metro1", "order2")[0])
     sc = scenario(24 * 3600.0, 120.0, -20.0, heating_W=50_000.0, heat_up_to_C=10.0)
     wide = sim.simulate(fit, sc, draws=400, seed=2).outcomes["heat_up_time_s"]
     tight_data = {**fit.data}
@@ -280,18 +280,18 @@ def test_band_follows_the_fits_uncertainty(fitted):
     assert tight.lo < tight.value < tight.hi
 
 
-def test_a_fit_with_a_parameter_not_identified_is_not_predicted(fitted):
-    fit = read_fit(fitted("Metro3", "order2")[0])
+def test_a_fit_with_a_parameter_not_identified_is_not_predicted(fit_files):
+    fit = read_fit(fit_files("Metro3", "order2")[0])
     sc = scenario(3600.0, 60.0, -20.0, heating_W=40_000.0)
     with pytest.raises(sim.NotPredictable, match="not identified"):
         sim.simulate(fit, sc, draws=0)
 
 
-def test_kalman_process_noise_widens_the_band(fitted):
+def test_kalman_process_noise_widens_the_band(fit_files):
     """The identified process noise widens the band. The fit's verdict is taken as
     acceptable: a fit in doubt carries no band (test_simulate_limits.py), and it is the
     noise's contribution that is tested here, not this fit's verdict."""
-    fit = read_fit(fitted("Armadillo", "order2_kalman")[0])
+    fit = read_fit(fit_files("Armadillo", "order2_kalman")[0])
     fit = Fit({**fit.data, "verdict": "fit acceptable"})
     sc = scenario(48 * 3600.0, 1800.0, 5.0, heating_W=300.0, heat_up_to_C=12.0)
     with_noise = sim.simulate(fit, sc, draws=300, seed=4)
@@ -304,7 +304,7 @@ def test_kalman_process_noise_widens_the_band(fitted):
 
 
 @pytest.mark.parametrize("vehicle", ["Tram2", "Metro1"])
-def test_band_of_a_campaign_fit_holds_the_prediction_of_the_truth(fitted, vehicle):
+def test_band_of_a_campaign_fit_holds_the_prediction_of_the_truth(fit_files, vehicle):
     """The virtual campaign's declared truth, run through the same pre-heating, lands inside
     the band of the fit made from its synthetic data - and the band is narrow (a few per cent),
     so it holds the truth by being right, not by being wide."""
@@ -313,7 +313,7 @@ def test_band_of_a_campaign_fit_holds_the_prediction_of_the_truth(fitted, vehicl
     campaign = synth.load_campaign(ROOT / "config" / "campaign" / "virtual_cwt.yaml")
     truth = synth.ground_truth_table(campaign).set_index("vehicle").loc[vehicle]
     assert not truth["deviations"], "a vehicle without a declared deviation"
-    fit = read_fit(fitted(vehicle, "order2")[0])
+    fit = read_fit(fit_files(vehicle, "order2")[0])
     true_data = {**fit.data, "parameters": {}}
     true_data["parameters"] = {
         p: {"value": float(truth[p]), "estimated": False} for p in ("kA", "C", "K_veh", "C_veh")
@@ -326,7 +326,7 @@ def test_band_of_a_campaign_fit_holds_the_prediction_of_the_truth(fitted, vehicl
 
 
 def test_irradiance_enters_through_the_fitted_aperture():
-    """A first-order model fitted with an irradiance input I_sol (aperture a_I_sol, m²):
+    """A first-order model fit_files with an irradiance input I_sol (aperture a_I_sol, m²):
     the scenario's irradiance adds a_I_sol * I to the heat balance; one the model lacks is
     refused, and one the scenario leaves out is said to be taken as 0."""
     kA, a = 800.0, 3.0

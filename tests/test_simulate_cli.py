@@ -40,8 +40,8 @@ def assert_one_line_error(capsys, *words: str) -> str:
     return captured.err
 
 
-def test_a_fit_through_two_scenarios(fitted, tmp_path, capsys):
-    fit_path, _ = fitted("Metro1", "order2")
+def test_a_fit_through_two_scenarios(fit_files, tmp_path, capsys):
+    fit_path, _ = fit_files("Metro1", "order2")
     out = tmp_path / "out"
     assert (
         simulate(str(fit_path), "--scenario", PREHEAT, "--scenario", COOL_DOWN, "--out", str(out))
@@ -95,8 +95,8 @@ def test_a_class_reference_model(tmp_path, capsys):
 
 
 @pytest.mark.bad_input
-def test_an_unreachable_set_point_is_refused_and_nothing_is_written(fitted, tmp_path, capsys):
-    fit_path, _ = fitted("Metro1", "order2")
+def test_an_unreachable_set_point_is_refused_and_nothing_is_written(fit_files, tmp_path, capsys):
+    fit_path, _ = fit_files("Metro1", "order2")
     weak = unreachable_scenario(tmp_path)
     out = tmp_path / "out"
     # the first scenario runs, the second fails: neither is written
@@ -114,8 +114,8 @@ def test_an_unreachable_set_point_is_refused_and_nothing_is_written(fitted, tmp_
 
 
 @pytest.mark.bad_input
-def test_a_fit_with_a_parameter_not_identified_is_refused(fitted, tmp_path, capsys):
-    fit_path, _ = fitted("Metro3", "order2")
+def test_a_fit_with_a_parameter_not_identified_is_refused(fit_files, tmp_path, capsys):
+    fit_path, _ = fit_files("Metro3", "order2")
     out = tmp_path / "out"
     assert simulate(str(fit_path), "--scenario", PREHEAT, "--out", str(out)) == 1
     assert_one_line_error(capsys, str(fit_path), "not identified")
@@ -141,8 +141,8 @@ def test_a_file_that_is_no_parameter_set_is_refused(params, words, tmp_path, cap
 
 
 @pytest.mark.bad_input
-def test_scenario_mistakes(fitted, tmp_path, capsys):
-    fit_path, _ = fitted("Metro1", "order2")
+def test_scenario_mistakes(fit_files, tmp_path, capsys):
+    fit_path, _ = fit_files("Metro1", "order2")
     out = tmp_path / "out"
     assert simulate(str(fit_path), "--scenario", "config/scenarios/nope.yaml") == 1
     err = assert_one_line_error(capsys, "config/scenarios/nope.yaml", "file not found")

@@ -11,7 +11,8 @@ import pandas as pd
 import pytest
 
 from railtherm.data import ingest
-from railtherm.estimation import models, sindy
+from railtherm.estimation import models
+from railtherm.study import sindy
 
 TRAM2 = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
 

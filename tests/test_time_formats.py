@@ -225,14 +225,14 @@ def write_vehicle(folder: Path, form: str) -> Path:
     return path
 
 
-def fitted(folder: Path, form: str):
+def fit_record(folder: Path, form: str):
     vehicle = load_vehicle(write_vehicle(folder, form), workdir=folder)
     return fit_vehicle(vehicle, models=MODELS, workdir=folder)
 
 
 @pytest.fixture(scope="module")
 def original(tmp_path_factory):
-    return fitted(tmp_path_factory.mktemp("iso"), "iso")
+    return fit_record(tmp_path_factory.mktemp("iso"), "iso")
 
 
 def test_the_record_spans_the_end_of_daylight_saving_time():
@@ -255,7 +255,7 @@ def test_every_notation_gives_the_tidy_table_and_estimates_of_the_iso_original(
     (a serial day's float is off by about 1e-6 ms and is read to the millisecond; elapsed
     minutes, hours and days are converted to seconds and rounded to whole microseconds). The
     estimates then agree far inside the 1e-9 asked for."""
-    result = fitted(tmp_path, form)
+    result = fit_record(tmp_path, form)
     table, reference = result.tables["h2"], original.tables["h2"]
     numbers = [c for c in reference.columns if c != "timestamp"]
     pd.testing.assert_frame_equal(table[numbers], reference[numbers], check_exact=True)

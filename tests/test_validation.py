@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from chain import checked_fit
 from compare_outputs import assert_outputs_agree
 from snakemake_run import snakemake
 
@@ -76,27 +77,21 @@ def renamed_vehicle(folder: Path) -> Path:
 
 
 def fit(vehicle_file: Path, model: str = "interior_envelope") -> tuple[dict, dict]:
-    """What rules clean, identify and check do for one vehicle file: (the checked fit, as
-    in fit_<model>.yaml, and the tidy windows)."""
-    vehicle = config.load_vehicle(vehicle_file)
-    tables = {}
-    for w in vehicle.windows["identification"]:
-        key, _, _ = ingest.window_spec(vehicle.data, w["name"])
-        tables[w["name"]] = ingest.clean_window(vehicle.raw_files[key], vehicle.data, w["name"])
-    estimate, series = identify.identify(tables, vehicle.data, None, model)
-    return identify.check(estimate, series, vehicle.data["check"]), tables
+    """What rules clean, identify and check do for one vehicle file (tests/chain.py): (the
+    checked fit, as in fit_<model>.yaml, and the tidy windows)."""
+    return checked_fit(vehicle_file, model)
 
 
 @pytest.fixture(scope="module")
-def armadillo():
+def armadillo_fit():
     """railtherm's interior-envelope fit of the Armadillo data (vehicle, fit, tables)."""
     path = VALIDATION / "config" / "vehicles" / "Armadillo.yaml"
     checked, tables = fit(path)
     return config.load_vehicle(path), checked, tables
 
 
-def test_interior_envelope_kA_agrees_with_pysip(armadillo):
-    _, checked, _ = armadillo
+def test_interior_envelope_kA_agrees_with_pysip(armadillo_fit):
+    _, checked, _ = armadillo_fit
     kA = checked["parameters"]["kA"]
     assert kA["estimated"] == "derived"
     assert abs(kA["value"] / PYSIP_KA - 1) < 0.10
@@ -106,10 +101,10 @@ def test_interior_envelope_kA_agrees_with_pysip(armadillo):
     assert checked["measures"]["T"]["overall"]["r2"] > 0.99
 
 
-def test_adding_a_renamed_copy_needs_config_only(armadillo, tmp_path):
+def test_adding_a_renamed_copy_needs_config_only(armadillo_fit, tmp_path):
     """Same data, other column names, separators and units, declared in YAML alone: the same
     estimates."""
-    _, original, _ = armadillo
+    _, original, _ = armadillo_fit
     renamed_copy(tmp_path)
     estimate, tables = fit(renamed_vehicle(tmp_path))
     assert list(tables["h2"]["T"].round(9)) == pytest.approx(
@@ -153,8 +148,8 @@ def test_solar_input_is_estimated_with_an_interval():
     assert a["ci95"][0] < a["value"] < a["ci95"][1]
 
 
-def test_reference_comparison_on_the_armadillo_data(armadillo):
-    vehicle, checked, tables = armadillo
+def test_reference_comparison_on_the_armadillo_data(armadillo_fit):
+    vehicle, checked, tables = armadillo_fit
     ref = reference.load_reference(PYSIP)
     table = reference.compare(ref, checked, tables, vehicle.data).set_index("quantity")
     # pySIP's own parameters through railtherm's simulator reproduce pySIP's printed fit:
@@ -170,10 +165,10 @@ def test_reference_comparison_on_the_armadillo_data(armadillo):
         reference.compare(ref, {**checked, "model": "order2"}, tables, vehicle.data)
 
 
-def test_a_reference_of_any_published_subset_compares_with_blanks(armadillo, tmp_path):
+def test_a_reference_of_any_published_subset_compares_with_blanks(armadillo_fit, tmp_path):
     """A published analysis that printed kA alone, or an aperture railtherm's model lacks:
     the comparison shows what there is and leaves the rest blank, never a crash."""
-    vehicle, checked, tables = armadillo
+    vehicle, checked, tables = armadillo_fit
     data = yaml.safe_load(PYSIP.read_text())
     data["parameters"] = {"kA": 51.0, "a_I_sol": 2.5}
     path = tmp_path / "ref.yaml"

@@ -9,6 +9,5 @@
 - :mod:`~railtherm.estimation.estimate`: the :class:`~railtherm.estimation.estimate.Estimate`
   both estimators return;
 - :mod:`~railtherm.estimation.metrics`, :mod:`~railtherm.estimation.acf`,
-  :mod:`~railtherm.estimation.diagnostics`: R² (eq. 21), residual whiteness, model selection;
-- :mod:`~railtherm.estimation.sindy`: the optional sparse-regression cross-check.
+  :mod:`~railtherm.estimation.diagnostics`: R² (eq. 21), residual whiteness, model selection.
 """

@@ -10,5 +10,7 @@
   reference model and its leave-one-out validation;
 - :mod:`~railtherm.study.scenario`, :mod:`~railtherm.study.simulate`,
   :mod:`~railtherm.study.predictions`: heat-up, energy and peak power with bands;
-- :mod:`~railtherm.study.reference`: published values compared with railtherm's fits.
+- :mod:`~railtherm.study.reference`: published values compared with railtherm's fits;
+- :mod:`~railtherm.study.identifiability`: what the data determine of a written fit;
+- :mod:`~railtherm.study.sindy`: the optional sparse-regression cross-check of a fit.
 """

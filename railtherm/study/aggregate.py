@@ -19,6 +19,7 @@ import pandas as pd
 
 from railtherm.estimation import models, pem
 from railtherm.estimation.metrics import ACCEPTABLE
+from railtherm.study import identifiability
 from railtherm.study.smallsample import t_interval, two_class_test
 from railtherm.yamlio import packaged_schema
 
@@ -117,27 +118,31 @@ def fit_structure(fit: Mapping[str, Any]) -> models.Structure | None:
 
 def judged_parameters(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
     """{param: identification} of a written fit: each estimated parameter as
-    :func:`railtherm.estimation.pem.parameter_identification` judges it, then the structure's
+    :func:`railtherm.study.identifiability.parameter_identification` judges it, then the structure's
     coupled
     parameters together (``Structure.coupled``,
-    :func:`railtherm.estimation.pem.coupled_identification`):
+    :func:`railtherm.study.identifiability.coupled_identification`):
     a capacity or the internal conductance coupled to one the data do not determine is not an
     estimate either. A fixed parameter (kA from the static test) is identified."""
     judged = {
-        p: (pem.parameter_identification(e) if e.get("estimated") else {"identified": True})
+        p: (
+            identifiability.parameter_identification(e)
+            if e.get("estimated")
+            else {"identified": True}
+        )
         for p, e in fit["parameters"].items()
     }
     structure = fit_structure(fit)
     if structure is not None:
         estimated = {p: judged[p] for p in structure.coupled if p in judged}
-        judged |= pem.coupled_identification(estimated, structure.coupled)
+        judged |= identifiability.coupled_identification(estimated, structure.coupled)
     return judged
 
 
 def fit_totals(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
     """The totals of a written fit (``totals``: C_total = C + C_veh with its 95 % interval),
     as recorded, or computed from its parameters, correlation and systematic effects
-    (:func:`railtherm.estimation.pem.total_capacity`) for a fit written without them."""
+    (:func:`railtherm.study.identifiability.total_capacity`) for a fit written without them."""
     if fit.get("totals"):
         return dict(fit["totals"])
     structure = fit_structure(fit)
@@ -146,7 +151,7 @@ def fit_totals(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
     for name, parts in (structure.totals if structure is not None else {}).items():
         if all(params.get(p, {}).get("estimated") for p in parts):
             effects = (fit.get("systematic") or {}).get("effects_log")
-            out[name] = pem.total_capacity(fit, parts, effects)
+            out[name] = identifiability.total_capacity(fit, parts, effects)
     return out
 
 
@@ -164,7 +169,7 @@ def total_vs_C_bar(total: Mapping[str, Any] | None, C_bar: Mapping[str, Any] | N
     if C_bar is None:
         return "not comparable: no first-order fit"
     for name, entry in ((TOTAL, total), ("C_bar", C_bar)):
-        judged = pem.parameter_identification(entry)
+        judged = identifiability.parameter_identification(entry)
         if not judged.get("identified", True):
             return f"not comparable: {name} not identified"
     return "overlap" if intervals_overlap(total["ci95"], C_bar["ci95"]) else "disjoint"
@@ -216,7 +221,9 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
             row |= {TOTAL: math.nan, f"{TOTAL}_lo": math.nan, f"{TOTAL}_hi": math.nan}
             row |= {f"{TOTAL}_status": "", f"{TOTAL}_vs_C_bar": ""}
         else:
-            q = quantity(total["value"], total["ci95"], pem.parameter_identification(total))
+            q = quantity(
+                total["value"], total["ci95"], identifiability.parameter_identification(total)
+            )
             row |= {f"{TOTAL}{suffix}": q[suffix] for suffix in ("", "_lo", "_hi", "_status")}
             key = (fit["vehicle"], fit.get("estimator", "output_error"))
             row[f"{TOTAL}_vs_C_bar"] = total_vs_C_bar(total, first_order.get(key))
@@ -276,7 +283,7 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
             T["ljung_box_p"] = fit["innovations"]["T"]["ljung_box_p"]
         kA = fit["parameters"].get("kA", {})
         if kA.get("estimated"):
-            q = quantity(kA["value"], kA["ci95"], pem.parameter_identification(kA))
+            q = quantity(kA["value"], kA["ci95"], identifiability.parameter_identification(kA))
         else:  # fixed from the static test
             q = {"": kA.get("value", math.nan), "_lo": math.nan, "_hi": math.nan}
             q["_status"] = "fixed" if kA else ""
@@ -505,14 +512,14 @@ def table2(
         if total is None:
             row |= _columns(TOTAL, quantity(math.nan, (math.nan, math.nan), {}))
         else:
-            judged_total = pem.parameter_identification(total)
+            judged_total = identifiability.parameter_identification(total)
             row |= _columns(TOTAL, quantity(total["value"], total["ci95"], judged_total))
         C_bar = (first_order.get(vid) or {}).get("parameters", {}).get("C_bar")
         if C_bar is None or not C_bar.get("estimated"):
             row |= _columns("C_bar", quantity(math.nan, (math.nan, math.nan), {}))
             C_bar = None
         else:
-            judged_C_bar = pem.parameter_identification(C_bar)
+            judged_C_bar = identifiability.parameter_identification(C_bar)
             row |= _columns("C_bar", quantity(C_bar["value"], C_bar["ci95"], judged_C_bar))
         row[f"{TOTAL}_vs_C_bar"] = total_vs_C_bar(total, C_bar)
         row |= {

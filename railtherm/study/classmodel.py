@@ -57,6 +57,7 @@ import yaml
 
 from railtherm.errors import ConfigError
 from railtherm.estimation import metrics, models, pem
+from railtherm.study import identifiability
 from railtherm.study.fit import Fit, write_yaml
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 
@@ -158,7 +159,7 @@ def _kind(reason: str) -> str:
     """The kind of a "not identified" reason (:func:`railtherm.estimation.pem.identification`): an
     estimate at a bound of the search ("at its lower search bound 1e+04"), a 95 % interval
     unbounded or wider than a factor 1000 in total (also without a reason), or a parameter
-    coupled to one of those (:func:`railtherm.estimation.pem.coupled_identification`)."""
+    coupled to one of those (:func:`railtherm.study.identifiability.coupled_identification`)."""
     if "coupled to" in reason:
         return COUPLED
     if "unbounded" in reason or "spans a factor" in reason:
@@ -617,7 +618,7 @@ class ReferenceModel:
             for p, e in out.items()
         }
         coupled = models.STRUCTURES[STRUCTURE].coupled
-        judged |= pem.coupled_identification(judged, coupled)
+        judged |= identifiability.coupled_identification(judged, coupled)
         for p, j in judged.items():
             out[p]["identified"] = bool(j["identified"])
             if not j["identified"]:

@@ -20,7 +20,8 @@ import numpy as np
 import pandas as pd
 
 from railtherm import io as results_io
-from railtherm.estimation import models, pem
+from railtherm.estimation import models
+from railtherm.study import identifiability
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,7 @@ class Parameter:
 
     @classmethod
     def from_entry(cls, name: str, entry: Mapping[str, Any]) -> Parameter:
-        ident = pem.parameter_identification(entry)
+        ident = identifiability.parameter_identification(entry)
         ci = entry.get("ci95")
         return cls(
             name=name,

@@ -25,6 +25,7 @@ from railtherm.data import ingest
 from railtherm.errors import ConfigError, DataError
 from railtherm.estimation import metrics, models, pem
 from railtherm.estimation.kvalue import COMPONENTS, sensor_counts, sensor_u_K, storage_corrected_kA
+from railtherm.study import identifiability
 from railtherm.yamlio import packaged_schema, validate_schema
 
 KA_BOUNDS = (1.0, 1.0e5)  # W/K, for joint estimation when the config gives none nor a scale
@@ -1291,10 +1292,11 @@ def judge_identification(
     ``wide_interval`` flags are replaced by flags on the combined intervals.
 
     With the ``structure``: its coupled parameters (``Structure.coupled``, the dynamic part)
-    are judged together (:func:`railtherm.estimation.pem.coupled_identification`), and each of its
+    are judged together (:func:`railtherm.study.identifiability.coupled_identification`), and each
+    of its
     totals (``Structure.totals``: C_total = C + C_veh, the capacity eq. 9 lumps into C_bar)
     is written under ``fitted["totals"]`` with its 95 % interval
-    (:func:`railtherm.estimation.pem.total_capacity`, ``budget`` the systematic budget).
+    (:func:`railtherm.study.identifiability.total_capacity`, ``budget`` the systematic budget).
     ``physical``:
     {param: what its lower bound is} for a bound the metadata make physical
     (:func:`physical_bounds`), named in the reason."""
@@ -1327,12 +1329,14 @@ def judge_identification(
         return
     params = fitted["parameters"]
     estimated = {p: params[p] for p in structure.coupled if params.get(p, {}).get("estimated")}
-    for p, judged in pem.coupled_identification(estimated, structure.coupled).items():
+    for p, judged in identifiability.coupled_identification(estimated, structure.coupled).items():
         params[p].update(judged)
     totals = {}
     for name, parts in structure.totals.items():
         if all(p in params for p in parts):
-            totals[name] = pem.total_capacity(fitted, parts, (budget or {}).get("effects_log"))
+            totals[name] = identifiability.total_capacity(
+                fitted, parts, (budget or {}).get("effects_log")
+            )
     if totals:
         fitted["totals"] = totals
 
@@ -1455,7 +1459,7 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
 
     def value(p):
         entry = par.get(p)
-        if entry is None or not pem.parameter_identification(entry)["identified"]:
+        if entry is None or not identifiability.parameter_identification(entry)["identified"]:
             return None
         return float(entry["value"])
 
@@ -1488,7 +1492,7 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 "taken up by the conductance"
             )
     total = (estimate["fit"].get("totals") or {}).get("C_total")
-    if total is not None and not pem.parameter_identification(total)["identified"]:
+    if total is not None and not identifiability.parameter_identification(total)["identified"]:
         total = None
     every = dict.fromkeys(p for s in structures.STRUCTURES.values() for p in s.capacities)
     capacities = [value(p) for p in every if p in par]

@@ -25,7 +25,7 @@ import pandas as pd
 from railtherm import structures
 from railtherm.errors import ConfigError
 from railtherm.estimation import metrics, pem
-from railtherm.study import identify
+from railtherm.study import identifiability, identify
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 
 __all__ = ["compare", "load_reference", "markdown", "published_parameters", "simulate_published"]
@@ -135,7 +135,7 @@ def _row(quantity, label, published, fit_entry, simulated=None, judged=None) -> 
     status = "estimated"
     if fit_entry is not None and "ci95" in fit_entry:
         lo, hi = map(float, fit_entry["ci95"])
-        judged = judged or pem.parameter_identification(fit_entry)
+        judged = judged or identifiability.parameter_identification(fit_entry)
         if not judged["identified"]:
             value, lo, hi = np.nan, np.nan, np.nan
             status = f"not identified: {judged['reason']}"

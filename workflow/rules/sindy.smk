@@ -1,4 +1,4 @@
-# The optional SINDy cross-check of the grey-box structure (railtherm.estimation.sindy; config
+# The optional SINDy cross-check of the grey-box structure (railtherm.study.sindy; config
 # `sindy:`).
 
 

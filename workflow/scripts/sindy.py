@@ -3,7 +3,7 @@
 from railtherm import io as rt_io
 from railtherm import logs
 from railtherm.data import ingest
-from railtherm.estimation import sindy
+from railtherm.study import sindy
 
 log = logs.to_file(snakemake.log[0])
 p = snakemake.params.settings

@@ -4,9 +4,8 @@ from pathlib import Path
 
 from railtherm import io as rt_io
 from railtherm import logs
-from railtherm.estimation import sindy
 from railtherm.report import plots, tables
-from railtherm.study import aggregate
+from railtherm.study import aggregate, sindy
 
 log = logs.to_file(snakemake.log[0])
 results = {
