@@ -7,7 +7,7 @@ import pytest
 import yaml
 from records import noisy_power_record
 
-from railtherm.estimation import models, pem
+from railtherm.estimation import hac, models, pem
 
 S1, S2 = models.STRUCTURES["first_order"], models.STRUCTURES["second_order"]
 TRAM2 = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
@@ -247,8 +247,8 @@ def test_bartlett_meat_equals_explicit_sum():
     for lag in range(1, L + 1):
         G = g[lag:].T @ g[:-lag]
         S += (1 - lag / (L + 1)) * (G + G.T)
-    np.testing.assert_allclose(pem._bartlett_hac(np.ascontiguousarray(g.T), L), S, rtol=1e-12)
-    np.testing.assert_allclose(pem._bartlett_hac(np.ascontiguousarray(g.T), 0), g.T @ g, rtol=1e-12)
+    np.testing.assert_allclose(hac.bartlett(np.ascontiguousarray(g.T), L), S, rtol=1e-12)
+    np.testing.assert_allclose(hac.bartlett(np.ascontiguousarray(g.T), 0), g.T @ g, rtol=1e-12)
 
 
 def test_to_dict_is_plain_and_yaml_ready():

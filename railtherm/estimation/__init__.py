@@ -4,7 +4,8 @@
   any structure of :mod:`railtherm.structures`;
 - :mod:`~railtherm.estimation.kvalue`: the standardised static method, k of eq. 10;
 - :mod:`~railtherm.estimation.pem`: the paper's simulation-error prediction error method
-  (eqs. 15-20): the fit, its Levenberg-Marquardt solver, starts, HAC covariance, flags;
+  (eqs. 15-20): the fit, its starts and flags, with :mod:`~railtherm.estimation.solver`
+  (Levenberg-Marquardt) and :mod:`~railtherm.estimation.hac` (the HAC covariance);
 - :mod:`~railtherm.estimation.kalman`: the Kalman filter's maximum likelihood;
 - :mod:`~railtherm.estimation.estimate`: the :class:`~railtherm.estimation.estimate.Estimate`
   both estimators return;

@@ -5,7 +5,8 @@ eq. 15) from each experiment's initial state, and the criterion J(theta) = e^T e
 the compared outputs (eq. 18; outputs in K, equal weights for every output and sample; rows
 where the measurement is NaN are skipped) is minimised in log parameters, with bounds, fixed
 parameters and the exact analytic Jacobian (discrete sensitivities, chain rule to log), by a
-Levenberg-Marquardt on the p x p normal equations (:func:`_levenberg_marquardt`: p is small,
+Levenberg-Marquardt on the p x p normal equations
+(:func:`railtherm.estimation.solver.levenberg_marquardt`: p is small,
 the data long, and scipy's general solver costs more per fit than the simulations do), with
 ``scipy.optimize.least_squares`` (trust-region reflective, bounded) as the fallback whenever
 that fails or leaves the bounds.
@@ -45,7 +46,7 @@ from typing import Any, ClassVar
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from railtherm.estimation import models
+from railtherm.estimation import hac, models, solver
 from railtherm.estimation.estimate import Estimate, Flag
 from railtherm.estimation.models import Structure
 
@@ -418,168 +419,6 @@ class _Problem:
 
 
 # ----------------------------------------------------------------------------------------------
-# the solver
-
-
-def _levenberg_marquardt(residuals, jacobian, v0, max_nfev=None, tol=1e-8, reuse=1e-2):
-    """Levenberg-Marquardt on the p x p normal equations of a tall least-squares problem.
-
-    Minimises 0.5 r(v)^T r(v) for few unknowns p and many residuals m. Each iteration forms
-    H = J^T J and g = J^T r once (O(m p^2)) and solves (H + mu diag(H)) step = -g (Marquardt's
-    scaling); mu follows Nielsen's update (shrunk after a good step, doubled and doubling
-    after a rejected one). It exists because ``scipy.optimize.least_squares`` costs 2-3 ms
-    of its own work per fit at m = 2e4, p = 3 (an SVD or QR of the whole m x p Jacobian every
-    iteration, Fortran-order copies): more than the simulations themselves
-    (docs/performance.md). ``fit`` falls back to least_squares (trf, with bounds) whenever
-    this one fails or leaves the bounds.
-
-    After an accepted step smaller than ``reuse`` in every unknown (1 % in a log parameter),
-    the Jacobian is kept for the next step (a chord step: J changes by O(step), the step's
-    accuracy by O(step^2)); it is recomputed before any conclusion is drawn from it and after
-    a rejected step. Near the optimum this saves one sensitivity computation per fit.
-
-    Stops when the nearly undamped Gauss-Newton step predicts a relative reduction of the
-    cost below ``tol`` (status 2), when an accepted step's actual and predicted relative
-    reductions are both below ``tol`` (status 2, as MINPACK), when the step is below ``tol``
-    relative to |v| (status 3), when the gradient is orthogonal to the residuals to within
-    ``tol`` (status 1), or after ``max_nfev`` residual evaluations (default 100 p; status 0,
-    not converged); every stop but the last with the Jacobian evaluated at the returned v.
-    Returns an object with the fields of least_squares' result that :func:`fit` reads.
-    """
-    v = np.array(v0, dtype=float)
-    p = len(v)
-    max_nfev = 100 * max(p, 1) if max_nfev is None else int(max_nfev)
-    r = residuals(v)
-    nfev, njev = 1, 0
-    cost = 0.5 * float(r @ r)
-    if not math.isfinite(cost):
-        return _solution(v, r, 0, nfev, njev, "the residuals are not finite at the start", False)
-    J, fresh = jacobian(v), True
-    njev += 1
-    mu, nu = 1e-3, 2.0
-    status, message = 0, "the maximum number of function evaluations is exceeded"
-    while nfev < max_nfev:
-        JT = J.T
-        H = _gram(JT)
-        g = JT @ r
-        if not (math.isfinite(H.sum()) and math.isfinite(g.sum())):
-            if fresh:
-                message = "the Jacobian is not finite"
-                break
-            J, fresh = jacobian(v), True
-            njev += 1
-            continue
-        d = H.diagonal().copy()
-        # gradient test: the largest cosine between a column of J and r is
-        # max |g_i| / (|J_i| |r|) (a zero column has g_i = 0)
-        converged = float((g * g / np.maximum(d, 1e-300)).max()) <= tol * tol * 2.0 * cost
-        if converged and fresh:
-            status, message = 1, "the gradient is orthogonal to the residuals (gtol)"
-            break
-        d = np.maximum(d, 1e-12 * float(d.max()) + 1e-300)
-        try:
-            step = np.linalg.solve(H + np.diag(mu * d), -g)
-        except np.linalg.LinAlgError:  # H singular and mu tiny: damp harder
-            mu = max(mu * nu, 1e-12)
-            nu *= 2.0
-            continue
-        predicted = -float(g @ step) - 0.5 * float(step @ H @ step)
-        converged = converged or (0 <= predicted <= tol * cost and mu <= 1e-2)
-        if converged:
-            if fresh:  # the Gauss-Newton step promises a relative reduction below tol
-                status, message = 2, "the predicted relative reduction of the cost is below ftol"
-                break
-            J, fresh = jacobian(v), True  # check with the Jacobian at v itself
-            njev += 1
-            continue
-        trial = v + step
-        r_trial = residuals(trial)
-        nfev += 1
-        with np.errstate(over="ignore", invalid="ignore"):  # a wild trial: rejected below
-            cost_trial = 0.5 * float(r_trial @ r_trial)
-        actual = cost - cost_trial if math.isfinite(cost_trial) else -math.inf
-        small_step = math.sqrt(float(step @ step)) <= tol * (math.sqrt(float(v @ v)) + tol)
-        if predicted > 0 and actual > 0:
-            rho = actual / predicted
-            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-            nu = 2.0
-            v, r, cost_old, cost = trial, r_trial, cost, cost_trial
-            stop = small_step or (actual <= tol * cost_old and predicted <= tol * cost_old)
-            if stop or float(np.abs(step).max()) >= reuse:
-                J, fresh = jacobian(v), True
-                njev += 1
-            else:
-                fresh = False
-            if stop:
-                status, message = (
-                    (3, "the step is below xtol")
-                    if small_step
-                    else (2, "the relative reduction of the cost is below ftol")
-                )
-                break
-        elif not fresh:  # the stale Jacobian misled the step: renew it before damping
-            J, fresh = jacobian(v), True
-            njev += 1
-        else:
-            if small_step or 0 <= predicted <= 1e-2 * tol * cost:
-                # no descent left at rounding level: v is the optimum
-                status, message = 3, "the step is below xtol"
-                break
-            mu *= nu
-            nu *= 2.0
-    return _solution(v, r, status, nfev, njev, message, status > 0)
-
-
-def _gram(JT: np.ndarray) -> np.ndarray:
-    """J^T J from JT (p x m, p small): one dot product per entry. For p <= ~10 and m ~ 1e4
-    this is 2-5x faster than ``JT @ JT.T`` (OpenBLAS' gemm/syrk, single-threaded, on a 3 x
-    2e4 by 2e4 x 3 product: 45 us against 115 us), and a fit forms it every iteration."""
-    p, m = JT.shape
-    if m < 2048:  # small: one BLAS call is cheaper than p(p+1)/2 Python-level dots
-        return JT @ JT.T
-    H = np.empty((p, p))
-    for i in range(p):
-        for j in range(i, p):
-            H[i, j] = H[j, i] = JT[i] @ JT[j]
-    return H
-
-
-_EIGH_COND_MAX = 1e5  # cond(J) up to which its SVD is taken from the eigenproblem of J^T J
-
-
-def _svd_tall(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Singular values (descending) and right singular vectors (rows of Vt) of a tall J.
-
-    From the eigendecomposition of J^T J when J is well conditioned (cond <= 1e5, where
-    squaring the condition costs at most ~1e-6 relative accuracy in the smallest singular
-    value), else exactly from the QR factor R of J (J = Q R, SVD of R): the QR of a 2e4 x 3 J
-    costs as much as three simulations of the data, the small eigenproblem nothing."""
-    if J.shape[0] > J.shape[1]:
-        lam, V = np.linalg.eigh(_gram(np.ascontiguousarray(J.T)))
-        lam, V = lam[::-1], V[:, ::-1]
-        if lam[-1] > 0 and lam[0] > 0 and lam[-1] >= lam[0] / _EIGH_COND_MAX**2:
-            return np.sqrt(lam), V.T.copy()
-        R = np.linalg.qr(J, mode="r")
-    else:
-        R = J
-    _, s, Vt = np.linalg.svd(R, full_matrices=False)
-    return s, Vt
-
-
-def _solution(v, r, status, nfev, njev, message, success):
-    return SimpleNamespace(
-        x=v,
-        fun=r,
-        status=status,
-        success=success,
-        nfev=nfev,
-        njev=njev,
-        message=message,
-        active_mask=np.zeros(len(v), int),
-    )
-
-
-# ----------------------------------------------------------------------------------------------
 # starts
 
 
@@ -619,7 +458,7 @@ def equation_error_start(
         ZD[k:] *= 1.0 / e.dt
         if n_ok < len(ok):
             ZD = np.ascontiguousarray(ZD[:, ok])
-        G = _gram(ZD)  # every sum of products at once
+        G = solver.gram(ZD)  # every sum of products at once
         Szz += G[:k, :k]
         Szd += G[:k, k:]
         ss_dd += np.diag(G[k:, k:])
@@ -671,7 +510,7 @@ def equation_error_start(
     if fun(w0).size >= len(free):
         try:
             with np.errstate(over="ignore", invalid="ignore"):
-                sol = _levenberg_marquardt(fun, jac, w0)
+                sol = solver.levenberg_marquardt(fun, jac, w0)
             if sol.success and np.all(np.isfinite(sol.x)) and np.all(np.abs(sol.x - w0) < 50):
                 w = np.clip(sol.x, lo, hi)
         except failures:
@@ -695,52 +534,6 @@ def _block_average(e: Experiment, factor: int) -> Experiment:
     N = (len(e.u) // factor) * factor
     u = e.step_u[:N].reshape(-1, factor, e.u.shape[1]).mean(axis=1)
     return Experiment(name=e.name, dt=e.dt * factor, u=u, y=e.y[:N:factor], x0=e.x0)
-
-
-# ----------------------------------------------------------------------------------------------
-# covariance
-
-
-def _bartlett_hac(gT: np.ndarray, L: int) -> np.ndarray:
-    """sum_{|l| <= L} (1 - |l| / (L + 1)) Gamma_l for the score series g (given transposed,
-    gT p x T), computed as (1 / (L + 1)) sum_t G_t G_t^T with G_t the sum of L + 1 consecutive
-    g (zero-padded): every pair at lag l falls in L + 1 - l windows, which is the Bartlett
-    weight exactly. O(T p^2), whatever L."""
-    if L <= 0:
-        return _gram(gT)
-    p, T = gT.shape
-    c = np.empty((p, T + 2 * L + 1))  # c[:, j]: sum of the zero-padded g before position j
-    c[:, : L + 1] = 0.0
-    np.cumsum(gT, axis=1, out=c[:, L + 1 : L + 1 + T])
-    c[:, L + 1 + T :] = c[:, L + T : L + T + 1]
-    return _gram(c[:, L + 1 :] - c[:, : T + L]) / (L + 1)
-
-
-def _sandwich(Vt: np.ndarray, inv_s: np.ndarray, meat: np.ndarray) -> np.ndarray:
-    """The HAC covariance (J^T J)^+ meat (J^T J)^+ with (J^T J)^+ = V diag(inv_s^2) V^T,
-    formed as F F^T with F = (J^T J)^+ meat^(1/2): positive semi-definite by construction, so
-    no variance comes out negative (or is clipped to zero) and no correlation exceeds 1 when
-    J is ill-conditioned and the plain triple product loses everything to cancellation."""
-    lam, Q = np.linalg.eigh(meat)
-    root = Q * np.sqrt(np.clip(lam, 0.0, None))
-    F = Vt.T @ (inv_s[:, None] ** 2 * (Vt @ root))
-    return F @ F.T
-
-
-def _andrews_bandwidth(e: np.ndarray) -> int:
-    """Andrews (1991) AR(1) plug-in bandwidth for the Bartlett kernel."""
-    T = len(e)
-    if T < 3:
-        return 0
-    e = e - e.mean()
-    den = float(e @ e)
-    if den <= 0:
-        return 0
-    rho = float(e[1:] @ e[:-1]) / den
-    rho = min(max(rho, -0.999), 0.999)
-    alpha = 4 * rho**2 / ((1 - rho) ** 2 * (1 + rho) ** 2)
-    L = int(math.ceil(1.1447 * (alpha * T) ** (1.0 / 3.0)))
-    return max(0, min(L, T // 2))
 
 
 def one_hold(experiments: Sequence[Experiment]) -> str:
@@ -1019,7 +812,7 @@ def fit(
     # reflective solve from the same start; its subproblem uses the SVD of J for small
     # problems and LSMR for large ones, where the SVD of the tall Jacobian dominates the cost.
     tr = {"tr_solver": "lsmr"} if prob.m * (prob.P + prob.n_x0) > _LSMR_ABOVE else {}
-    sol = _levenberg_marquardt(prob.residuals, prob.jacobian, v0, max_nfev)
+    sol = solver.levenberg_marquardt(prob.residuals, prob.jacobian, v0, max_nfev)
     inside = np.all(sol.x > lo) and np.all(sol.x < hi)
     if not (sol.success and inside and np.all(np.isfinite(sol.fun))):
         first = sol
@@ -1204,7 +997,7 @@ def _scale_aware_start(
     best, best_cost = None, math.inf
     for v in kept:
         with np.errstate(over="ignore", invalid="ignore"):
-            sol = _levenberg_marquardt(refine.residuals, refine.jacobian, v, 30 * len(v))
+            sol = solver.levenberg_marquardt(refine.residuals, refine.jacobian, v, 30 * len(v))
         w = clip(sol.x) if np.all(np.isfinite(sol.x)) else v
         c = prob.cost_only(w)
         if c < best_cost:
@@ -1220,7 +1013,7 @@ def _result(
     ssr = float(r @ r)
     # singular values and right vectors of J
     if p_all:
-        s, Vt = _svd_tall(J)
+        s, Vt = solver.svd_tall(J)
     else:  # nothing estimated
         s, Vt = np.zeros(0), np.zeros((0, 0))
     smax = float(s[0]) if s.size else 0.0
@@ -1229,7 +1022,7 @@ def _result(
     if P and p_all == P:
         cond = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
     elif P:
-        sp = _svd_tall(J[:, :P])[0]
+        sp = solver.svd_tall(J[:, :P])[0]
         cond = float(sp[0] / sp[-1]) if sp[-1] > 0 else math.inf
     else:
         cond = 1.0
@@ -1254,16 +1047,16 @@ def _result(
                     gT[:, rr] = JTi * ri
                     res_full = np.zeros(len(e.u))
                     res_full[rr] = ri
-                L = _andrews_bandwidth(res_full)
+                L = hac.andrews_bandwidth(res_full)
                 bandwidths.append(L)
                 if len(res_full) >= 8 and L >= len(res_full) // 2:
                     capped.append(f"{e.name} (L = {L} of {len(res_full)} rows)")
-                meat += _bartlett_hac(gT, L)
+                meat += hac.bartlett(gT, L)
                 row += N_i
-        cov = _sandwich(Vt, inv_s, meat)
+        cov = hac.sandwich(Vt, inv_s, meat)
     input_sd = [dict(level) for level in noisy] if any(noisy) else []
     if input_sd:
-        cov = cov + _sandwich(Vt, inv_s, _input_noise_meat(structure, prob, v, J, noisy))
+        cov = cov + hac.sandwich(Vt, inv_s, _input_noise_meat(structure, prob, v, J, noisy))
         step = _input_noise_bias(structure, prob, v, Vt, inv_s, noisy)
         moved = v + step
         if np.all(np.isfinite(step)) and np.all(moved > box[0]) and np.all(moved < box[1]):
