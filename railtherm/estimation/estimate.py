@@ -6,12 +6,13 @@ which."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["Estimate", "Flag"]
+__all__ = ["Estimate", "Flag", "Identification"]
 
 
 @dataclass(frozen=True)
@@ -24,6 +25,44 @@ class Flag:
 
     def to_dict(self) -> dict[str, Any]:
         return {"code": self.code, "parameters": list(self.parameters), "message": self.message}
+
+
+@dataclass(frozen=True, eq=False)
+class Identification(Mapping[str, Any]):
+    """Whether the data determine a parameter (:func:`railtherm.estimation.pem.identification`):
+    ``identified``, and where they do not, the one-sided ``limit`` they give ("upper",
+    "lower" or "none") with its ``limit_value``, the side of the search bound the estimate
+    sits at (``at_bound``) and the ``reason``. Read as a mapping it holds exactly the keys a
+    fit file stores under ``parameters.<p>`` (``{"identified": True}`` alone for an identified
+    parameter), and compares equal to that dict."""
+
+    identified: bool
+    limit: str | None = None
+    limit_value: float | None = None
+    at_bound: str | None = None
+    reason: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        if self.identified:
+            return {"identified": True}
+        out: dict[str, Any] = {
+            "identified": False,
+            "limit": self.limit,
+            "limit_value": self.limit_value,
+        }
+        if self.at_bound is not None:
+            out["at_bound"] = self.at_bound
+        out["reason"] = self.reason
+        return out
+
+    def __getitem__(self, key: str) -> Any:
+        return self.to_dict()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.to_dict())
+
+    def __len__(self) -> int:
+        return len(self.to_dict())
 
 
 @dataclass(kw_only=True)

@@ -63,7 +63,7 @@ from scipy.linalg import cho_factor, cho_solve, solve_discrete_are, solve_discre
 from scipy.optimize import minimize
 
 from railtherm.estimation import models, pem
-from railtherm.estimation.estimate import Estimate
+from railtherm.estimation.estimate import Estimate, Identification
 from railtherm.estimation.models import Structure
 from railtherm.estimation.pem import Experiment
 
@@ -1083,7 +1083,7 @@ class KalmanResult(Estimate):
     innovations: list[np.ndarray] = field(default_factory=list, repr=False)
     innovation_var: list[np.ndarray] = field(default_factory=list, repr=False)
     one_step: list[np.ndarray] = field(default_factory=list, repr=False)
-    identified: dict[str, dict[str, Any]] = field(default_factory=dict)
+    identified: dict[str, Identification] = field(default_factory=dict)
     unknowns: tuple[str, ...] = ()
     covariance_log: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
     x0_mode: str = "estimated"

@@ -47,7 +47,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from railtherm.estimation import hac, models, solver
-from railtherm.estimation.estimate import Estimate, Flag
+from railtherm.estimation.estimate import Estimate, Flag, Identification
 from railtherm.estimation.models import Structure
 
 __all__ = [
@@ -1164,7 +1164,7 @@ def identification(
     value: float,
     ci95: tuple[float, float],
     at_bound: tuple[str, float] | tuple[str, float, str] | None = None,
-) -> dict[str, Any]:
+) -> Identification:
     """Whether the data determine a parameter, and what they do say when they do not.
 
     Not identified: the estimate sits at a bound of the search (``at_bound`` = (side, bound)
@@ -1174,9 +1174,9 @@ def identification(
     estimate at one has no limit (``limit: none``). Only an interval open on one side leaves
     a one-sided limit the data give: open above, its lower end ("at least", ``limit:
     lower``); open below, its upper end ("at most", ``limit: upper``). An interval finite on
-    both sides but too wide, or open on both, gives none. Returns ``{"identified": True}`` or
-    ``{"identified": False, "limit": "upper" | "lower" | "none", "limit_value": float | None,
-    "reason": str}``."""
+    both sides but too wide, or open on both, gives none. Returns the :class:`Identification`,
+    read as ``{"identified": True}`` or ``{"identified": False, "limit": "upper" | "lower" |
+    "none", "limit_value": float | None, "reason": str}`` (and ``at_bound``)."""
     if at_bound is not None:
         side, bound = at_bound[0], float(at_bound[1])
         what = at_bound[2] if len(at_bound) > 2 else ""
@@ -1185,19 +1185,13 @@ def identification(
             if what
             else (f"its {side} search bound {bound:.3g}, not a limit the data give")
         )
-        return {
-            "identified": False,
-            "limit": "none",
-            "limit_value": None,
-            "at_bound": side,
-            "reason": f"at {where}",
-        }
+        return Identification(False, "none", None, side, f"at {where}")
     lo, hi = (float(c) for c in ci95)
     factor = UNBOUNDED_FACTOR
     open_lo = not (math.isfinite(lo) and lo > 0)
     open_hi = not math.isfinite(hi)
     if not (open_lo or open_hi) and hi / lo <= factor:
-        return {"identified": True}
+        return Identification(True)
     if open_lo and open_hi:
         limit, limit_value, why = "none", None, "unbounded both ways"
     elif open_hi:
@@ -1207,12 +1201,8 @@ def identification(
     else:
         limit, limit_value = "none", None
         why = f"spans a factor {hi / lo:.4g} ({lo:.3g} to {hi:.3g})"
-    return {
-        "identified": False,
-        "limit": limit,
-        "limit_value": limit_value,
-        "reason": f"95 % interval {why}, more than a factor {factor:g} in total",
-    }
+    reason = f"95 % interval {why}, more than a factor {factor:g} in total"
+    return Identification(False, limit, limit_value, None, reason)
 
 
 def _x0_flags(prob: _Problem, sol, v: np.ndarray) -> list[Flag]:
