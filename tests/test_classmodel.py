@@ -16,8 +16,7 @@ import yaml
 
 from railtherm.cli import main
 from railtherm.errors import ConfigError
-from railtherm.estimation import metrics
-from railtherm.study import classmodel
+from railtherm.study import classmodel, quality
 from railtherm.study import simulate as sim
 from railtherm.study.aggregate import SYNTHETIC_SOURCE
 from railtherm.study.classmodel import (
@@ -61,7 +60,7 @@ def member(
 # --- members ----------------------------------------------------------------------------------
 
 
-def fit_data(verdict: str = metrics.ACCEPTABLE, **entries) -> dict:
+def fit_data(verdict: str = quality.ACCEPTABLE, **entries) -> dict:
     parameters = {
         "kA": {"value": 700.0, "estimated": False},
         "C": {"value": 1.0e7, "estimated": True, "ci95": [8e6, 1.2e7], "identified": True},
@@ -99,7 +98,7 @@ def test_member_not_usable_why():
         "limit_value": 1e4,
         "reason": "at its lower bound 1e+04",
     }
-    m = member_from_fit(Fit(fit_data(metrics.IN_DOUBT, C=bound)), VEHICLE)
+    m = member_from_fit(Fit(fit_data(quality.IN_DOUBT, C=bound)), VEHICLE)
     assert not m.usable and m.delta is None
     assert m.why == (
         "C not identified (at a bound); K_veh, C_veh not identified (coupled to a parameter "
@@ -133,7 +132,7 @@ def row_of(**cells) -> dict:
         "K_veh_status": "estimated",
         "C_veh": "1.8e+07",
         "C_veh_status": "estimated",
-        "verdict": metrics.ACCEPTABLE,
+        "verdict": quality.ACCEPTABLE,
         "source": "measured",
     }
     return {**row, **cells}
@@ -143,10 +142,10 @@ def test_member_from_row_is_member_from_fit():
     # the same vehicle from its Table 2 row and from its fit: one rule, the same member
     assert member_from_row(row_of(), VEHICLE) == member_from_fit(Fit(fit_data()), VEHICLE)
     bound = "not identified: at its lower bound 1e+04"
-    m = member_from_row(row_of(verdict=metrics.IN_DOUBT, C="", C_status=bound), VEHICLE)
+    m = member_from_row(row_of(verdict=quality.IN_DOUBT, C="", C_status=bound), VEHICLE)
     fit = Fit(
         fit_data(
-            metrics.IN_DOUBT,
+            quality.IN_DOUBT,
             C={"identified": False, "reason": bound.removeprefix("not identified: ")},
         )
     )
@@ -241,7 +240,7 @@ def test_members_of_the_committed_study():
     # the same as Table 2 says: usable = acceptable and every parameter estimated
     for row in table.reset_index().itertuples():
         statuses = {row.k_status, row.C_status, row.K_veh_status, row.C_veh_status}
-        usable = row.verdict == metrics.ACCEPTABLE and statuses == {"estimated"}
+        usable = row.verdict == quality.ACCEPTABLE and statuses == {"estimated"}
         assert by_id[row.vehicle].usable == usable, row.vehicle
 
 

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from scipy import stats
 
 from railtherm.estimation import metrics
+from railtherm.study import quality
 
 Y = [1.0, 2.0, 3.0, 4.0]
 YHAT = [1.0, 2.0, 3.0, 5.0]  # SS_res = 1, SS_tot = 5 (eqs. 22, 23)
@@ -135,7 +136,7 @@ def test_summary_labels_r2_and_nrmse_fit_apart():
     rng = np.random.default_rng(7)
     y = np.cumsum(rng.normal(size=500))
     yhat = y + rng.normal(scale=0.3, size=500)
-    s = metrics.summary(y, yhat, p=3)
+    s = quality.summary(y, yhat, p=3)
     assert "fit" not in s
     assert s["r2"] == pytest.approx(metrics.r2(y, yhat))
     assert s["nrmse_fit"] == pytest.approx(metrics.nrmse_fit(y, yhat))
@@ -154,19 +155,19 @@ COLOURED = metrics.Whiteness(
 
 
 def test_verdict_acceptable_only_without_reasons():
-    assert metrics.verdict(0.99, [], GOOD) == ("fit acceptable", [])
-    assert metrics.verdict(0.99) == ("fit acceptable", [])
+    assert quality.verdict(0.99, [], GOOD) == ("fit acceptable", [])
+    assert quality.verdict(0.99) == ("fit acceptable", [])
 
 
 def test_verdict_reasons_name_the_numbers():
-    label, reasons = metrics.verdict(0.85, [], GOOD)
+    label, reasons = quality.verdict(0.85, [], GOOD)
     assert label == "assumptions in doubt"
     assert reasons == ["R^2 = 0.8500 is below 0.9."]
-    assert metrics.verdict(0.85, thresholds={"r2_min": 0.8})[0] == "fit acceptable"
-    label, reasons = metrics.verdict(0.99, [], COLOURED)
+    assert quality.verdict(0.85, thresholds={"r2_min": 0.8})[0] == "fit acceptable"
+    label, reasons = quality.verdict(0.99, [], COLOURED)
     assert label == "assumptions in doubt" and "strongly coloured" in reasons[0]
     assert "250" in reasons[0]
-    label, reasons = metrics.verdict({"step_up": 0.99, "step_down": float("nan")})
+    label, reasons = quality.verdict({"step_up": 0.99, "step_down": float("nan")})
     assert reasons == ["R^2 (step_down) is undefined (no usable rows or a constant measurement)."]
 
 
@@ -181,7 +182,7 @@ def test_verdict_passes_identifiability_flags_through_in_any_form():
         Flag(),
         ("ill_conditioned", "The Jacobian is ill-conditioned (cond 3e9)."),
     ]
-    label, reasons = metrics.verdict(0.995, flags, GOOD)
+    label, reasons = quality.verdict(0.995, flags, GOOD)
     assert label == "assumptions in doubt"
     assert reasons == [
         "K_veh is at its lower bound.",
@@ -195,15 +196,15 @@ def test_verdict_whiteness_options():
     not_white = metrics.Whiteness(
         q=80.0, p_value=1e-6, lags=20, dof=20, m=1000, tau=1.5, effective_samples=667.0
     )
-    assert metrics.verdict(0.99, [], not_white)[0] == "fit acceptable"  # informative only
-    label, reasons = metrics.verdict(0.99, [], not_white, {"require_white": True})
+    assert quality.verdict(0.99, [], not_white)[0] == "fit acceptable"  # informative only
+    label, reasons = quality.verdict(0.99, [], not_white, {"require_white": True})
     assert label == "assumptions in doubt" and "Ljung-Box p = 1e-06" in reasons[0]
     # the YAML form and per-experiment mappings are accepted too
-    assert metrics.verdict(0.99, [], COLOURED.to_dict())[0] == "assumptions in doubt"
-    _, reasons = metrics.verdict(0.99, [], {"a": GOOD, "b": COLOURED})
+    assert quality.verdict(0.99, [], COLOURED.to_dict())[0] == "assumptions in doubt"
+    _, reasons = quality.verdict(0.99, [], {"a": GOOD, "b": COLOURED})
     assert len(reasons) == 1 and "(b)" in reasons[0]
     with pytest.raises(ValueError, match="unknown"):
-        metrics.verdict(0.99, thresholds={"r2": 0.5})
+        quality.verdict(0.99, thresholds={"r2": 0.5})
 
 
 def test_verdict_takes_per_window_summaries_as_whiteness():
@@ -213,9 +214,9 @@ def test_verdict_takes_per_window_summaries_as_whiteness():
     rng = np.random.default_rng(11)
     t = np.arange(600.0)
     y = pd.Series(np.sin(t / 50.0))
-    good = metrics.summary(y, y + rng.normal(scale=0.05, size=600), p=3)
-    drifting = metrics.summary(y, y + 0.2 * np.sin(t / 150.0), p=3)  # a slow, missed dynamic
-    label, reasons = metrics.verdict(
+    good = quality.summary(y, y + rng.normal(scale=0.05, size=600), p=3)
+    drifting = quality.summary(y, y + 0.2 * np.sin(t / 150.0), p=3)  # a slow, missed dynamic
+    label, reasons = quality.verdict(
         {"T": good["r2"]},
         [{"code": "at_bound", "parameters": ["K_veh"], "message": "K_veh is at a bound."}],
         whiteness={"step_up": good, "step_down": drifting},

@@ -87,3 +87,35 @@ def test_entry_points_are_importable_from_the_package():
 
     for name in ("load_vehicle", "load_study", "fit_vehicle", "Fit", "read_fit", "KValue"):
         assert callable(getattr(railtherm, name)), name
+
+
+def test_the_estimation_layer_passes_no_bare_dicts_of_results():
+    """Every public function of railtherm.estimation returns a typed result (an Estimate, a
+    KValue, an Identification, test results), never a bare dict or mapping, and takes no
+    results as one; a mapping it takes is a config section (settings, instruments, channels,
+    thresholds) or parameter values."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    import railtherm.estimation as estimation
+
+    untyped = ("dict[str, Any]", "Mapping[str, Any]", "dict[str, float | int]")
+    results = {"fit", "fitted", "estimate", "estimates", "result", "results", "judged", "entry"}
+    offending = []
+    for info in pkgutil.iter_modules(estimation.__path__):
+        module = importlib.import_module(f"railtherm.estimation.{info.name}")
+        for name, obj in vars(module).items():
+            if name.startswith("_") or not inspect.isfunction(obj):
+                continue
+            if obj.__module__ != module.__name__:
+                continue
+            sig = inspect.signature(obj)
+            returned = str(sig.return_annotation)
+            if returned in ("dict", "Mapping") or any(t == returned for t in untyped):
+                offending.append(f"{module.__name__}.{name} returns {returned}")
+            for p, param in sig.parameters.items():
+                text = str(param.annotation)
+                if p in results and ("dict" in text or "Mapping" in text):
+                    offending.append(f"{module.__name__}.{name}({p}: {text})")
+    assert not offending, offending

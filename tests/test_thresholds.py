@@ -17,8 +17,7 @@ from test_optional_metadata import armadillo_copy
 from railtherm.cli import main
 from railtherm.config import load_study, load_vehicle, section_defaults
 from railtherm.errors import ConfigError, DataError
-from railtherm.estimation import metrics
-from railtherm.study import identify
+from railtherm.study import identify, quality
 from railtherm.study.fit import read_fit
 from railtherm.yamlio import packaged_schema
 
@@ -30,7 +29,7 @@ CHECK = packaged_schema("vehicle")["properties"]["check"]["properties"]
 
 
 def test_the_verdicts_defaults_are_the_check_sections_defaults():
-    for key, value in metrics.DEFAULT_THRESHOLDS.items():
+    for key, value in quality.DEFAULT_THRESHOLDS.items():
         assert key in CHECK, key
         assert CHECK[key]["default"] == value, key
 
@@ -141,7 +140,7 @@ def test_library_callers_get_the_defaults_and_the_same_unknown_key_error():
     with pytest.raises(ConfigError, match=r"key 'check.r2min' .*did you mean 'r2_min'"):
         identify.check_thresholds({"r2min": 0.5})
     with pytest.raises(ValueError, match=r"unknown verdict thresholds: \['alpha'\] \(known:"):
-        metrics.verdict(0.99, thresholds={"alpha": 0.05})
+        quality.verdict(0.99, thresholds={"alpha": 0.05})
 
 
 # --- each threshold moves the verdict -----------------------------------------------------------

@@ -10,5 +10,6 @@
 - :mod:`~railtherm.estimation.estimate`: the :class:`~railtherm.estimation.estimate.Estimate`
   both estimators return;
 - :mod:`~railtherm.estimation.metrics`, :mod:`~railtherm.estimation.acf`,
-  :mod:`~railtherm.estimation.diagnostics`: R² (eq. 21), residual whiteness, model selection.
+  :mod:`~railtherm.estimation.diagnostics`: R² (eq. 21), RMSE, AIC, BIC, residual whiteness,
+  model selection.
 """

@@ -44,8 +44,9 @@ from railtherm.estimation import pem
 from railtherm.estimation.acf import autocorrelation
 from railtherm.estimation.diagnostics import cumulated_periodogram
 from railtherm.estimation.kvalue import KValue
-from railtherm.estimation.metrics import ACCEPTABLE, IN_DOUBT, ljung_box
+from railtherm.estimation.metrics import ljung_box
 from railtherm.study import aggregate
+from railtherm.study.quality import ACCEPTABLE, IN_DOUBT
 
 __all__ = [
     "fit_figure",

@@ -1,7 +1,8 @@
 """The study: the per-vehicle pipeline and what is built on its fits.
 
 - :mod:`~railtherm.study.identify`: one vehicle's fit (clean windows -> k -> fit -> verdict),
-  the systematic uncertainty budget, plausibility and the verdict;
+  the systematic uncertainty budget, plausibility and the verdict
+  (:mod:`~railtherm.study.quality`: the measures a fit file records, the verdict's rules);
 - :mod:`~railtherm.study.run`: the same without the workflow (``railtherm fit``);
 - :mod:`~railtherm.study.fit`: a written fit read back as a model to simulate;
 - :mod:`~railtherm.study.aggregate`, :mod:`~railtherm.study.smallsample`: class statistics

@@ -18,8 +18,8 @@ import numpy as np
 import pandas as pd
 
 from railtherm.estimation import models, pem
-from railtherm.estimation.metrics import ACCEPTABLE
 from railtherm.study import identifiability
+from railtherm.study.quality import ACCEPTABLE
 from railtherm.study.smallsample import t_interval, two_class_test
 from railtherm.yamlio import packaged_schema
 

@@ -32,7 +32,7 @@ vehicles' fits; each fit's own 95 % interval is not added (it is mostly much nar
 spread between vehicles).
 
 A vehicle is usable when its checked second-order fit is acceptable
-(:data:`railtherm.estimation.metrics.ACCEPTABLE`), every one of ``kA``, ``C``, ``K_veh`` and
+(:data:`railtherm.study.quality.ACCEPTABLE`), every one of ``kA``, ``C``, ``K_veh`` and
 ``C_veh`` is
 identified (no estimate at a bound of the search) and its config gives ``mass_kg`` and
 ``surface_m2``. The study's members (:func:`members_from_study`, ``railtherm reference``) come
@@ -56,8 +56,8 @@ import numpy as np
 import yaml
 
 from railtherm.errors import ConfigError
-from railtherm.estimation import metrics, models, pem
-from railtherm.study import identifiability
+from railtherm.estimation import models, pem
+from railtherm.study import identifiability, quality
 from railtherm.study.fit import Fit, write_yaml
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 
@@ -178,7 +178,7 @@ def _member(
 
     ``estimates``: kA, C, K_veh and C_veh (None where not identified or not known);
     ``not_identified``: parameter -> kind (:data:`AT_BOUND` or :data:`UNBOUNDED`); ``verdict``
-    the fit's (:data:`railtherm.estimation.metrics.ACCEPTABLE` to be usable). c_veh by eq. 24,
+    the fit's (:data:`railtherm.study.quality.ACCEPTABLE` to be usable). c_veh by eq. 24,
     delta by
     eq. 25. A parameter of the dynamic part (C, K_veh, C_veh: ``Structure.coupled``) coupled to
     one not identified is not identified either (:data:`COUPLED`). Usable: acceptable, every
@@ -200,8 +200,8 @@ def _member(
             by_kind.setdefault(not_identified[p], []).append(p)
     kinds = sorted(by_kind, key=lambda kind: kind == COUPLED)  # the cause before its coupling
     why = [f"{', '.join(by_kind[kind])} not identified ({kind})" for kind in kinds]
-    if verdict != metrics.ACCEPTABLE:
-        doubt = verdict == metrics.IN_DOUBT
+    if verdict != quality.ACCEPTABLE:
+        doubt = verdict == quality.IN_DOUBT
         why.append("fit assumptions in doubt" if doubt else f"fit verdict {verdict!r}")
     why += [f"no {key}" for key, v in (("mass_kg", mass), ("surface_m2", surface)) if v is None]
     unknown = [p for p in FIT_PARAMETERS if value[p] is None and p not in not_identified]

@@ -25,7 +25,7 @@ from railtherm.data import ingest
 from railtherm.errors import ConfigError, DataError
 from railtherm.estimation import metrics, models, pem
 from railtherm.estimation.kvalue import COMPONENTS, sensor_counts, sensor_u_K, storage_corrected_kA
-from railtherm.study import identifiability
+from railtherm.study import identifiability, quality
 from railtherm.yamlio import packaged_schema, validate_schema
 
 KA_BOUNDS = (1.0, 1.0e5)  # W/K, for joint estimation when the config gives none nor a scale
@@ -1610,12 +1610,12 @@ def check(
     """
     thresholds = check_thresholds(thresholds)
     fit = estimate["fit"]
-    p = int(fit["n_params"] if "n_params" in fit else fit["n_unknowns"])
+    p = int(fit["n_unknowns"])  # every estimated quantity, whatever the estimator
     measures: dict[str, Any] = {}
     for state in estimate["outputs"]:
-        overall = metrics.summary(series[state], series[f"{state}_sim"], p)
+        overall = quality.summary(series[state], series[f"{state}_sim"], p)
         windows = {
-            name: metrics.summary(w[state], w[f"{state}_sim"], p)
+            name: quality.summary(w[state], w[f"{state}_sim"], p)
             for name, w in series.groupby("window", sort=False)
         }
         measures[state] = {"overall": overall, "windows": windows}
@@ -1629,7 +1629,7 @@ def check(
 
     r2 = {"T": measures["T"]["overall"]["r2"]}
     r2 |= {f"{cv['train']} -> {cv['test']}": cv["r2_T"] for cv in estimate["cross_validation"]}
-    judge("r2", metrics.verdict(r2, thresholds={"r2_min": thresholds["r2_min"]})[1])
+    judge("r2", quality.verdict(r2, thresholds={"r2_min": thresholds["r2_min"]})[1])
     missed = []
     for state, m in measures.items():
         rmse = m["overall"]["rmse"]
@@ -1640,7 +1640,7 @@ def check(
                 f"The simulated {state} misses the measurement by RMSE {rmse:.3g} K (more than "
                 f"{limit:g} K, {why}): the model lacks a dynamic or a heat path."
             )
-            missed += metrics.verdict(
+            missed += quality.verdict(
                 1.0,
                 whiteness={f"{state}, {w}": v for w, v in m["windows"].items()},
                 thresholds={"min_effective_samples": thresholds["min_effective_samples"]},
@@ -1650,7 +1650,7 @@ def check(
     white = not kalman and bool(thresholds["require_white"])
     not_white = []
     if white:  # the colour alone, not the effective samples
-        not_white = metrics.verdict(
+        not_white = quality.verdict(
             1.0,
             whiteness={state: m["overall"] for state, m in measures.items()},
             thresholds={
@@ -1661,7 +1661,7 @@ def check(
         )[1]
     judge("residuals_white", not_white, white)
     severe = [f for f in fit["flags"] if f["code"] not in NOTE_ONLY_FLAGS]
-    judge("flags", metrics.verdict(1.0, severe)[1])
+    judge("flags", quality.verdict(1.0, severe)[1])
     judge("plausibility", plausibility(estimate, thresholds))
     judge("k_stage", list(estimate["notes"]))
     notes = [f["message"] for f in fit["flags"] if f["code"] in NOTE_ONLY_FLAGS]
@@ -1676,7 +1676,7 @@ def check(
         "input_hold": estimate.get("input_hold", "zero_order"),
         "k_source": estimate["k_source"],
         **{key: estimate.get(key) for key in K_STAGE_FIELDS},
-        "verdict": metrics.IN_DOUBT if reasons else metrics.ACCEPTABLE,
+        "verdict": quality.IN_DOUBT if reasons else quality.ACCEPTABLE,
         "reasons": reasons,
         "criteria": criteria,
         "judged_by": judged_by(criteria),

@@ -24,8 +24,8 @@ import pandas as pd
 
 from railtherm import structures
 from railtherm.errors import ConfigError
-from railtherm.estimation import metrics, pem
-from railtherm.study import identifiability, identify
+from railtherm.estimation import pem
+from railtherm.study import identifiability, identify, quality
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
 
 __all__ = ["compare", "load_reference", "markdown", "published_parameters", "simulate_published"]
@@ -106,7 +106,7 @@ def simulate_published(
 ) -> dict[str, float] | None:
     """The published parameters simulated by railtherm (eq. 15) on the cleaned windows that
     railtherm's own fit used, every initial state estimated, nothing else: the fit figures
-    (metrics.summary) of the simulated T, and the overall kA of those parameters. None when
+    (quality.summary) of the simulated T, and the overall kA of those parameters. None when
     the reference does not publish every parameter of the vehicle's structure (e.g. kA alone,
     or a model without the vehicle's irradiance inputs): there is nothing to simulate."""
     structure = identify.model_structure(reference["model"], vehicle_data)
@@ -119,7 +119,7 @@ def simulate_published(
     y = np.concatenate([e.y[:, 0] for e in exps])
     yhat = np.concatenate([x[:, 0] for x in result.simulated])
     p = int(sum(np.count_nonzero(est) for est in result.x0_estimated))
-    out = metrics.summary(y, yhat, p=p)
+    out = quality.summary(y, yhat, p=p)
     out["kA"] = structure.overall_kA(theta)
     return out
 

@@ -320,8 +320,8 @@ def _bounded(draws: Mapping[str, np.ndarray], centre: Mapping[str, float]) -> di
 def parameter_set(params: Any) -> ParameterSet:
     """The :class:`ParameterSet` of a :class:`railtherm.study.fit.Fit` or a class reference model
     (:class:`railtherm.study.classmodel.ReferenceModel`)."""
-    from railtherm.estimation.metrics import ACCEPTABLE
     from railtherm.study.fit import Fit
+    from railtherm.study.quality import ACCEPTABLE
 
     if isinstance(params, Fit):
         withheld = (
