@@ -134,6 +134,7 @@ def kalman_estimate(offset_K: float, white: bool = True) -> tuple[dict, pd.DataF
         "innovations": {"T": {"white": white, "ljung_box_p": 0.5, "cpg_p": 0.5}},
         "fit": {
             "n_params": 4,
+            "n_unknowns": 4,
             "n_obs": n,
             "loglik": -100.0,
             "flags": [],
