@@ -13,5 +13,6 @@
   :mod:`~railtherm.study.predictions`: heat-up, energy and peak power with bands;
 - :mod:`~railtherm.study.reference`: published values compared with railtherm's fits;
 - :mod:`~railtherm.study.identifiability`: what the data determine of a written fit;
-- :mod:`~railtherm.study.sindy`: the optional sparse-regression cross-check of a fit.
+- :mod:`~railtherm.study.sindy`: the optional sparse-regression cross-check of a fit;
+- :mod:`~railtherm.study.design`: the predicted uncertainty of a planned tunnel programme.
 """

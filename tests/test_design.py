@@ -1,0 +1,102 @@
+"""railtherm.study.design: a planned programme's predicted uncertainty, against repeated fits
+of records simulated from a declared truth, and the programme file's checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from railtherm.errors import ConfigError
+from railtherm.estimation import models, pem
+from railtherm.study import design
+
+PAPER_LIKE = {
+    "name": "paper-like",
+    "step_s": 120,
+    "noise_K": {"T": 0.05, "T_veh": 0.05},
+    "phases": [
+        {"name": "steady", "hours": 16, "T_o_C": -10, "power_W": 8000},
+        {"name": "step up", "hours": 10, "T_o_C": -10, "power_W": 14000},
+        {"name": "step down", "hours": 10, "T_o_C": -10, "steps": [[0, 3000], [5, 6000]]},
+    ],
+}
+TRUTH = {"kA": 400.0, "C": 3.0e5, "K_veh": 900.0, "C_veh": 6.0e6}
+SECOND = models.STRUCTURES["second_order"]
+
+
+def programme(tmp_path, data=PAPER_LIKE):
+    path = tmp_path / "programme.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return design.load_programme(path)
+
+
+def test_inputs_follow_the_phases_and_their_steps(tmp_path):
+    prog = programme(tmp_path)
+    u = design.programme_inputs(prog)
+    assert len(u) == 36 * 3600 / 120 and np.all(u[:, 0] == -10.0)
+    per_hour = 3600 // 120
+    assert u[0, 1] == 8000 and u[16 * per_hour, 1] == 14000
+    assert u[26 * per_hour, 1] == 3000 and u[31 * per_hour, 1] == 6000
+
+
+def test_predicted_widths_match_the_spread_of_repeated_fits(tmp_path):
+    """40 records of the programme simulated from the truth with white sensor noise (0.05 K on
+    T and T_veh), each fitted as the paper's two-stage fit does (kA fixed, initial states
+    estimated): the spread of the estimates of log C, log K_veh and log C_veh is the predicted
+    standard deviation within the sampling error of 40 fits (ratio 0.7-1.35)."""
+    prog = programme(tmp_path)
+    prediction = design.predict(SECOND, TRUTH, prog)
+    assert all(prediction.identifiable.values())
+    u = design.programme_inputs(prog)
+    x = models.simulate(SECOND, TRUTH, u, prog.step_s, [-10.0, -10.0])
+    rng = np.random.default_rng(33)
+    logs = []
+    for _ in range(40):
+        y = x + rng.normal(0.0, 0.05, x.shape)
+        record = pem.Experiment("run", prog.step_s, u, y, x0=y[0].copy())
+        fit = pem.fit(SECOND, [record], fixed={"kA": TRUTH["kA"]}, x0="estimated")
+        logs.append([np.log(fit.theta[p]) for p in ("C", "K_veh", "C_veh")])
+    realised = np.std(np.array(logs), axis=0, ddof=1)
+    for p, sd in zip(("C", "K_veh", "C_veh"), realised, strict=True):
+        ratio = sd / prediction.sd_log[p]
+        assert 0.7 < ratio < 1.35, (p, ratio)
+        assert prediction.half_width[p] == pytest.approx(np.expm1(1.959963984540054 * sd), rel=0.4)
+
+
+def test_a_programme_that_never_moves_the_vehicle_determines_no_capacity(tmp_path):
+    """Held power at equilibrium from the start: the temperatures never change, nothing tells
+    the capacities apart, and the prediction says so instead of giving a width."""
+    flat = {**PAPER_LIKE, "phases": [{"hours": 24, "T_o_C": -10, "power_W": 0}]}
+    prediction = design.predict(SECOND, TRUTH, programme(tmp_path, flat))
+    assert not any(prediction.identifiable.values())
+    assert all(w == float("inf") for w in prediction.half_width.values())
+
+
+def test_coloured_residuals_widen_the_prediction(tmp_path):
+    prog = programme(tmp_path)
+    white = design.predict(SECOND, TRUTH, prog)
+    coloured = design.predict(SECOND, TRUTH, prog, tau_samples=9.0)
+    for p, sd in white.sd_log.items():
+        assert coloured.sd_log[p] == pytest.approx(3.0 * sd)
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize(
+    ("edit", "key"),
+    [
+        (lambda d: d.update(step_s=0), "step_s"),
+        (lambda d: d["phases"][0].update(hours=-1), "phases[0].hours"),
+        (lambda d: d["phases"][1].update(T_o_C=90), "phases[1].T_o_C"),
+        (lambda d: d["phases"][2].update(power_W=5), "phases[2]"),
+        (lambda d: d["phases"][2].update(steps=[[1, 3000]]), "phases[2].steps[0][0]"),
+        (lambda d: d.update(noise_K={"T": -0.1}), "noise_K.T"),
+        (lambda d: d.update(phase=[]), "phase"),
+    ],
+)
+def test_a_bad_programme_names_the_file_and_the_key(tmp_path, edit, key):
+    data = yaml.safe_load(yaml.safe_dump(PAPER_LIKE))
+    edit(data)
+    with pytest.raises(ConfigError) as caught:
+        programme(tmp_path, data)
+    assert "programme.yaml" in str(caught.value) and f"'{key}'" in str(caught.value)
