@@ -208,6 +208,68 @@ def _reference_model(args: argparse.Namespace) -> int:
     return 0
 
 
+def _design(args: argparse.Namespace) -> int:
+    """``railtherm design``: the predicted 95 % intervals a planned programme gives a vehicle
+    (:mod:`railtherm.study.design`), from a measured vehicle's fit or from the class
+    reference model of an unmeasured one; with --optimise, the shortest programme of the same
+    shape that reaches --target with the probability asked."""
+    from railtherm.study import design
+    from railtherm.study.fit import read_fit
+
+    workdir = args.directory
+    programme = design.load_programme(os.path.join(workdir, args.programme))
+    target = design.parse_target(args.target) if args.target else None
+    if args.optimise and target is None:
+        raise ConfigError("--optimise", "target", None, "--optimise needs --target")
+    if not 0.0 < args.probability <= 1.0:
+        raise ConfigError("--probability", "probability", args.probability, "expected 0 < p <= 1")
+    if args.draws < 1:
+        raise ConfigError("--draws", "draws", args.draws, "expected 1 or more")
+    if args.vehicle:
+        prior = design.prior_from_fit(read_fit(os.path.join(workdir, args.vehicle)))
+    else:
+        from railtherm.study import classmodel
+
+        missing = [
+            o
+            for o, v in (("--mass-kg", args.mass_kg), ("--surface-m2", args.surface_m2))
+            if v is None
+        ]
+        if missing:
+            raise ConfigError(
+                missing[0], missing[0][2:], None, "--class needs --mass-kg and --surface-m2"
+            )
+        members = classmodel.members_from_study(args.config, args.results, workdir=workdir)
+        model = classmodel.build(members, args.vehicle_class, args.mass_kg, args.surface_m2)
+        fits = [
+            read_fit(path)
+            for vid in model.basis
+            if os.path.isfile(
+                path := os.path.join(workdir, args.results, "vehicles", vid, "fit_order2.yaml")
+            )
+        ]
+        prior = design.prior_from_reference(model, args.draws, args.seed, fits)
+    assessment = design.assess(prior, programme, target)
+    found = design.shortest(prior, programme, target, args.probability) if args.optimise else None
+    print(design.markdown(assessment))
+    if args.optimise:
+        name, goal = target
+        if found is None:
+            print(
+                f"\nNo programme of this shape up to 4 times as long reaches {name} within "
+                f"±{100 * goal:g} % with probability {args.probability:g}."
+            )
+        else:
+            factor, best = found
+            hours = best.programme.hours
+            print(
+                f"\nShortest programme of this shape: {hours:g} h ({factor:g} times "
+                f"{programme.hours:g} h), {name} within ±{100 * goal:g} % with probability "
+                f"{best.probability:.2f}."
+            )
+    return 0
+
+
 def _relocated(exc: ConfigError, local: str, given: str) -> ConfigError:
     """``exc`` naming the path ``given`` (as the user gave it) where it names ``local`` (the
     path under the working directory), of the same class."""
@@ -291,6 +353,18 @@ def _directory_option(parser: argparse.ArgumentParser) -> None:
         default=".",
         help="working directory all paths are relative to (default: %(default)s)",
     )
+
+
+def _study_options(parser: argparse.ArgumentParser, results: str) -> None:
+    """``--config`` and ``--results`` of a command that reads the study's class members, and
+    ``-d/--directory``; ``results`` says what it reads there."""
+    parser.add_argument(
+        "--config",
+        default="config/config.yaml",
+        help="study config listing the vehicle files (default: %(default)s)",
+    )
+    parser.add_argument("--results", default="results", help=f"{results} (default: %(default)s)")
+    _directory_option(parser)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -434,21 +508,44 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="ID",
         help="leave this vehicle out of the class (repeatable)",
     )
-    reference.add_argument(
-        "--config",
-        default="config/config.yaml",
-        help="study config listing the vehicle files (default: %(default)s)",
-    )
-    reference.add_argument(
-        "--results",
-        default="results",
-        help="the study's results directory with tables/table2.csv (default: %(default)s)",
-    )
-    _directory_option(reference)
+    _study_options(reference, "the study's results directory with tables/table2.csv")
     reference.add_argument(
         "--out", metavar="FILE", help="YAML file to write (default: print the YAML)"
     )
     reference.set_defaults(run=_reference_model)
+
+    design = commands.add_parser(
+        "design",
+        help="the predicted uncertainty of a planned tunnel programme, before it runs",
+        description=(
+            "Predict the 95 % intervals of the parameters that PROGRAMME (phases of tunnel "
+            "temperature and heating, logger step, sensor noise and systematic errors; "
+            "config/programmes/) will give: from the Fisher information of the planned record "
+            "for a measured vehicle's fit (--vehicle), or, over draws of a new vehicle of its "
+            "class (--class, --mass-kg, --surface-m2), with the probability to reach --target. "
+            "--optimise finds the shortest programme of the same shape that does."
+        ),
+    )
+    design.add_argument("programme", metavar="PROGRAMME.yaml", help="the planned programme")
+    prior = design.add_mutually_exclusive_group(required=True)
+    prior.add_argument("--vehicle", metavar="FIT.yaml", help="a measured vehicle's checked fit")
+    prior.add_argument(
+        "--class", dest="vehicle_class", metavar="CLASS", help="the class of an unmeasured vehicle"
+    )
+    design.add_argument("--mass-kg", type=float, help="its mass m_veh (kg), with --class")
+    design.add_argument("--surface-m2", type=float, help="its outer surface A (m2), with --class")
+    design.add_argument("--target", metavar="PARAM=PCT", help="e.g. C_veh=5%% (95 %% half-width)")
+    design.add_argument(
+        "--probability",
+        type=float,
+        default=0.9,
+        help="the probability --optimise asks for (default: %(default)s)",
+    )
+    design.add_argument("--optimise", action="store_true", help="shortest programme to --target")
+    design.add_argument("--draws", type=int, default=200, help="class draws (default: %(default)s)")
+    design.add_argument("--seed", type=int, default=0, help="seed of the draws (default: 0)")
+    _study_options(design, "the study's results: tables/table2.csv and the class's fits")
+    design.set_defaults(run=_design)
 
     simulate = commands.add_parser(
         "simulate",

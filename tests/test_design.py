@@ -100,3 +100,112 @@ def test_a_bad_programme_names_the_file_and_the_key(tmp_path, edit, key):
     with pytest.raises(ConfigError) as caught:
         programme(tmp_path, data)
     assert "programme.yaml" in str(caught.value) and f"'{key}'" in str(caught.value)
+
+
+def test_a_systematic_offset_shifts_the_fit_as_predicted(tmp_path):
+    """A T_o sensor reading 0.2 K high, in the static test too: the noise-free record fitted
+    with that offset and with kA from the biased static test (Q_H / (T - T_o) at the end of
+    the steady phase) moves each estimate by what the prediction's systematic share says
+    (linear response), within 15 %; declared, it adds in quadrature to the statistical
+    share."""
+    data = {**PAPER_LIKE, "systematic": {"T_o": 0.2}}
+    prog = programme(tmp_path, data)
+    prediction = design.predict(SECOND, TRUTH, prog)
+    plain = design.predict(SECOND, TRUTH, programme(tmp_path, PAPER_LIKE))
+    u = design.programme_inputs(prog)
+    x = models.simulate(SECOND, TRUTH, u, prog.step_s, [-10.0, -10.0])
+    end = int(16 * 3600 / prog.step_s) - 1
+    dT = x[end, 0] - u[end, 0]
+    kA_biased = TRUTH["kA"] * dT / (dT - 0.2)
+    shifted = u + np.array([0.2, 0.0])
+    record = pem.Experiment("offset", prog.step_s, shifted, x, x0=x[0].copy())
+    fit = pem.fit(SECOND, [record], fixed={"kA": kA_biased}, x0="estimated")
+    for p in ("C", "K_veh", "C_veh"):
+        moved = abs(np.log(fit.theta[p] / TRUTH[p]))
+        assert moved == pytest.approx(prediction.sd_log_systematic[p], rel=0.15), p
+        total = np.hypot(plain.sd_log[p], prediction.sd_log_systematic[p])
+        assert prediction.sd_log[p] == pytest.approx(total, rel=1e-9)
+
+
+def test_a_power_scale_error_scales_every_parameter_alike(tmp_path):
+    """Power read 1 % high, in the static test too: kA, C, K_veh and C_veh all scale by 1 %
+    (the model is homogeneous in them and Q_H), so each estimate moves by log 1.01."""
+    prog = programme(tmp_path, {**PAPER_LIKE, "systematic": {"power_rel": 0.01}})
+    prediction = design.predict(SECOND, TRUTH, prog)
+    for p in ("C", "K_veh", "C_veh"):
+        assert prediction.sd_log_systematic[p] == pytest.approx(0.01, rel=0.02), p
+
+
+REPO_ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+
+
+def test_the_command_predicts_the_paper_programme_for_a_class(capsys):
+    """``railtherm design`` on the shipped paper programme for a 40 t metro from the class
+    reference model (the committed Table 2): a row per estimated parameter and the target's
+    probability; the same answer twice (seeded draws)."""
+    from railtherm.cli import main
+
+    args = [
+        "design",
+        "config/programmes/paper.yaml",
+        "--class",
+        "metro",
+        "--mass-kg",
+        "40000",
+        "--surface-m2",
+        "330",
+        "--target",
+        "C_veh=5%",
+        "--draws",
+        "50",
+        "-d",
+        str(REPO_ROOT),
+    ]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    for p in ("C", "K_veh", "C_veh"):
+        assert f"| {p} | " in out
+    assert "metro reference model (40000 kg, 330 m²" in out
+    assert "C_veh within ±5 % with probability" in out
+    assert main(args) == 0 and capsys.readouterr().out == out
+
+
+def test_the_command_takes_a_measured_vehicle_and_optimises(fit_files, capsys):
+    """From a campaign vehicle's fit: its own residual level, and --optimise reports the
+    shortest programme of the paper's shape that reaches the target."""
+    from railtherm.cli import main
+
+    fit, _ = fit_files("Metro2", "order2")
+    programme = str(REPO_ROOT / "config" / "programmes" / "paper.yaml")
+    args = ["design", programme, "--vehicle", str(fit), "--target", "C_veh=10%", "--optimise"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "the fit order2 of Metro2" in out and "residuals as the prior's fits show them" in out
+    assert "Shortest programme of this shape:" in out or "No programme of this shape" in out
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize(
+    ("extra", "named"),
+    [
+        (["--class", "metro", "--surface-m2", "330"], "--mass-kg"),
+        (
+            ["--class", "metro", "--mass-kg", "4e4", "--surface-m2", "330", "--target", "C_veh"],
+            "--target",
+        ),
+        (
+            ["--class", "metro", "--mass-kg", "4e4", "--surface-m2", "330", "--optimise"],
+            "--optimise",
+        ),
+        (
+            ["--class", "metro", "--mass-kg", "4e4", "--surface-m2", "330", "--target", "kA=5%"],
+            "--target",
+        ),
+    ],
+)
+def test_a_bad_design_request_names_the_option(extra, named, capsys):
+    from railtherm.cli import main
+
+    args = ["design", "config/programmes/paper.yaml", *extra, "--draws", "5", "-d", str(REPO_ROOT)]
+    assert main(args) == 1
+    assert named in capsys.readouterr().err

@@ -10,11 +10,18 @@ record,
     F = sum_j (1 / sigma_j^2) S_j^T S_j,   S_j[n, :] = d y_j[n] / d(log theta, x0),
 
 with the exact output sensitivities of :func:`railtherm.estimation.models.sensitivities` (the
-initial states estimated, as the fits estimate them) and sigma_j the noise of output j. A
-residual that is not white carries fewer independent samples: its integrated autocorrelation
-time tau (in samples) scales the variance by tau (:func:`predict`, ``tau_samples``). The
-prediction is the Cramér-Rao bound of an unbiased estimate under the model: it assumes the
-structure right and the noise as declared; it says nothing of a heat path the model lacks.
+initial states estimated, as the fits estimate them) and sigma_j the noise of output j. The
+fit weighs every output alike (eq. 17), so the covariance is the sandwich A J^T W J A with
+A = (J^T J)^-1 and W the noise variance of each sample; a residual that is not white carries
+fewer independent samples: its integrated autocorrelation time tau (in samples) scales the
+variance by tau (:func:`predict`, ``tau_samples``). A systematic error of the programme's
+instruments (an offset of a sensor group or of T_o, a scale error of the power) shifts the
+record by a computable dy, and the fit by A J^T dy (its linear response); a kA fixed by the
+static test (eq. 10, on the first phase's end) moves with the same errors, and the record the
+fit compares with it. The shifts add in quadrature to the statistical variance, as in the
+fits' own budget. The prediction assumes
+the structure right and the noise as declared; it says nothing of a heat path the model
+lacks.
 """
 
 from __future__ import annotations
@@ -32,7 +39,24 @@ from railtherm.estimation import models
 from railtherm.estimation.pem import Z95
 from railtherm.yamlio import read_yaml
 
-__all__ = ["Phase", "Prediction", "Programme", "load_programme", "predict", "programme_inputs"]
+__all__ = [
+    "Assessment",
+    "Phase",
+    "Prediction",
+    "Prior",
+    "Programme",
+    "assess",
+    "load_programme",
+    "markdown",
+    "parse_target",
+    "predict",
+    "prior_from_fit",
+    "prior_from_reference",
+    "programme_inputs",
+    "residuals_of",
+    "scaled",
+    "shortest",
+]
 
 # an information matrix whose condition number exceeds this leaves some direction of the
 # parameters undetermined by the record: those parameters are "not identifiable" by it
@@ -57,12 +81,15 @@ class Phase:
 @dataclass(frozen=True)
 class Programme:
     """A planned tunnel programme: its phases in order, the logger step ``step_s``, and the
-    measurement noise (K, one standard deviation) of each compared state ``noise_K``."""
+    measurement noise (K, one standard deviation) of each compared state ``noise_K``, and the
+    standard uncertainties of its systematic errors ``systematic``: an offset (K) of a
+    compared state's sensors or of T_o, and ``power_rel``, the relative scale error of Q_H."""
 
     name: str
     phases: tuple[Phase, ...]
     step_s: float
     noise_K: Mapping[str, float] = field(default_factory=dict)
+    systematic: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def hours(self) -> float:
@@ -78,7 +105,8 @@ def _number(file: str, key: str, value: Any, low: float = 0.0, strict: bool = Tr
 
 
 def load_programme(path: str | Path) -> Programme:
-    """Read and check a programme file (YAML): ``name``, ``step_s``, ``noise_K`` ({state: K})
+    """Read and check a programme file (YAML): ``name``, ``step_s``, ``noise_K`` ({state: K}),
+    ``systematic`` ({T or T_veh or T_o: offset K, power_rel: scale}, standard uncertainties)
     and ``phases``, each with ``hours``, ``T_o_C`` and either ``power_W`` or ``steps`` (a list
     of [hours from the phase's start, W], the first at 0). Any mistake is a
     :class:`ConfigError` naming the file, the key and the value."""
@@ -86,7 +114,7 @@ def load_programme(path: str | Path) -> Programme:
     data = read_yaml(path, display=file)
     if not isinstance(data, Mapping):
         raise ConfigError(file, "(root)", data, "expected a mapping (name, step_s, phases)")
-    known = {"name", "step_s", "noise_K", "phases", "description"}
+    known = {"name", "step_s", "noise_K", "systematic", "phases", "description"}
     for key in data:
         if key not in known:
             raise ConfigError(file, key, data[key], f"unknown key; known: {sorted(known)}")
@@ -95,6 +123,12 @@ def load_programme(path: str | Path) -> Programme:
     if not isinstance(noise, Mapping) or not noise:
         raise ConfigError(file, "noise_K", noise, "expected {state: standard deviation in K}")
     noise_K = {str(s): _number(file, f"noise_K.{s}", v) for s, v in noise.items()}
+    raw_sys = data.get("systematic", {})
+    if not isinstance(raw_sys, Mapping):
+        raise ConfigError(file, "systematic", raw_sys, "expected {T: K, T_o: K, power_rel: 0.01}")
+    systematic = {
+        str(k): _number(file, f"systematic.{k}", v, strict=False) for k, v in raw_sys.items()
+    }
     raw_phases = data.get("phases")
     if not isinstance(raw_phases, list) or not raw_phases:
         raise ConfigError(file, "phases", raw_phases, "expected a list of phases")
@@ -131,7 +165,8 @@ def load_programme(path: str | Path) -> Programme:
                 steps.append((at, watts))
             steps = tuple(steps)
         phases.append(Phase(str(ph.get("name", f"phase {i + 1}")), hours, float(T_o), steps))
-    return Programme(str(data.get("name", Path(file).stem)), tuple(phases), step, noise_K)
+    name = str(data.get("name", Path(file).stem))
+    return Programme(name, tuple(phases), step, noise_K, systematic)
 
 
 def programme_inputs(programme: Programme) -> np.ndarray:
@@ -154,13 +189,15 @@ class Prediction:
     parameter its standard deviation of log(theta) ``sd_log`` and its relative 95 % half-width
     ``half_width`` (the interval exp(+-1.96 sd_log), half its log width as a fraction:
     exp(1.96 sd_log) - 1), and whether the record determines it (``identifiable``);
-    ``condition`` the condition number of the information matrix."""
+    ``condition`` the condition number of the information matrix; ``sd_log_systematic`` the
+    share of ``sd_log`` the programme's systematic errors give."""
 
     structure: str
     sd_log: dict[str, float]
     half_width: dict[str, float]
     identifiable: dict[str, bool]
     condition: float
+    sd_log_systematic: dict[str, float] = field(default_factory=dict)
 
 
 def predict(
@@ -171,14 +208,23 @@ def predict(
     free: Sequence[str] | None = None,
     outputs: Sequence[str] | None = None,
     x0: Sequence[float] | None = None,
-    tau_samples: float = 1.0,
+    tau_samples: float | Mapping[str, float] = 1.0,
+    noise_K: Mapping[str, float] | None = None,
 ) -> Prediction:
     """The Fisher-information prediction of the module docstring for the parameters ``free``
     (default: every parameter but kA, as the paper's two-stage fit estimates them), compared
     on ``outputs`` (default: the states the programme gives a noise for), the initial states
     estimated (nuisance unknowns), from ``x0`` (default: every state at the first T_o, the
     vehicle soaked). ``tau_samples``: the residuals' integrated autocorrelation time in
-    samples (1 for white noise)."""
+    samples (1 for white noise), one for all outputs or one per output; ``noise_K``: the
+    residual standard deviation per output, in place of the programme's sensor noise (a
+    prior fit's RMSE, :class:`Prior`)."""
+    noise = {**programme.noise_K, **(noise_K or {})}
+    tau = (
+        {s: float(tau_samples.get(s, 1.0)) for s in noise}
+        if isinstance(tau_samples, Mapping)
+        else dict.fromkeys(noise, float(tau_samples))
+    )
     free = tuple(p for p in structure.parameters if p != "kA") if free is None else tuple(free)
     outputs = (
         tuple(s for s in structure.states if s in programme.noise_K)
@@ -190,30 +236,311 @@ def predict(
         raise ValueError(f"outputs {list(outputs)}: each needs a state and a noise_K entry")
     u = programme_inputs(programme)
     x0 = np.full(len(structure.states), u[0, 0]) if x0 is None else np.asarray(x0, float)
-    _, sens, free_resp = models.sensitivities(
-        structure, theta, u, programme.step_s, x0, params=free
+    # a kA held fixed comes from the static test (eq. 10) on the same instruments: it moves
+    # with their systematic errors, and the fit with it
+    static = "kA" in structure.parameters and "kA" not in free
+    params = free + (("kA",) if static else ())
+    x, sens, free_resp = models.sensitivities(
+        structure, theta, u, programme.step_s, x0, params=params
     )
-    blocks = []
-    for s in outputs:
-        j = structure.states.index(s)
-        cols = [theta[p] * sens[p][:, j] for p in free]  # d y / d log theta
-        cols += [free_resp[:, j, k] for k in range(len(structure.states))]  # d y / d x0
-        blocks.append(np.column_stack(cols) / programme.noise_K[s])
-    S = np.concatenate(blocks)
-    F = S.T @ S
-    scale = np.sqrt(np.diag(F))
+    idx = [structure.states.index(s) for s in outputs]
+    k_end = int(round(programme.phases[0].hours * 3600.0 / programme.step_s)) - 1
+    dT_k = float(x[k_end, 0] - u[k_end, 0])  # T - T_o at the end of the first (steady) phase
+    # J: d y / d (log theta, x0) of every compared sample, output by output (eq. 17's e)
+    J = np.concatenate(
+        [
+            np.column_stack(
+                [theta[p] * sens[p][:, j] for p in free]
+                + [free_resp[:, j, k] for k in range(len(structure.states))]
+            )
+            for j in idx
+        ]
+    )
+    scale = np.sqrt(np.einsum("ij,ij->j", J, J))
     scale[scale == 0] = 1.0
-    Fn = F / np.outer(scale, scale)
-    eig = np.linalg.eigvalsh(Fn)
+    Jn = J / scale
+    H = Jn.T @ Jn
+    eig = np.linalg.eigvalsh(H)
     condition = float(eig[-1] / eig[0]) if eig[0] > 0 else math.inf
     P = len(free)
     if not math.isfinite(condition) or condition > COND_MAX:
-        sd = {p: math.inf for p in free}
+        sd = dict.fromkeys(free, math.inf)
+        sd_sys = dict.fromkeys(free, math.inf)
     else:
-        cov = np.linalg.inv(Fn) / np.outer(scale, scale) * float(tau_samples)
-        sd = {p: float(math.sqrt(max(cov[i, i], 0.0))) for i, p in enumerate(free[:P])}
+        # the unweighted least squares of eq. 17 with noise of variance sigma_j^2 tau_j per
+        # output (tau samples carry the information of one): the sandwich A J^T W J A
+        A = np.linalg.inv(H)
+        n = len(x)
+        weight = np.concatenate([np.full(n, noise[s] ** 2 * max(tau[s], 1.0)) for s in outputs])
+        cov = A @ (Jn.T @ (weight[:, None] * Jn)) @ A / np.outer(scale, scale)
+        # each systematic error shifts the record; the fit follows by A J^T (its linear
+        # response): an offset of a measured state, of T_o, a scale error of Q_H
+        shifts = []
+        for source, u_sys in programme.systematic.items():
+            if source in outputs:
+                dy = np.zeros((n, len(outputs)))
+                dy[:, outputs.index(source)] = u_sys
+            elif source in ("T_o", "power_rel"):
+                du = np.zeros_like(u)
+                du[:, 0 if source == "T_o" else 1] = u_sys * (1.0 if source == "T_o" else u[:, 1])
+                # the model driven by the biased inputs departs from the record by dx
+                dx = models.simulate(structure, theta, u + du, programme.step_s, x0) - x
+                dy = -dx[:, idx]
+            else:
+                continue
+            if static and dT_k != 0.0:  # the static kA of eq. 10 moves: Q_H / (T - T_o)
+                dlog_kA = {
+                    "power_rel": u_sys,
+                    "T": -u_sys / dT_k,
+                    "T_o": u_sys / dT_k,
+                }.get(source, 0.0)
+                dy = dy - dlog_kA * theta["kA"] * sens["kA"][:, idx]
+            shifts.append((A @ (Jn.T @ dy.T.reshape(-1))) / scale)
+        systematic = np.sum(np.square(shifts), axis=0) if shifts else np.zeros(len(scale))
+        sd = {
+            p: float(math.sqrt(max(cov[i, i] + systematic[i], 0.0))) for i, p in enumerate(free[:P])
+        }
+        sd_sys = {p: float(math.sqrt(systematic[i])) for i, p in enumerate(free[:P])}
     # a record that does not move a parameter leaves its sd huge (or infinite): no width
     half = {p: (math.expm1(Z95 * v) if Z95 * v < 700.0 else math.inf) for p, v in sd.items()}
     limit = math.log(UNBOUNDED_FACTOR)
     identifiable = {p: 2.0 * Z95 * v <= limit for p, v in sd.items()}
-    return Prediction(structure.name, sd, half, identifiable, condition)
+    return Prediction(structure.name, sd, half, identifiable, condition, sd_sys)
+
+
+# ------------------------------------------------------------------------------------------
+# priors: what is known of the vehicle before the tunnel
+
+
+@dataclass(frozen=True)
+class Prior:
+    """What is known of a vehicle before its programme runs: the ``structure``, a central
+    parameter set ``theta``, optionally ``draws`` ({param: array}) of parameter sets spanning
+    the uncertainty (a class reference model's prediction), the ``free`` parameters the fit
+    will estimate, and, where a fit gives them, the residual ``noise_K`` and autocorrelation
+    time ``tau_samples`` per output. ``source`` says where it comes from."""
+
+    structure: models.Structure
+    theta: dict[str, float]
+    free: tuple[str, ...]
+    source: str
+    draws: dict[str, np.ndarray] | None = None
+    noise_K: dict[str, float] = field(default_factory=dict)
+    tau_samples: dict[str, float] = field(default_factory=dict)
+
+
+def prior_from_fit(fit) -> Prior:
+    """The prior of a vehicle measured before (:class:`railtherm.study.fit.Fit`): its
+    estimates, the parameters it estimated (kA fixed by the static test stays fixed), and per
+    compared output the residual RMSE and autocorrelation time its record showed (in samples
+    of that record: the programme is taken at the same logger step)."""
+    measures = fit.data.get("measures") or {}
+    noise = {s: float(m["overall"]["rmse"]) for s, m in measures.items()}
+    tau = {s: float(m["overall"].get("autocorrelation_time", 1.0)) for s, m in measures.items()}
+    estimated = {p for p, q in fit.parameters.items() if q.estimated is True}
+    structure = fit.structure
+    free = tuple(p for p in structure.parameters if p in estimated)
+    source = f"the fit {fit.model} of {fit.vehicle}"
+    return Prior(structure, dict(fit.theta), free, source, None, noise, tau)
+
+
+def residuals_of(fits) -> tuple[dict[str, float], dict[str, float]]:
+    """The residual level a class's fits show: per compared output the median RMSE and the
+    median autocorrelation time (samples) over ``fits`` (:class:`railtherm.study.fit.Fit`)
+    whose verdict is acceptable; ({}, {}) without one."""
+    from railtherm.study.quality import ACCEPTABLE
+
+    rmse: dict[str, list[float]] = {}
+    tau: dict[str, list[float]] = {}
+    for fit in fits:
+        if fit.verdict != ACCEPTABLE:
+            continue
+        for state, m in (fit.data.get("measures") or {}).items():
+            rmse.setdefault(state, []).append(float(m["overall"]["rmse"]))
+            tau.setdefault(state, []).append(float(m["overall"].get("autocorrelation_time", 1)))
+    return (
+        {s: float(np.median(v)) for s, v in rmse.items()},
+        {s: float(np.median(v)) for s, v in tau.items()},
+    )
+
+
+def prior_from_reference(model, n: int = 200, seed: int = 0, fits=()) -> Prior:
+    """The prior of an unmeasured vehicle from its class reference model
+    (:class:`railtherm.study.classmodel.ReferenceModel`): its central parameters and ``n``
+    draws of a new vehicle of the class (deterministic with ``seed``); kA fixed, as the
+    two-stage fit fixes it from the static test. ``fits``: the class's fits, whose residual
+    level (:func:`residuals_of`) replaces the programme's sensor noise."""
+    structure = models.STRUCTURES[model.structure]
+    draws = model.draws(n, seed)
+    keep = np.all([np.isfinite(v) & (v > 0) for v in draws.values()], axis=0)
+    draws = {p: v[keep] for p, v in draws.items()}
+    free = tuple(p for p in structure.parameters if p != "kA")
+    source = (
+        f"the {model.vehicle_class} reference model ({model.mass_kg:g} kg, "
+        f"{model.surface_m2:g} m², {len(model.basis)} vehicles)"
+    )
+    noise, tau = residuals_of(fits)
+    return Prior(structure, dict(model.theta), free, source, draws, noise, tau)
+
+
+# ------------------------------------------------------------------------------------------
+# assessment and design
+
+
+def parse_target(text: str) -> tuple[str, float]:
+    """``"C_veh=5%"`` -> ("C_veh", 0.05): a parameter and its target relative 95 % half-width.
+    A text of another form is a :class:`ConfigError` naming ``--target``."""
+    name, sep, value = str(text).partition("=")
+    number = value.strip().removesuffix("%")
+    try:
+        fraction = float(number) / 100.0
+    except ValueError:
+        fraction = math.nan
+    if not sep or not name.strip() or not (math.isfinite(fraction) and fraction > 0):
+        raise ConfigError("--target", "target", text, "expected PARAMETER=PERCENT, e.g. C_veh=5%")
+    return name.strip(), fraction
+
+
+@dataclass(frozen=True)
+class Assessment:
+    """A programme judged for a prior: the prediction at the central parameters
+    (``central``), and over the prior's draws each parameter's median and 5 / 95 % quantiles
+    of the relative 95 % half-width (``spread``: {param: (q05, median, q95)}), the share of
+    draws in which it is identifiable (``identifiable``) and, for a ``target`` (param,
+    half-width), the probability to reach it (``probability``)."""
+
+    programme: Programme
+    prior: Prior
+    central: Prediction
+    spread: dict[str, tuple[float, float, float]]
+    identifiable: dict[str, float]
+    target: tuple[str, float] | None = None
+    probability: float | None = None
+
+
+def assess(
+    prior: Prior, programme: Programme, target: tuple[str, float] | None = None
+) -> Assessment:
+    """The :class:`Assessment` of ``programme`` for ``prior`` (every draw predicted; a prior
+    without draws is its central parameters alone)."""
+    if target is not None and target[0] not in prior.free:
+        raise ConfigError(
+            "--target", "target", target[0], f"not a parameter the fit estimates: {prior.free}"
+        )
+
+    def one(theta: Mapping[str, float]) -> Prediction:
+        return predict(
+            prior.structure,
+            theta,
+            programme,
+            free=prior.free,
+            tau_samples=prior.tau_samples or 1.0,
+            noise_K=prior.noise_K,
+        )
+
+    central = one(prior.theta)
+    if prior.draws:
+        n = len(next(iter(prior.draws.values())))
+        runs = [one({p: float(v[i]) for p, v in prior.draws.items()}) for i in range(n)]
+    else:
+        runs = [central]
+    spread, identifiable = {}, {}
+    for p in prior.free:
+        widths = np.array([r.half_width[p] for r in runs])
+        q05, q50, q95 = np.quantile(widths, [0.05, 0.5, 0.95], method="inverted_cdf")
+        spread[p] = (float(q05), float(q50), float(q95))
+        identifiable[p] = float(np.mean([r.identifiable[p] for r in runs]))
+    probability = None
+    if target is not None:
+        name, goal = target
+        probability = float(
+            np.mean([r.identifiable[name] and r.half_width[name] <= goal for r in runs])
+        )
+    return Assessment(programme, prior, central, spread, identifiable, target, probability)
+
+
+def scaled(programme: Programme, factor: float) -> Programme:
+    """The programme with every phase (and every step within it) ``factor`` times as long."""
+    phases = tuple(
+        Phase(
+            ph.name,
+            ph.hours * factor,
+            ph.T_o_C,
+            tuple((at * factor, watts) for at, watts in ph.steps),
+        )
+        for ph in programme.phases
+    )
+    name = f"{programme.name} x{factor:.3g}"
+    return Programme(name, phases, programme.step_s, programme.noise_K, programme.systematic)
+
+
+def shortest(
+    prior: Prior,
+    programme: Programme,
+    target: tuple[str, float],
+    probability: float = 0.9,
+    factors: Sequence[float] = tuple(np.round(np.geomspace(0.25, 4.0, 17), 4)),
+) -> tuple[float, Assessment] | None:
+    """The shortest version of ``programme``'s shape (its phases in proportion, each scaled by
+    one of ``factors``) whose :func:`assess` reaches ``target`` with at least
+    ``probability``; (factor, its assessment), or None when even the longest does not. The
+    factors are bisected: a longer programme of the same shape is taken to inform no less."""
+    ordered = sorted(float(f) for f in factors)
+    found: dict[float, Assessment] = {}
+
+    def reaches(factor: float) -> bool:  # each factor assessed once
+        if factor not in found:
+            found[factor] = assess(prior, scaled(programme, factor), target)
+        return (found[factor].probability or 0.0) >= probability
+
+    if not reaches(ordered[-1]):
+        return None
+    lo, hi = -1, len(ordered) - 1  # a longer programme of the same shape informs more:
+    while hi - lo > 1:  # bisect for the first factor that reaches the target
+        mid = (lo + hi) // 2
+        if reaches(ordered[mid]):
+            hi = mid
+        else:
+            lo = mid
+    return ordered[hi], found[ordered[hi]]
+
+
+def markdown(assessment: Assessment) -> str:
+    """The assessment for readers: per estimated parameter its predicted ± (95 %) at the
+    central parameters, over the prior's draws the median and 90 % range, and the share of
+    draws that identify it; then the target's probability."""
+    a = assessment
+    if a.prior.noise_K:
+        level = ", ".join(
+            f"{s} {a.prior.noise_K[s]:.3g} K (autocorrelation time "
+            f"{a.prior.tau_samples.get(s, 1.0):.3g} samples)"
+            for s in a.prior.noise_K
+        )
+        residuals = f"residuals as the prior's fits show them: {level}"
+    else:
+        noise = ", ".join(f"{s} {v:g} K" for s, v in a.programme.noise_K.items())
+        residuals = f"residuals white at the programme's sensor noise: {noise}"
+    systematic = ", ".join(f"{k} {v:g}" for k, v in a.programme.systematic.items()) or "none"
+    lines = [
+        f"Programme {a.programme.name} ({a.programme.hours:g} h, logger step "
+        f"{a.programme.step_s:g} s) for {a.prior.source}; {residuals}; systematic "
+        f"uncertainties: {systematic}.",
+        "",
+        "| parameter | predicted ± (95 %) | over the prior: median [5 %, 95 %] | identifiable |",
+        "|---|---|---|---|",
+    ]
+
+    def pct(x: float) -> str:
+        return "not identifiable" if not math.isfinite(x) else f"{100 * x:.3g} %"
+
+    for p in a.prior.free:
+        central = pct(a.central.half_width[p]) if a.central.identifiable[p] else "not identifiable"
+        q05, q50, q95 = a.spread[p]
+        lines.append(
+            f"| {p} | {central} | {pct(q50)} [{pct(q05)}, {pct(q95)}] | "
+            f"{100 * a.identifiable[p]:.0f} % of draws |"
+        )
+    if a.target is not None:
+        name, goal = a.target
+        lines += ["", f"{name} within ±{100 * goal:g} % with probability {a.probability:.2f}."]
+    return "\n".join(lines)
