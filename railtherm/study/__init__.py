@@ -4,6 +4,8 @@
   the systematic uncertainty budget, plausibility and the verdict
   (:mod:`~railtherm.study.quality`: the measures a fit file records, the verdict's rules);
 - :mod:`~railtherm.study.run`: the same without the workflow (``railtherm fit``);
+- :mod:`~railtherm.study.plan`: the files of a study, what each of the workflow's rules reads
+  and writes;
 - :mod:`~railtherm.study.fit`: a written fit read back as a model to simulate;
 - :mod:`~railtherm.study.aggregate`, :mod:`~railtherm.study.smallsample`: class statistics
   (Tables 2 and 3, c_veh and delta);
