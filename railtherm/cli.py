@@ -221,6 +221,8 @@ def _design(args: argparse.Namespace) -> int:
     target = design.parse_target(args.target) if args.target else None
     if args.optimise and target is None:
         raise ConfigError("--optimise", "target", None, "--optimise needs --target")
+    if args.length_h is not None and target is None:
+        raise ConfigError("--length-h", "target", None, "--length-h needs --target")
     if not 0.0 < args.probability <= 1.0:
         raise ConfigError("--probability", "probability", args.probability, "expected 0 < p <= 1")
     if args.draws < 1:
@@ -251,7 +253,19 @@ def _design(args: argparse.Namespace) -> int:
         prior = design.prior_from_reference(model, args.draws, args.seed, fits)
     assessment = design.assess(prior, programme, target)
     found = design.shortest(prior, programme, target, args.probability) if args.optimise else None
+    best = None
+    if args.length_h is not None:
+        best = design.best_of_length(
+            prior, programme, target[0], args.length_h, args.max_power_w, args.min_phase_h
+        )
     print(design.markdown(assessment))
+    if best is not None:
+        chosen, assessed = best
+        print(f"\nBest programme of {chosen.hours:g} h for {target[0]} (the first phase kept):")
+        for ph in chosen.phases:
+            print(f"  {ph.name}: {ph.hours:.3g} h at {ph.T_o_C:g} degC, {ph.steps[0][1]:,.0f} W")
+        print()
+        print(design.markdown(design.assess(prior, chosen, target)))
     if args.optimise:
         name, goal = target
         if found is None:
@@ -542,6 +556,22 @@ def build_parser() -> argparse.ArgumentParser:
         help="the probability --optimise asks for (default: %(default)s)",
     )
     design.add_argument("--optimise", action="store_true", help="shortest programme to --target")
+    design.add_argument(
+        "--length-h",
+        type=float,
+        help="the best programme of this many hours for --target (its first phase kept)",
+    )
+    design.add_argument(
+        "--max-power-w",
+        type=float,
+        help="the heating power limit of --length-h (default: the programme's largest)",
+    )
+    design.add_argument(
+        "--min-phase-h",
+        type=float,
+        default=1.0,
+        help="the shortest phase of --length-h (default: %(default)s)",
+    )
     design.add_argument("--draws", type=int, default=200, help="class draws (default: %(default)s)")
     design.add_argument("--seed", type=int, default=0, help="seed of the draws (default: 0)")
     _study_options(design, "the study's results: tables/table2.csv and the class's fits")

@@ -182,6 +182,10 @@ def test_the_command_takes_a_measured_vehicle_and_optimises(fit_files, capsys):
     out = capsys.readouterr().out
     assert "the fit order2 of Metro2" in out and "residuals as the prior's fits show them" in out
     assert "Shortest programme of this shape:" in out or "No programme of this shape" in out
+    assert main([*args[:-1], "--length-h", "48", "--max-power-w", "40000"]) == 0
+    best = capsys.readouterr().out
+    assert "Best programme of 48 h for C_veh (the first phase kept):" in best
+    assert "  steady: 24 h at -10 degC, 20,000 W" in best
 
 
 @pytest.mark.bad_input
@@ -198,6 +202,15 @@ def test_the_command_takes_a_measured_vehicle_and_optimises(fit_files, capsys):
             "--optimise",
         ),
         (
+            ["--class", "metro", "--mass-kg", "4e4", "--surface-m2", "330", "--length-h", "48"],
+            "--length-h",
+        ),
+        (
+            ["--class", "metro", "--mass-kg", "4e4", "--surface-m2", "330"]
+            + ["--target", "C_veh=5%", "--length-h", "10"],
+            "--length-h",
+        ),
+        (
             ["--class", "metro", "--mass-kg", "4e4", "--surface-m2", "330", "--target", "kA=5%"],
             "--target",
         ),
@@ -209,3 +222,25 @@ def test_a_bad_design_request_names_the_option(extra, named, capsys):
     args = ["design", "config/programmes/paper.yaml", *extra, "--draws", "5", "-d", str(REPO_ROOT)]
     assert main(args) == 1
     assert named in capsys.readouterr().err
+
+
+def test_the_best_programme_of_a_length_beats_a_weak_one_within_the_limits(tmp_path):
+    """A programme whose steps barely move the heating (8 to 8.5 kW): the best programme of
+    the same 36 h, powers within 14 kW, keeps the steady first phase (the static k window)
+    and narrows the predicted C_veh interval at least twofold."""
+    weak = {
+        **PAPER_LIKE,
+        "phases": [
+            {"name": "steady", "hours": 16, "T_o_C": -10, "power_W": 8000},
+            {"name": "up", "hours": 10, "T_o_C": -10, "power_W": 8500},
+            {"name": "down", "hours": 10, "T_o_C": -10, "power_W": 8000},
+        ],
+    }
+    prog = programme(tmp_path, weak)
+    prior = design.Prior(SECOND, TRUTH, ("C", "K_veh", "C_veh"), "the truth")
+    before = design.assess(prior, prog).central.half_width["C_veh"]
+    best, assessed = design.best_of_length(prior, prog, "C_veh", max_power_W=14000.0)
+    assert best.hours == pytest.approx(36.0) and best.phases[0] == prog.phases[0]
+    assert all(1.0 - 1e-9 <= ph.hours for ph in best.phases)
+    assert all(0.0 <= ph.steps[0][1] <= 14000.0 for ph in best.phases)
+    assert assessed.central.half_width["C_veh"] <= before / 2.0

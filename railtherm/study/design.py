@@ -46,6 +46,7 @@ __all__ = [
     "Prior",
     "Programme",
     "assess",
+    "best_of_length",
     "load_programme",
     "markdown",
     "parse_target",
@@ -503,6 +504,83 @@ def shortest(
         else:
             lo = mid
     return ordered[hi], found[ordered[hi]]
+
+
+def best_of_length(
+    prior: Prior,
+    programme: Programme,
+    target: str,
+    hours: float | None = None,
+    max_power_W: float | None = None,
+    min_phase_h: float = 1.0,
+) -> tuple[Programme, Assessment]:
+    """The programme of ``hours`` (default: ``programme``'s own length) that gives the
+    narrowest predicted interval of ``target`` at the prior's central parameters. The first
+    phase stays as given: it ends with the static k window (eq. 10), which needs its steady
+    state. The later phases keep their order and tunnel temperatures; each one's duration (at
+    least ``min_phase_h``) and held power (0 to ``max_power_W``, default the programme's
+    largest) are chosen by Nelder-Mead, started from ``programme`` scaled to ``hours``. The
+    result is then assessed over the prior's draws. A later phase with steps, or a length that
+    leaves the later phases less than ``min_phase_h`` each, is a :class:`ConfigError`."""
+    from scipy.optimize import minimize
+
+    first, rest = programme.phases[0], programme.phases[1:]
+    for i, ph in enumerate(rest, start=1):
+        if len(ph.steps) != 1:
+            raise ConfigError(
+                programme.name, f"phases[{i}].steps", ph.steps, "optimised phases hold power_W"
+            )
+    if target not in prior.free:
+        raise ConfigError("--target", "target", target, f"not estimated: {prior.free}")
+    total = programme.hours if hours is None else float(hours)
+    n = len(rest)
+    spare = total - first.hours - n * min_phase_h
+    if n == 0 or spare < 0:
+        raise ConfigError(
+            "--length-h",
+            "length_h",
+            total,
+            f"the first phase ({first.hours:g} h) and {n} later phases of at least "
+            f"{min_phase_h:g} h do not fit",
+        )
+    power_max = max(s[1] for ph in programme.phases for s in ph.steps)
+    power_max = float(max_power_W) if max_power_W is not None else power_max
+
+    def build(z: np.ndarray) -> Programme:
+        share = np.exp(z[:n] - z[:n].max())
+        share /= share.sum()
+        power = power_max / (1.0 + np.exp(-z[n:]))  # within (0, power_max)
+        later = tuple(
+            Phase(
+                ph.name, min_phase_h + spare * float(share[i]), ph.T_o_C, ((0.0, float(power[i])),)
+            )
+            for i, ph in enumerate(rest)
+        )
+        name = f"{programme.name}, best of {total:g} h"
+        return Programme(
+            name, (first, *later), programme.step_s, programme.noise_K, programme.systematic
+        )
+
+    def width(z: np.ndarray) -> float:
+        prediction = predict(
+            prior.structure,
+            prior.theta,
+            build(z),
+            free=prior.free,
+            tau_samples=prior.tau_samples or 1.0,
+            noise_K=prior.noise_K,
+        )
+        sd = prediction.sd_log[target]
+        return float(np.log(sd)) if math.isfinite(sd) and sd > 0 else 1e6
+
+    scale = (total - first.hours) / max(sum(ph.hours for ph in rest), 1e-9)
+    hours0 = np.array([max(ph.hours * scale - min_phase_h, 1e-3) for ph in rest])
+    p0 = np.clip([ph.steps[0][1] / power_max for ph in rest], 1e-3, 1 - 1e-3)
+    z0 = np.concatenate([np.log(hours0), np.log(p0 / (1.0 - p0))])
+    options = {"maxfev": 400, "xatol": 1e-3, "fatol": 1e-4}
+    found = minimize(width, z0, method="Nelder-Mead", options=options)
+    best = build(found.x if found.fun < width(z0) else z0)
+    return best, assess(prior, best, (target, math.inf))
 
 
 def markdown(assessment: Assessment) -> str:
