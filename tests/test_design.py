@@ -244,3 +244,31 @@ def test_the_best_programme_of_a_length_beats_a_weak_one_within_the_limits(tmp_p
     assert all(1.0 - 1e-9 <= ph.hours for ph in best.phases)
     assert all(0.0 <= ph.steps[0][1] <= 14000.0 for ph in best.phases)
     assert assessed.central.half_width["C_veh"] <= before / 2.0
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize(
+    ("limits", "key"),
+    [
+        ({"max_power_W": 10000}, "phases[1]"),
+        ({"min_T_o_C": -5}, "phases[0].T_o_C"),
+        ({"max_power": 1}, "limits"),
+    ],
+)
+def test_a_programme_beyond_the_tunnel_s_limits_is_refused(tmp_path, limits, key):
+    with pytest.raises(ConfigError) as caught:
+        programme(tmp_path, {**PAPER_LIKE, "limits": limits})
+    assert f"'{key}'" in str(caught.value)
+
+
+def test_the_best_programme_keeps_to_the_declared_power_limit(tmp_path):
+    held = [{**ph, "power_W": 6000} for ph in PAPER_LIKE["phases"][:2]] + [
+        {"name": "step down", "hours": 10, "T_o_C": -10, "power_W": 3000}
+    ]
+    held[0]["power_W"], held[1]["power_W"] = 8000, 14000
+    data = {**PAPER_LIKE, "phases": held, "limits": {"max_power_W": 15000}}
+    prog = programme(tmp_path, data)
+    prior = design.Prior(SECOND, TRUTH, ("C", "K_veh", "C_veh"), "the truth")
+    best, _ = design.best_of_length(prior, prog, "C_veh")
+    assert best.limits == {"max_power_W": 15000.0}
+    assert all(ph.steps[0][1] <= 15000.0 for ph in best.phases)

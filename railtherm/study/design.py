@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -84,13 +84,16 @@ class Programme:
     """A planned tunnel programme: its phases in order, the logger step ``step_s``, and the
     measurement noise (K, one standard deviation) of each compared state ``noise_K``, and the
     standard uncertainties of its systematic errors ``systematic``: an offset (K) of a
-    compared state's sensors or of T_o, and ``power_rel``, the relative scale error of Q_H."""
+    compared state's sensors or of T_o, and ``power_rel``, the relative scale error of Q_H;
+    ``limits``: what the heaters and the tunnel can do (``max_power_W``, ``min_T_o_C``,
+    ``max_T_o_C``)."""
 
     name: str
     phases: tuple[Phase, ...]
     step_s: float
     noise_K: Mapping[str, float] = field(default_factory=dict)
     systematic: Mapping[str, float] = field(default_factory=dict)
+    limits: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def hours(self) -> float:
@@ -115,7 +118,7 @@ def load_programme(path: str | Path) -> Programme:
     data = read_yaml(path, display=file)
     if not isinstance(data, Mapping):
         raise ConfigError(file, "(root)", data, "expected a mapping (name, step_s, phases)")
-    known = {"name", "step_s", "noise_K", "systematic", "phases", "description"}
+    known = {"name", "step_s", "noise_K", "systematic", "limits", "phases", "description"}
     for key in data:
         if key not in known:
             raise ConfigError(file, key, data[key], f"unknown key; known: {sorted(known)}")
@@ -167,7 +170,33 @@ def load_programme(path: str | Path) -> Programme:
             steps = tuple(steps)
         phases.append(Phase(str(ph.get("name", f"phase {i + 1}")), hours, float(T_o), steps))
     name = str(data.get("name", Path(file).stem))
-    return Programme(name, tuple(phases), step, noise_K, systematic)
+    raw_limits = data.get("limits", {})
+    limit_keys = {"max_power_W", "min_T_o_C", "max_T_o_C"}
+    if not isinstance(raw_limits, Mapping) or set(raw_limits) - limit_keys:
+        raise ConfigError(file, "limits", raw_limits, f"expected a mapping of {sorted(limit_keys)}")
+    limits = {}
+    if "max_power_W" in raw_limits:
+        limits["max_power_W"] = _number(file, "limits.max_power_W", raw_limits["max_power_W"])
+    for key in ("min_T_o_C", "max_T_o_C"):
+        if key in raw_limits:
+            value = raw_limits[key]
+            if not (isinstance(value, int | float) and not isinstance(value, bool)):
+                raise ConfigError(file, f"limits.{key}", value, "expected a temperature (degC)")
+            limits[key] = float(value)
+    for i, ph in enumerate(phases):  # the tunnel and the heaters can do what is planned
+        top = max(w for _, w in ph.steps)
+        if top > limits.get("max_power_W", math.inf):
+            raise ConfigError(
+                file,
+                f"phases[{i}]",
+                top,
+                f"more power than limits.max_power_W {limits['max_power_W']:g} W",
+            )
+        if not limits.get("min_T_o_C", -math.inf) <= ph.T_o_C <= limits.get("max_T_o_C", math.inf):
+            raise ConfigError(
+                file, f"phases[{i}].T_o_C", ph.T_o_C, "outside the tunnel's limits.min/max_T_o_C"
+            )
+    return Programme(name, tuple(phases), step, noise_K, systematic, limits)
 
 
 def programme_inputs(programme: Programme) -> np.ndarray:
@@ -472,7 +501,7 @@ def scaled(programme: Programme, factor: float) -> Programme:
         for ph in programme.phases
     )
     name = f"{programme.name} x{factor:.3g}"
-    return Programme(name, phases, programme.step_s, programme.noise_K, programme.systematic)
+    return replace(programme, name=name, phases=phases)
 
 
 def shortest(
@@ -519,8 +548,9 @@ def best_of_length(
     phase stays as given: it ends with the static k window (eq. 10), which needs its steady
     state. The later phases keep their order and tunnel temperatures; each one's duration (at
     least ``min_phase_h``) and held power (0 to ``max_power_W``, default the programme's
-    largest) are chosen by Nelder-Mead, started from ``programme`` scaled to ``hours``. The
-    result is then assessed over the prior's draws. A later phase with steps, or a length that
+    ``limits.max_power_W``, else its largest power) are chosen by Nelder-Mead, started from
+    ``programme`` scaled to ``hours``. The result is then assessed over the prior's draws. A
+    later phase with steps, or a length that
     leaves the later phases less than ``min_phase_h`` each, is a :class:`ConfigError`."""
     from scipy.optimize import minimize
 
@@ -544,6 +574,7 @@ def best_of_length(
             f"{min_phase_h:g} h do not fit",
         )
     power_max = max(s[1] for ph in programme.phases for s in ph.steps)
+    power_max = programme.limits.get("max_power_W", power_max)
     power_max = float(max_power_W) if max_power_W is not None else power_max
 
     def build(z: np.ndarray) -> Programme:
@@ -557,9 +588,7 @@ def best_of_length(
             for i, ph in enumerate(rest)
         )
         name = f"{programme.name}, best of {total:g} h"
-        return Programme(
-            name, (first, *later), programme.step_s, programme.noise_K, programme.systematic
-        )
+        return replace(programme, name=name, phases=(first, *later))
 
     def width(z: np.ndarray) -> float:
         prediction = predict(
