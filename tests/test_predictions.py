@@ -215,3 +215,45 @@ def test_write_validation_writes_the_table_its_markdown_and_figure(tmp_path):
     md = (out / "v.md").read_text(encoding="utf-8")
     assert md == classvalidation.validation_markdown(table, scenario(), "synthetic: test")
     assert (out / "v.png").stat().st_size > 0 and (out / "v.svg").stat().st_size > 0
+
+
+def test_study_predictions_write_the_table_its_markdown_and_the_chosen_scenario_s_figure(
+    tmp_path, monkeypatch
+):
+    """Rule simulate's work: the CSV and Markdown of every scenario and vehicle, and the
+    chosen scenario's figure, which names the vehicle it could not simulate and marks none as
+    in doubt (both fits acceptable)."""
+    from railtherm.report import plots
+
+    theta = {"kA": 800.0, "C": 8e6, "K_veh": 400.0, "C_veh": 1.6e7}
+    fits = {
+        "A1": second_order_fit("A1", theta),
+        "A2": second_order_fit("A2", theta, identified=False),
+    }
+    vehicles = {vid: {"class": "metro", "volume_m3": 90.0, "synthetic": True} for vid in fits}
+    drawn = {}
+    original = plots.scenario_figure
+
+    def spy(runs, **kwargs):
+        drawn.update(runs=list(runs), **kwargs)
+        return original(runs, **kwargs)
+
+    monkeypatch.setattr(plots, "scenario_figure", spy)
+    out = tmp_path
+    table = predictions.write_study_predictions(
+        fits,
+        vehicles,
+        [scenario()],
+        "preheat",
+        out / "s.csv",
+        out / "s.md",
+        str(out / "s"),
+        draws=20,
+        seed=1,
+    )
+    assert list(pd.read_csv(out / "s.csv")["vehicle"]) == ["A1", "A2"] == list(table["vehicle"])
+    assert "| A2 | metro | not simulated" in (out / "s.md").read_text(encoding="utf-8")
+    assert (out / "s.png").stat().st_size > 0 and (out / "s.svg").stat().st_size > 0
+    assert drawn["runs"] == ["A1"] and "no band" not in drawn["title"]
+    assert drawn["note"].startswith("not drawn: A2 (not simulated, see the scenario table)")
+    assert drawn["threshold_C"] == 15.0

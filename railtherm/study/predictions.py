@@ -206,3 +206,72 @@ def scenario_markdown(
         "- Scenario keys and the controller: docs/simulation.md.",
     ]
     return "\n".join(parts) + "\n"
+
+
+def scenario_runs_figure(
+    table: pd.DataFrame,
+    runs: Mapping[tuple[str, str], sim.SimulationResult],
+    scenario: Scenario,
+    vehicles: Sequence[str],
+    source: str,
+):
+    """The figure of one ``scenario`` through every vehicle's model: a vehicle whose band is
+    withheld (assumptions in doubt) marked :data:`DOUBT_MARK`, a vehicle not simulated named
+    in the note (the table says why), the data's provenance beside it."""
+    from railtherm.report import plots
+
+    shown = {
+        vid + (f" {DOUBT_MARK}" if run.band_withheld else ""): run
+        for (name, vid), run in runs.items()
+        if name == scenario.name
+    }
+    doubt = (
+        f" ({DOUBT_MARK}: assumptions in doubt, no band)"
+        if any(DOUBT_MARK in v for v in shown)
+        else ""
+    )
+    notes = []
+    left = [vid for vid in vehicles if (scenario.name, vid) not in runs]
+    if left:
+        notes.append(f"not drawn: {', '.join(left)} (not simulated, see the scenario table)")
+    provenance = plots.provenance_note(table.assign(source=source))
+    if provenance:
+        notes.append(provenance)
+    return plots.scenario_figure(
+        shown,
+        title=f"{scenario.name}: identified second-order models, 95 % bands{doubt}",
+        threshold_C=scenario.heat_up_to_C,
+        note="; ".join(notes) or None,
+    )
+
+
+def write_study_predictions(
+    fits: Mapping[str, Fit],
+    vehicles: Mapping[str, Mapping[str, Any]],
+    scenarios: Sequence[Scenario],
+    figure_scenario: str,
+    csv: str,
+    md: str,
+    figure: str,
+    draws: int = sim.DEFAULT_DRAWS,
+    seed: int = 0,
+) -> pd.DataFrame:
+    """The study's scenario predictions (rule simulate): every scenario through every
+    vehicle's fit (``vehicles``: id -> its validated config, for its class and volume), the
+    table as CSV (:data:`DIGITS` significant digits) and Markdown, and the figure of the
+    scenario named ``figure_scenario`` (``figure``: the path without suffix; PNG and SVG).
+    Returns the table."""
+    from railtherm.report import plots, tables
+    from railtherm.study.aggregate import data_source
+
+    classes = {vid: str(data["class"]) for vid, data in vehicles.items()}
+    volumes = {vid: data.get("volume_m3") for vid, data in vehicles.items()}
+    table, runs = scenario_table(fits, classes, scenarios, draws=draws, seed=seed, volumes=volumes)
+    source = data_source(vehicles)
+    tables.write_csv(table, csv, digits=DIGITS)
+    with open(md, "w", encoding="utf-8") as stream:
+        stream.write(scenario_markdown(table, scenarios, source, draws, volumes))
+    chosen = next(sc for sc in scenarios if sc.name == figure_scenario)
+    fig = scenario_runs_figure(table, runs, chosen, list(fits), source)
+    plots.save_figure(fig, figure)
+    return table
