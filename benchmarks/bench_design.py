@@ -27,8 +27,7 @@ import numpy as np
 from bench_pem import best_of, machine  # the timing and machine line of bench_pem
 
 from railtherm.estimation import models, pem
-from railtherm.study import classmodel, design
-from railtherm.study.fit import read_fit
+from railtherm.study import design
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -37,14 +36,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=200, help="class draws (default: 200)")
     args = ap.parse_args(argv)
-    members = classmodel.members_from_study("config/config.yaml", "results", workdir=REPO)
-    model = classmodel.build(members, "metro", 40000.0, 330.0)
-    fits = [
-        read_fit(path)
-        for vid in model.basis
-        if (path := REPO / "results" / "vehicles" / vid / "fit_order2.yaml").is_file()
-    ]
-    prior = design.prior_from_reference(model, args.draws, 0, fits)
+    prior = design.prior_for_class(
+        "metro", 40000.0, 330.0, "config/config.yaml", "results", REPO, args.draws, 0
+    )
     paper = design.load_programme(REPO / "config" / "programmes" / "paper.yaml")
     longer = design.scaled(paper, 1.25)
     target = ("C_veh", 0.05)

@@ -230,27 +230,22 @@ def _design(args: argparse.Namespace) -> int:
     if args.vehicle:
         prior = design.prior_from_fit(read_fit(os.path.join(workdir, args.vehicle)))
     else:
-        from railtherm.study import classmodel
-
-        missing = [
-            o
-            for o, v in (("--mass-kg", args.mass_kg), ("--surface-m2", args.surface_m2))
-            if v is None
-        ]
+        given = (("--mass-kg", args.mass_kg), ("--surface-m2", args.surface_m2))
+        missing = [option for option, value in given if value is None]
         if missing:
             raise ConfigError(
                 missing[0], missing[0][2:], None, "--class needs --mass-kg and --surface-m2"
             )
-        members = classmodel.members_from_study(args.config, args.results, workdir=workdir)
-        model = classmodel.build(members, args.vehicle_class, args.mass_kg, args.surface_m2)
-        fits = [
-            read_fit(path)
-            for vid in model.basis
-            if os.path.isfile(
-                path := os.path.join(workdir, args.results, "vehicles", vid, "fit_order2.yaml")
-            )
-        ]
-        prior = design.prior_from_reference(model, args.draws, args.seed, fits)
+        prior = design.prior_for_class(
+            args.vehicle_class,
+            args.mass_kg,
+            args.surface_m2,
+            args.config,
+            args.results,
+            workdir,
+            args.draws,
+            args.seed,
+        )
     assessment = design.assess(prior, programme, target)
     found = design.shortest(prior, programme, target, args.probability) if args.optimise else None
     best = None

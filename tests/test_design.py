@@ -252,7 +252,7 @@ def test_the_best_programme_of_a_length_beats_a_weak_one_within_the_limits(tmp_p
     [
         ({"max_power_W": 10000}, "phases[1]"),
         ({"min_T_o_C": -5}, "phases[0].T_o_C"),
-        ({"max_power": 1}, "limits"),
+        ({"max_power": 1}, "limits.max_power"),
     ],
 )
 def test_a_programme_beyond_the_tunnel_s_limits_is_refused(tmp_path, limits, key):

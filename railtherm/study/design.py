@@ -30,14 +30,13 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from railtherm.errors import ConfigError
 from railtherm.estimation import models
-from railtherm.estimation.pem import Z95
-from railtherm.yamlio import read_yaml
+from railtherm.estimation.pem import Z95, identification
+from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_schema
 
 __all__ = [
     "Assessment",
@@ -51,6 +50,7 @@ __all__ = [
     "markdown",
     "parse_target",
     "predict",
+    "prior_for_class",
     "prior_from_fit",
     "prior_from_reference",
     "programme_inputs",
@@ -62,9 +62,6 @@ __all__ = [
 # an information matrix whose condition number exceeds this leaves some direction of the
 # parameters undetermined by the record: those parameters are "not identifiable" by it
 COND_MAX = 1e12
-# a predicted 95 % interval wider than this factor in total (hi / lo) is no estimate either,
-# as for a fitted one (railtherm.estimation.pem.identification)
-UNBOUNDED_FACTOR = 1e3
 
 
 @dataclass(frozen=True)
@@ -100,103 +97,54 @@ class Programme:
         return sum(p.hours for p in self.phases)
 
 
-def _number(file: str, key: str, value: Any, low: float = 0.0, strict: bool = True) -> float:
-    ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-    if not ok or (value <= low if strict else value < low):
-        bound = f"> {low:g}" if strict else f">= {low:g}"
-        raise ConfigError(file, key, value, f"expected a number {bound}")
-    return float(value)
-
-
 def load_programme(path: str | Path) -> Programme:
-    """Read and check a programme file (YAML): ``name``, ``step_s``, ``noise_K`` ({state: K}),
-    ``systematic`` ({T or T_veh or T_o: offset K, power_rel: scale}, standard uncertainties)
-    and ``phases``, each with ``hours``, ``T_o_C`` and either ``power_W`` or ``steps`` (a list
-    of [hours from the phase's start, W], the first at 0). Any mistake is a
+    """Read and check a programme file (YAML, ``railtherm/schemas/programme.schema.yaml``):
+    ``name``, ``step_s``, ``noise_K`` ({state: K}), ``systematic`` ({T or T_veh or T_o:
+    offset K, power_rel: scale}, standard uncertainties), ``limits`` (``max_power_W``,
+    ``min_T_o_C``, ``max_T_o_C``) and ``phases``, each with ``hours``, ``T_o_C`` and either
+    ``power_W`` or ``steps`` (a list of [hours from the phase's start, W], the first at 0,
+    rising within the phase). Any mistake, or a phase beyond the limits, is a
     :class:`ConfigError` naming the file, the key and the value."""
     file = str(path)
     data = read_yaml(path, display=file)
-    if not isinstance(data, Mapping):
-        raise ConfigError(file, "(root)", data, "expected a mapping (name, step_s, phases)")
-    known = {"name", "step_s", "noise_K", "systematic", "limits", "phases", "description"}
-    for key in data:
-        if key not in known:
-            raise ConfigError(file, key, data[key], f"unknown key; known: {sorted(known)}")
-    step = _number(file, "step_s", data.get("step_s"))
-    noise = data.get("noise_K", {"T": 0.05})
-    if not isinstance(noise, Mapping) or not noise:
-        raise ConfigError(file, "noise_K", noise, "expected {state: standard deviation in K}")
-    noise_K = {str(s): _number(file, f"noise_K.{s}", v) for s, v in noise.items()}
-    raw_sys = data.get("systematic", {})
-    if not isinstance(raw_sys, Mapping):
-        raise ConfigError(file, "systematic", raw_sys, "expected {T: K, T_o: K, power_rel: 0.01}")
-    systematic = {
-        str(k): _number(file, f"systematic.{k}", v, strict=False) for k, v in raw_sys.items()
-    }
-    raw_phases = data.get("phases")
-    if not isinstance(raw_phases, list) or not raw_phases:
-        raise ConfigError(file, "phases", raw_phases, "expected a list of phases")
+    validate_schema(file, data, packaged_schema("programme"))
+    check_finite(file, data)
+    limits = {k: float(v) for k, v in data["limits"].items()}
     phases = []
-    for i, ph in enumerate(raw_phases):
+    for i, ph in enumerate(data["phases"]):
         key = f"phases[{i}]"
-        if not isinstance(ph, Mapping):
-            raise ConfigError(file, key, ph, "expected a mapping (hours, T_o_C, power_W)")
-        hours = _number(file, f"{key}.hours", ph.get("hours"))
-        T_o = ph.get("T_o_C")
-        if not (isinstance(T_o, int | float) and not isinstance(T_o, bool) and -60 <= T_o <= 60):
-            raise ConfigError(file, f"{key}.T_o_C", T_o, "expected a temperature -60..60 degC")
-        if ("power_W" in ph) == ("steps" in ph):
-            raise ConfigError(file, key, dict(ph), "give power_W or steps, one of them")
-        if "power_W" in ph:
-            steps = ((0.0, _number(file, f"{key}.power_W", ph["power_W"], strict=False)),)
-        else:
-            raw = ph["steps"]
-            if not isinstance(raw, list) or not raw:
-                raise ConfigError(file, f"{key}.steps", raw, "expected [[hours, W], ...]")
-            steps = []
-            for j, st in enumerate(raw):
-                if not (isinstance(st, list | tuple) and len(st) == 2):
-                    raise ConfigError(file, f"{key}.steps[{j}]", st, "expected [hours, W]")
-                at = _number(file, f"{key}.steps[{j}][0]", st[0], strict=False)
-                watts = _number(file, f"{key}.steps[{j}][1]", st[1], strict=False)
-                if (j == 0 and at != 0) or (j and at <= steps[-1][0]) or at >= hours:
-                    raise ConfigError(
-                        file,
-                        f"{key}.steps[{j}][0]",
-                        st[0],
-                        "steps start at 0 and rise strictly within the phase's hours",
-                    )
-                steps.append((at, watts))
-            steps = tuple(steps)
-        phases.append(Phase(str(ph.get("name", f"phase {i + 1}")), hours, float(T_o), steps))
-    name = str(data.get("name", Path(file).stem))
-    raw_limits = data.get("limits", {})
-    limit_keys = {"max_power_W", "min_T_o_C", "max_T_o_C"}
-    if not isinstance(raw_limits, Mapping) or set(raw_limits) - limit_keys:
-        raise ConfigError(file, "limits", raw_limits, f"expected a mapping of {sorted(limit_keys)}")
-    limits = {}
-    if "max_power_W" in raw_limits:
-        limits["max_power_W"] = _number(file, "limits.max_power_W", raw_limits["max_power_W"])
-    for key in ("min_T_o_C", "max_T_o_C"):
-        if key in raw_limits:
-            value = raw_limits[key]
-            if not (isinstance(value, int | float) and not isinstance(value, bool)):
-                raise ConfigError(file, f"limits.{key}", value, "expected a temperature (degC)")
-            limits[key] = float(value)
-    for i, ph in enumerate(phases):  # the tunnel and the heaters can do what is planned
-        top = max(w for _, w in ph.steps)
+        steps = [(0.0, ph["power_W"])] if "power_W" in ph else ph["steps"]
+        for j, (at, _) in enumerate(steps):
+            if (j == 0 and at != 0) or (j and at <= steps[j - 1][0]) or at >= ph["hours"]:
+                raise ConfigError(
+                    file,
+                    f"{key}.steps[{j}][0]",
+                    at,
+                    "steps start at 0 and rise strictly within the phase's hours",
+                )
+        top = max(w for _, w in steps)
         if top > limits.get("max_power_W", math.inf):
             raise ConfigError(
-                file,
-                f"phases[{i}]",
-                top,
-                f"more power than limits.max_power_W {limits['max_power_W']:g} W",
+                file, key, top, f"more power than limits.max_power_W {limits['max_power_W']:g} W"
             )
-        if not limits.get("min_T_o_C", -math.inf) <= ph.T_o_C <= limits.get("max_T_o_C", math.inf):
+        if (
+            not limits.get("min_T_o_C", -math.inf)
+            <= ph["T_o_C"]
+            <= limits.get("max_T_o_C", math.inf)
+        ):
             raise ConfigError(
-                file, f"phases[{i}].T_o_C", ph.T_o_C, "outside the tunnel's limits.min/max_T_o_C"
+                file, f"{key}.T_o_C", ph["T_o_C"], "outside the tunnel's limits.min/max_T_o_C"
             )
-    return Programme(name, tuple(phases), step, noise_K, systematic, limits)
+        steps = tuple((float(at), float(w)) for at, w in steps)
+        phases.append(
+            Phase(
+                str(ph.get("name", f"phase {i + 1}")), float(ph["hours"]), float(ph["T_o_C"]), steps
+            )
+        )
+    noise = {str(s): float(v) for s, v in data["noise_K"].items()}
+    systematic = {str(k): float(v) for k, v in data["systematic"].items()}
+    name = str(data.get("name", Path(file).stem))
+    return Programme(name, tuple(phases), float(data["step_s"]), noise, systematic, limits)
 
 
 def programme_inputs(programme: Programme) -> np.ndarray:
@@ -333,8 +281,13 @@ def predict(
         sd_sys = {p: float(math.sqrt(systematic[i])) for i, p in enumerate(free[:P])}
     # a record that does not move a parameter leaves its sd huge (or infinite): no width
     half = {p: (math.expm1(Z95 * v) if Z95 * v < 700.0 else math.inf) for p, v in sd.items()}
-    limit = math.log(UNBOUNDED_FACTOR)
-    identifiable = {p: 2.0 * Z95 * v <= limit for p, v in sd.items()}
+    # the fits' own rule on the predicted interval of theta * exp(+-1.96 sd)
+    identifiable = {
+        p: identification(1.0, (math.exp(-Z95 * v), math.inf if h == math.inf else 1.0 + h))[
+            "identified"
+        ]
+        for (p, v), h in zip(sd.items(), half.values(), strict=True)
+    }
     return Prediction(structure.name, sd, half, identifiable, condition, sd_sys)
 
 
@@ -411,6 +364,30 @@ def prior_from_reference(model, n: int = 200, seed: int = 0, fits=()) -> Prior:
     )
     noise, tau = residuals_of(fits)
     return Prior(structure, dict(model.theta), free, source, draws, noise, tau)
+
+
+def prior_for_class(
+    vehicle_class: str,
+    mass_kg: float,
+    surface_m2: float,
+    config: str = "config/config.yaml",
+    results: str = "results",
+    workdir: str | Path = ".",
+    n: int = 200,
+    seed: int = 0,
+) -> Prior:
+    """The prior of an unmeasured vehicle of ``vehicle_class``, ``mass_kg`` and ``surface_m2``
+    from the study's committed Table 2 (:func:`railtherm.study.classmodel.build`), with the
+    residual level of its basis vehicles' second-order fits where ``results`` holds them
+    (:func:`prior_from_reference`)."""
+    from railtherm.study import classmodel
+    from railtherm.study.fit import read_fit
+
+    members = classmodel.members_from_study(config, results, workdir=workdir)
+    model = classmodel.build(members, vehicle_class, mass_kg, surface_m2)
+    paths = [Path(workdir, results, "vehicles", vid, "fit_order2.yaml") for vid in model.basis]
+    fits = [read_fit(path) for path in paths if path.is_file()]
+    return prior_from_reference(model, n, seed, fits)
 
 
 # ------------------------------------------------------------------------------------------
