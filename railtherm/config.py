@@ -498,13 +498,12 @@ def _check_envelope(file: str, data: dict[str, Any], model: dict[str, Any]) -> N
     for i, channel in enumerate(data["channels"].get("irradiance") or []):
         node = channel.get("node", "air")
         if node != "air" and one_node:
-            two = [s.key for s in structures.STRUCTURES.values() if s.envelope]
             raise ConfigError(
                 file,
                 f"channels.irradiance[{i}].node",
                 node,
                 f"the {one_node[0].title} ({one_node[0].key}) has one node, no envelope: "
-                f"declare node air, or fit only {', '.join(two)}",
+                f"declare node air, or fit only {', '.join(structures.with_envelope())}",
             )
     timing = data["format"].get("power_timing", "instant")
     if model.get("input_hold") == "first_order" and timing != "instant":

@@ -30,11 +30,13 @@ __all__ = [
     "further",
     "keys",
     "measurable_states",
+    "of_kind",
     "of_fit",
     "nesting",
     "orders",
     "parameters",
     "unit",
+    "with_envelope",
 ]
 
 
@@ -107,6 +109,18 @@ def parameters() -> list[str]:
     C_veh, then the further structures'): the names ``model.initial`` and ``model.bounds``
     take besides the solar ones."""
     return list(dict.fromkeys(p for s in STRUCTURES.values() for p in s.parameters))
+
+
+def with_envelope() -> list[str]:
+    """The model keys of the structures with an envelope node (where a solar gain declared on
+    the envelope can enter)."""
+    return [s.key for s in STRUCTURES.values() if s.envelope]
+
+
+def of_kind(kind: str) -> list[str]:
+    """Every structure's ``capacities`` or ``conductances`` (``kind``), each once, in the
+    registry's order."""
+    return list(dict.fromkeys(p for s in STRUCTURES.values() for p in getattr(s, kind)))
 
 
 def measurable_states() -> list[str]:

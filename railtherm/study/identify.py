@@ -108,16 +108,10 @@ def model_structure(order: int | str, vehicle_data: Mapping[str, Any] | None = N
                 f"channels.irradiance[{i}].node",
                 node,
                 f"model {model_key(order)} ({name}) has one node, no envelope: declare node "
-                f"air, or fit only {', '.join(two_node_keys())} (model.orders, "
+                f"air, or fit only {', '.join(structures.with_envelope())} (model.orders, "
                 "model.structures)",
             )
     return models.structure_for(name, irradiance)
-
-
-def two_node_keys() -> list[str]:
-    """The model keys of the structures with an envelope node (where a solar gain declared on
-    the envelope can enter)."""
-    return [s.key for s in structures.STRUCTURES.values() if s.envelope]
 
 
 # model.envelope_sensors -> the tidy column that measures the envelope state
@@ -1418,13 +1412,6 @@ def skipped_checks(estimate: Mapping[str, Any]) -> list[str]:
     return out
 
 
-def conductances() -> list[str]:
-    """The conductances of every structure but the overall kA (judged by k): K_veh, K_i, K_o,
-    judged per m2 of the outer surface."""
-    found = [p for s in structures.STRUCTURES.values() for p in s.conductances if p != "kA"]
-    return list(dict.fromkeys(found))
-
-
 def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
     """Physical plausibility of a fit's numbers, each failure a sentence for the verdict
     (a unit mistake in a channel leaves every other check silent):
@@ -1481,7 +1468,9 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 "model lacks taken for sunshine"
             )
     ceiling = float(thresholds["max_conductance_per_area_W_m2K"])
-    for p in conductances():
+    for p in structures.of_kind("conductances"):  # kA itself is judged by k, above
+        if p == "kA":
+            continue
         K = value(p) if p in par else None
         if K is not None and A is not None and K / A > ceiling:
             out.append(
@@ -1494,8 +1483,7 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
     total = (estimate["fit"].get("totals") or {}).get("C_total")
     if total is not None and not identifiability.parameter_identification(total)["identified"]:
         total = None
-    every = dict.fromkeys(p for s in structures.STRUCTURES.values() for p in s.capacities)
-    capacities = [value(p) for p in every if p in par]
+    capacities = [value(p) for p in structures.of_kind("capacities") if p in par]
     if None in capacities and total is not None:  # the split unknown, the sum determined
         capacities = [float(total["value"])]
     if capacities and None not in capacities and estimate.get("mass_kg"):

@@ -97,7 +97,7 @@ rule aggregate:
         kvalues=[
             f"results/vehicles/{vid}/kvalue.yaml"
             for vid in second_order_vehicles()
-            if vid in kvalue_vehicles()
+            if has_kvalue(vid)
         ],
         # C_bar (eq. 9) beside C_total = C + C_veh in Table 2
         first_order=[
@@ -122,7 +122,7 @@ rule aggregate:
         },
     params:
         vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
-        with_kvalue=[vid for vid in second_order_vehicles() if vid in kvalue_vehicles()],
+        with_kvalue=[vid for vid in second_order_vehicles() if has_kvalue(vid)],
         with_first_order=[vid for vid in second_order_vehicles() if has_fit(vid, 1)],
         class_test=config["study"]["class_test"],
         code=script_code("aggregate.py"),
