@@ -178,6 +178,32 @@ class Prediction:
     sd_log_systematic: dict[str, float] = field(default_factory=dict)
 
 
+def _systematic_shifts(structure, theta, programme, u, x0, x, outputs, sens_kA=None):
+    """The shift dy (N x outputs) of the record relative to the model, one per systematic
+    source of the programme: an offset b of a compared state's sensors (dy = b), of T_o or a
+    scale error of Q_H (the model driven by the biased inputs departs from the record by dx:
+    dy = -dx). With ``sens_kA`` (the sensitivities, kA among them) kA is fixed by the static
+    test on the same instruments, Q_H / (T - T_o) at the first phase's end, and its move
+    shifts the model too."""
+    idx = [structure.states.index(s) for s in outputs]
+    k_end = int(round(programme.phases[0].hours * 3600.0 / programme.step_s)) - 1
+    dT_k = float(x[k_end, 0] - u[k_end, 0])  # T - T_o at the end of the first (steady) phase
+    for source, u_sys in programme.systematic.items():
+        if source in outputs:
+            dy = np.zeros((len(x), len(outputs)))
+            dy[:, outputs.index(source)] = u_sys
+        elif source in ("T_o", "power_rel"):
+            du = np.zeros_like(u)
+            du[:, 0 if source == "T_o" else 1] = u_sys * (1.0 if source == "T_o" else u[:, 1])
+            dy = -(models.simulate(structure, theta, u + du, programme.step_s, x0) - x)[:, idx]
+        else:
+            continue
+        if sens_kA is not None and dT_k != 0.0:  # d log kA of eq. 10's Q_H / (T - T_o)
+            dlog_kA = {"power_rel": u_sys, "T": -u_sys / dT_k, "T_o": u_sys / dT_k}.get(source, 0.0)
+            dy = dy - dlog_kA * theta["kA"] * sens_kA["kA"][:, idx]
+        yield dy
+
+
 def predict(
     structure: models.Structure,
     theta: Mapping[str, float],
@@ -217,14 +243,12 @@ def predict(
     # a kA held fixed comes from the static test (eq. 10) on the same instruments: it moves
     # with their systematic errors, and the fit with it
     static = "kA" in structure.parameters and "kA" not in free
-    params = free + (("kA",) if static else ())
     x, sens, free_resp = models.sensitivities(
-        structure, theta, u, programme.step_s, x0, params=params
+        structure, theta, u, programme.step_s, x0, params=free + (("kA",) if static else ())
     )
     idx = [structure.states.index(s) for s in outputs]
-    k_end = int(round(programme.phases[0].hours * 3600.0 / programme.step_s)) - 1
-    dT_k = float(x[k_end, 0] - u[k_end, 0])  # T - T_o at the end of the first (steady) phase
-    # J: d y / d (log theta, x0) of every compared sample, output by output (eq. 17's e)
+    # J: d y / d (log theta, x0) of every compared sample, output by output (eq. 17's e),
+    # its columns scaled to unit length for the inverse
     J = np.concatenate(
         [
             np.column_stack(
@@ -240,45 +264,24 @@ def predict(
     H = Jn.T @ Jn
     eig = np.linalg.eigvalsh(H)
     condition = float(eig[-1] / eig[0]) if eig[0] > 0 else math.inf
-    P = len(free)
     if not math.isfinite(condition) or condition > COND_MAX:
-        sd = dict.fromkeys(free, math.inf)
-        sd_sys = dict.fromkeys(free, math.inf)
+        sd = sd_sys = dict.fromkeys(free, math.inf)
     else:
         # the unweighted least squares of eq. 17 with noise of variance sigma_j^2 tau_j per
         # output (tau samples carry the information of one): the sandwich A J^T W J A
         A = np.linalg.inv(H)
-        n = len(x)
-        weight = np.concatenate([np.full(n, noise[s] ** 2 * max(tau[s], 1.0)) for s in outputs])
+        weight = np.repeat([noise[s] ** 2 * max(tau[s], 1.0) for s in outputs], len(x))
         cov = A @ (Jn.T @ (weight[:, None] * Jn)) @ A / np.outer(scale, scale)
-        # each systematic error shifts the record; the fit follows by A J^T (its linear
-        # response): an offset of a measured state, of T_o, a scale error of Q_H
-        shifts = []
-        for source, u_sys in programme.systematic.items():
-            if source in outputs:
-                dy = np.zeros((n, len(outputs)))
-                dy[:, outputs.index(source)] = u_sys
-            elif source in ("T_o", "power_rel"):
-                du = np.zeros_like(u)
-                du[:, 0 if source == "T_o" else 1] = u_sys * (1.0 if source == "T_o" else u[:, 1])
-                # the model driven by the biased inputs departs from the record by dx
-                dx = models.simulate(structure, theta, u + du, programme.step_s, x0) - x
-                dy = -dx[:, idx]
-            else:
-                continue
-            if static and dT_k != 0.0:  # the static kA of eq. 10 moves: Q_H / (T - T_o)
-                dlog_kA = {
-                    "power_rel": u_sys,
-                    "T": -u_sys / dT_k,
-                    "T_o": u_sys / dT_k,
-                }.get(source, 0.0)
-                dy = dy - dlog_kA * theta["kA"] * sens["kA"][:, idx]
-            shifts.append((A @ (Jn.T @ dy.T.reshape(-1))) / scale)
+        response = A @ Jn.T  # the fit's linear response to a shift of the record
+        shifts = [
+            (response @ dy.T.reshape(-1)) / scale
+            for dy in _systematic_shifts(
+                structure, theta, programme, u, x0, x, outputs, sens if static else None
+            )
+        ]
         systematic = np.sum(np.square(shifts), axis=0) if shifts else np.zeros(len(scale))
-        sd = {
-            p: float(math.sqrt(max(cov[i, i] + systematic[i], 0.0))) for i, p in enumerate(free[:P])
-        }
-        sd_sys = {p: float(math.sqrt(systematic[i])) for i, p in enumerate(free[:P])}
+        sd = {p: float(math.sqrt(max(cov[i, i] + systematic[i], 0.0))) for i, p in enumerate(free)}
+        sd_sys = {p: float(math.sqrt(systematic[i])) for i, p in enumerate(free)}
     # a record that does not move a parameter leaves its sd huge (or infinite): no width
     half = {p: (math.expm1(Z95 * v) if Z95 * v < 700.0 else math.inf) for p, v in sd.items()}
     # the fits' own rule on the predicted interval of theta * exp(+-1.96 sd)
