@@ -1,7 +1,6 @@
 """The simulator's inner recursion z[n+1] = lam z[n] + w[n] by ``scipy.signal.lfilter`` (what
 railtherm.estimation.models uses) against the one scipy alternative that does not import
-scipy.signal
-(whose import, with scipy.stats, is 0.4-0.5 s of every job that simulates): LAPACK's
+scipy.signal (whose import, with scipy.stats, is 0.4-0.5 s of every job that simulates): LAPACK's
 triangular banded solve ``scipy.linalg.lapack.dtbtrs`` of the bidiagonal system.
 
     python benchmarks/bench_recursion.py

@@ -25,8 +25,7 @@ they are filled. It never overwrites a file; without ``--out`` it prints the YAM
 [--exclude ID ...] [--config config/config.yaml] [--results results] [--out FILE]`` builds the
 second-order model of an unmeasured vehicle from its class's generalised parameters
 (:mod:`railtherm.study.classmodel`: c_veh, delta, kappa_veh and k over the class's usable vehicles
-of
-the committed ``results/tables/table2.csv``), with 95 % prediction intervals; it prints a
+of the committed ``results/tables/table2.csv``), with 95 % prediction intervals; it prints a
 summary and writes the YAML to ``--out`` (without ``--out``, prints the YAML).
 
 ``railtherm simulate PARAMS.yaml --scenario S.yaml [--scenario S2.yaml ...] [--draws 200]

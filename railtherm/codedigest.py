@@ -6,8 +6,8 @@ jobs that run it. The files are derived from the imports, never listed by hand: 
 ``import railtherm...`` and ``from railtherm... import ...`` statements (at the top or inside a
 function), then those of each module reached, in turn. A package reached brings its
 ``__init__.py`` (and a package that imports its modules by discovery, the structure registry,
-every module of it); a
-module that reads the package's JSON schemas (it names ``schemas``) brings those files.
+every module of it); a module that reads the package's JSON schemas (it names ``schemas``) brings
+those files.
 """
 
 from __future__ import annotations

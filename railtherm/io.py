@@ -6,8 +6,7 @@ so that a diff of two runs reads like the results. :func:`read_result` gives its
 plain data and stops with a :class:`~railtherm.errors.DataError` naming the file when it cannot
 be read or holds no mapping; the typed views build on it (:func:`railtherm.study.fit.read_fit`,
 :meth:`railtherm.estimation.kvalue.KValue.from_dict`). The workflow's scripts, the figures and the
-tables
-read result files through this module only; it imports no other part of railtherm but its
+tables read result files through this module only; it imports no other part of railtherm but its
 errors.
 """
 

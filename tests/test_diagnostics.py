@@ -1,6 +1,5 @@
 """railtherm.estimation.diagnostics: cumulated periodogram, likelihood-ratio tests, forward
-selection, and
-the innovation figure of railtherm.report.plots."""
+selection, and the innovation figure of railtherm.report.plots."""
 
 import math
 

@@ -3,8 +3,8 @@
 :func:`read_table` gives a raw file's cells as text (missing cells NaN), whatever kind of file
 it is, and :func:`read_header` its column names; the number and time parsing downstream
 (:func:`railtherm.data.rawfile.parse_times`, :mod:`railtherm.data.ingest`) is the one place that
-parses
-values. The kind of file is ``format.reader`` of the vehicle config, or by default its suffix:
+parses values. The kind of file is ``format.reader`` of the vehicle config, or by default its
+suffix:
 
 ============  ====================================  ===========================================
 reader        suffixes                              keys of ``format`` it reads

@@ -1,8 +1,8 @@
 """Sample autocorrelation of a series and its integrated autocorrelation time.
 
 Used for residual whiteness (Ljung-Box, :mod:`railtherm.estimation.metrics`), for the effective
-number of
-independent samples of a fit's residuals, and for the drift and scatter terms of the static k
+number of independent samples of a fit's residuals, and for the drift and scatter terms of the
+static k
 test (:mod:`railtherm.estimation.kvalue`). numpy only.
 """
 

@@ -256,8 +256,8 @@ def residual_tests(
     method: Literal["exact", "asymptotic"] = "exact",
 ) -> ResidualTests:
     """Ljung-Box (Ljung & Box 1978, :func:`railtherm.estimation.metrics.ljung_box`: ``lags``,
-    default
-    min(20, m // 5), and ``fitted`` parameters subtracted from its degrees of freedom) and the
+    default min(20, m // 5), and ``fitted`` parameters subtracted from its degrees of freedom) and
+    the
     cumulated periodogram test (:func:`cumulated_periodogram`, ``method``) of one residual
     series, both at level ``alpha``.
 

@@ -23,8 +23,7 @@ P_k has reached the solution P of the discrete algebraic Riccati equation of the
 measurement pattern (``scipy.linalg.solve_discrete_are``; relative 1e-10), the filter is the
 time-invariant recursion x_{k+1} = F x_k + Bd u_k + L y_k (F = Ad - L C, L = Ad P C^T R^-1),
 run without a Python loop by the modal ``lfilter`` machinery of :mod:`railtherm.estimation.models`.
-An
-estimated initial state starts with the stationary prior covariance P_0 = P (no transient at
+An estimated initial state starts with the stationary prior covariance P_0 = P (no transient at
 all); a measured one with the measurement variances. A run that starts off the stationary
 covariance (a measured initial state, the first rows after a gap) is filtered with the
 stationary gain too, and its NLL corrected exactly for the difference Delta of its prior by
@@ -1182,16 +1181,14 @@ def fit(
     jointly (shared parameters, each experiment its own initial state).
 
     fixed / initial / bounds: as :func:`railtherm.estimation.pem.fit` for the structure's
-    parameters,
-    and may also name the noise parameters of :func:`noise_names` (``sigma_<state>`` in
+    parameters, and may also name the noise parameters of :func:`noise_names` (``sigma_<state>`` in
     K/sqrt(s), ``s_<output>`` in K^2; ``fixed={"sigma_T": 0.0}`` removes the diffusion of T).
     outputs: the compared states (default: every state with a measurement). x0:
     ``"estimated"`` (every initial state estimated, prior covariance the stationary P of the
     filter) or ``"measured"`` (the first measurement with its variance s_j as prior; a state
     without one is estimated). start: passed to the output-error fit
     (:func:`railtherm.estimation.pem.fit`, ``"auto"`` or ``"initial"``) whose optimum starts theta
-    and
-    the initial states; the measurement variances start at the output-error residual variance,
+    and the initial states; the measurement variances start at the output-error residual variance,
     the diffusions at sigma_initial (K/sqrt(s), one value or {state: value}), by default
     sigma_i^2 dt = SIGMA_START^2 times the mean of those variances. input_noise: {input name:
     the standard deviation of its white measurement noise, one value or one per experiment},

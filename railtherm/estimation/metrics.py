@@ -18,8 +18,7 @@ temperature T, n = 1..m, and e(n) = y(n) - yhat(n) the (simulation-error) residu
   leaves a slow, smooth residual), so the Ljung-Box p-value is nearly always ~0 on real data and
   is reported for information; the *autocorrelation time* tau (``railtherm.estimation.kvalue``'s
   :func:`~railtherm.estimation.acf.autocorrelation_time`, Geyer's initial positive sequence) says
-  how
-  coloured they are: the residuals carry about m / tau independent samples.
+  how coloured they are: the residuals carry about m / tau independent samples.
 * :func:`aic` and :func:`bic` from SSR, m, p under a Gaussian likelihood, to compare the first
   and the second order on the same data (lower is better; only differences matter).
 

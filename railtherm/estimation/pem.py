@@ -338,8 +338,8 @@ class _Problem:
         """e^T e at the parameters of v with the estimated initial states at their best
         (within their bounds), and that v. The outputs are linear in x0 (x[n] depends on x0
         through Ad^n, :func:`railtherm.estimation.models.free_response_head`), so for fixed
-        parameters
-        the best initial states are one small linear least-squares problem per experiment:
+        parameters the best initial states are one small linear least-squares problem per
+        experiment:
         a start's cost is judged with the initial states the data give it, not a guess."""
         _, sims = self._evaluate(v, derivatives=False)
         if sims is None:
@@ -616,8 +616,7 @@ def _noise_energy(structure, prob, theta, levels) -> float:
     noise on input k (eq. 15's ZOH model), i.e. sum over outputs i and lags l of
     sigma_k^2 h_ik(l)^2 times the number of compared samples t > l, with the impulse
     response h(l) = Ad^l Bd (:func:`railtherm.estimation.models.free_response_head`, one
-    discretisation
-    per step length)."""
+    discretisation per step length)."""
     total, impulse = 0.0, {}
     for e, rows, sigma in zip(prob.exps, prob.rows, levels, strict=True):
         if not sigma:
@@ -922,8 +921,7 @@ def _scale_aware_start(
 
     Centre, from the data alone: every free conductance equal and every free capacity
     equal. The overall kA (:func:`railtherm.estimation.models.steady_state_kA`) is kA_ref, that of
-    the
-    heat balance (:func:`heat_balance_kA`) when the free conductances set it (doubling them
+    the heat balance (:func:`heat_balance_kA`) when the free conductances set it (doubling them
     doubles it), else that of the initial values with the fixed ones (the static kA of the
     two-stage method), which the free conductances then equal; the capacities share C_bar, the
     equation-error fit of eq. 9 with kA_ref (:func:`lumped_capacity`). Any other parameter

@@ -1,8 +1,8 @@
 """The study: the per-vehicle pipeline and what is built on its fits.
 
 - :mod:`~railtherm.study.identify`: one vehicle's fit (clean windows -> k -> fit -> verdict),
-  the systematic uncertainty budget, plausibility and the verdict
-  (:mod:`~railtherm.study.quality`: the measures a fit file records, the verdict's rules);
+  the systematic uncertainty budget, plausibility and the verdict (:mod:`~railtherm.study.quality`:
+  the measures a fit file records, the verdict's rules);
 - :mod:`~railtherm.study.run`: the same without the workflow (``railtherm fit``);
 - :mod:`~railtherm.study.plan`: the files of a study, what each of the workflow's rules reads
   and writes;

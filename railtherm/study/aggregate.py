@@ -31,8 +31,8 @@ def kvalue_table(results: Mapping[str, Mapping[str, Any]], truth: pd.DataFrame |
     """One row per vehicle: the static k (eq. 10), u(k), the verdict, and the truth if known.
 
     ``results`` maps vehicle id -> the dict of its kvalue.yaml (railtherm.estimation.kvalue);
-    ``truth`` is
-    the campaign's ground_truth.csv (synthetic vehicles only). A vehicle agrees with its truth
+    ``truth`` is the campaign's ground_truth.csv (synthetic vehicles only). A vehicle agrees with
+    its truth
     when |k - k_truth| <= max(u_k, 3 % k_truth) (u_k the standard uncertainty; U_k = 2 u_k, the
     expanded one, is listed too). ``note`` names the declared deviations that bias k, says when
     the window is not usable, and flags a disagreement that nothing declared explains;
@@ -119,8 +119,7 @@ def fit_structure(fit: Mapping[str, Any]) -> models.Structure | None:
 def judged_parameters(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
     """{param: identification} of a written fit: each estimated parameter as
     :func:`railtherm.study.identifiability.parameter_identification` judges it, then the structure's
-    coupled
-    parameters together (``Structure.coupled``,
+    coupled parameters together (``Structure.coupled``,
     :func:`railtherm.study.identifiability.coupled_identification`):
     a capacity or the internal conductance coupled to one the data do not determine is not an
     estimate either. A fixed parameter (kA from the static test) is identified."""

@@ -179,8 +179,8 @@ def _member(
     ``estimates``: kA, C, K_veh and C_veh (None where not identified or not known);
     ``not_identified``: parameter -> kind (:data:`AT_BOUND` or :data:`UNBOUNDED`); ``verdict``
     the fit's (:data:`railtherm.study.quality.ACCEPTABLE` to be usable). c_veh by eq. 24,
-    delta by
-    eq. 25. A parameter of the dynamic part (C, K_veh, C_veh: ``Structure.coupled``) coupled to
+    delta by eq. 25. A parameter of the dynamic part (C, K_veh, C_veh: ``Structure.coupled``)
+    coupled to
     one not identified is not identified either (:data:`COUPLED`). Usable: acceptable, every
     parameter identified and estimated, mass and surface given; ``why`` one phrase per kind of
     unidentified parameters ("C, K_veh not identified (at a bound)"), then the verdict, then the
@@ -286,8 +286,7 @@ def member_from_row(
 ) -> ClassMember:
     """The :class:`ClassMember` of one vehicle from its row of Table 2 (``table2.csv`` of
     :func:`railtherm.study.aggregate.table2`, as a dict: column -> cell, an empty cell "" or NaN)
-    and
-    its vehicle config as a dict (``class``, ``mass_kg``, ``surface_m2``, ``synthetic``; the
+    and its vehicle config as a dict (``class``, ``mass_kg``, ``surface_m2``, ``synthetic``; the
     id, if given, must be the row's). ``kA = k * A`` (eq. 5); a status other than "estimated"
     ("not identified: <reason>") makes the parameter not identified; the row's verdict is the
     fit's. The same rule as :func:`member_from_fit`. ``table`` names the file in messages.

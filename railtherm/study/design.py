@@ -19,8 +19,8 @@ instruments (an offset of a sensor group or of T_o, a scale error of the power) 
 record by a computable dy, and the fit by A J^T dy (its linear response); a kA fixed by the
 static test (eq. 10, on the first phase's end) moves with the same errors, and the record the
 fit compares with it. The shifts add in quadrature to the statistical variance, as in the
-fits' own budget. The prediction assumes
-the structure right and the noise as declared; it says nothing of a heat path the model
+fits' own budget. The prediction assumes the structure right and the noise as declared; it says
+nothing of a heat path the model
 lacks.
 """
 
@@ -530,8 +530,8 @@ def best_of_length(
     least ``min_phase_h``) and held power (0 to ``max_power_W``, default the programme's
     ``limits.max_power_W``, else its largest power) are chosen by Nelder-Mead, started from
     ``programme`` scaled to ``hours``. The result is then assessed over the prior's draws. A
-    later phase with steps, or a length that
-    leaves the later phases less than ``min_phase_h`` each, is a :class:`ConfigError`."""
+    later phase with steps, or a length that leaves the later phases less than ``min_phase_h`` each,
+    is a :class:`ConfigError`."""
     from scipy.optimize import minimize
 
     first, rest = programme.phases[0], programme.phases[1:]

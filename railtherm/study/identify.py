@@ -3,8 +3,7 @@
 Stage two of the paper's two-stage approach (section 5.2): with kA = k A fixed from the
 standardized static test (eq. 10), the heat capacities are estimated by simulation-error PEM
 (eqs. 15-20, railtherm.estimation.pem): C_bar for the first-order model (eq. 19), C, K_veh and
-C_veh for
-the second-order model (eq. 20). When the static k is not usable (its window failed the
+C_veh for the second-order model (eq. 20). When the static k is not usable (its window failed the
 steady-state test and was not forced) or the config asks for it (``model.mode: joint``), kA is
 estimated with the capacities; every output says which way k was obtained.
 """
@@ -340,8 +339,7 @@ def air_capacity(volume_m3: Any, source: str = "volume_m3") -> float | None:
 def input_noise(structure, vehicle_data, exps) -> dict[str, list[float]]:
     """The declared white noise of the measured inputs per record, as
     :func:`railtherm.estimation.pem.fit` takes it (``input_noise``): T_o, the mean of the
-    outdoor-air
-    sensors, ``instruments.outdoor_noise_K`` / sqrt(n_eff); Q_H, the sum of the power
+    outdoor-air sensors, ``instruments.outdoor_noise_K`` / sqrt(n_eff); Q_H, the sum of the power
     channels, ``instruments.power_noise_rel`` times the record's rms Q_H / sqrt(n) (each
     meter's noise relative to its own reading, the channels taken as equal shares). Empty
     where nothing is declared."""
@@ -706,8 +704,7 @@ def storage_corrected_k(
     joint fit (kA free, started at eq. 10's); then the second-order model (eqs. 7-8) is fitted
     with the corrected kA fixed (stage two, warm-started), the k window's energy balance under
     that model gives a new kA (:func:`railtherm.estimation.kvalue.storage_corrected_kA`), and the
-    two
-    steps alternate until kA moves by less than ``STORAGE_TOLERANCE`` u(kA)
+    two steps alternate until kA moves by less than ``STORAGE_TOLERANCE`` u(kA)
     (at most ``MAX_STORAGE_ITERATIONS`` fits). u(kA) is eq. 10's budget with its storage bound
     replaced by the correction's own standard uncertainty: the regression's (T_veh's start D0
     and its correlation with kA included) and that of the capacities' statistical errors
@@ -1281,14 +1278,12 @@ def judge_identification(
 ) -> None:
     """Mark every estimated parameter of ``fitted`` (a ``FitResult.to_dict()`` with combined
     intervals) with :func:`railtherm.estimation.pem.identification`, and judge the width of the
-    interval
-    a reader sees - the combined one - rather than the fit's statistical one: the
+    interval a reader sees - the combined one - rather than the fit's statistical one: the
     ``wide_interval`` flags are replaced by flags on the combined intervals.
 
     With the ``structure``: its coupled parameters (``Structure.coupled``, the dynamic part)
     are judged together (:func:`railtherm.study.identifiability.coupled_identification`), and each
-    of its
-    totals (``Structure.totals``: C_total = C + C_veh, the capacity eq. 9 lumps into C_bar)
+    of its totals (``Structure.totals``: C_total = C + C_veh, the capacity eq. 9 lumps into C_bar)
     is written under ``fitted["totals"]`` with its 95 % interval
     (:func:`railtherm.study.identifiability.total_capacity`, ``budget`` the systematic budget).
     ``physical``:

@@ -5,8 +5,7 @@ x = [T, T_veh] (+ T_zone for ``poor_mixing``), inputs T_o and Q_H (eq. 3: heater
 HVAC during pre-heating)) plus eq. 1's Q_aux when a deviation declares unlogged auxiliaries.
 The linear part is simulated EXACTLY by zero-order hold (matrix exponential,
 :func:`railtherm.estimation.models.discretize_zoh`) on the fine step ``fine_step_s`` with every
-input held
-constant over a fine step; the controllers (tunnel temperature, HVAC pre-heating, heater
+input held constant over a fine step; the controllers (tunnel temperature, HVAC pre-heating, heater
 thermostat) act once per fine step. The one non-linear deviation (``temperature_dependent_k``)
 freezes its extra loss per fine step.
 

@@ -1,6 +1,5 @@
 # Raw CWT files -> tidy, uniformly sampled tables (railtherm.data.ingest): one job per vehicle
-# writes
-# every table of that vehicle (its windows, the k window and the whole record), each raw file
+# writes every table of that vehicle (its windows, the k window and the whole record), each raw file
 # read once. A rule's outputs are fixed, so vehicles whose tables have other names get a rule of
 # their own: `clean` for the first set of names, `clean_2`, ... (StudyPlan.rule_groups,
 # railtherm.study.plan).

@@ -3,8 +3,7 @@
 
 
 # Every figure of one vehicle in one job: the static k test (railtherm.report.plots.kvalue_figure),
-# the
-# fit of each model (fit_figure) and the innovations of each Kalman-filter fit
+# the fit of each model (fit_figure) and the innovations of each Kalman-filter fit
 # (innovation_figure). The figures are their own job: editing the plotting code redraws them
 # without recomputing k or a fit. A rule's outputs are fixed, so vehicles with another set of
 # figures (no k window, other models) get a rule of their own: `vehicle_figures`,
