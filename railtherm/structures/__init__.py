@@ -108,7 +108,7 @@ def parameters() -> list[str]:
     """Every structure's parameters, each once, in the registry's order (kA, C_bar, C, K_veh,
     C_veh, then the further structures'): the names ``model.initial`` and ``model.bounds``
     take besides the solar ones."""
-    return list(dict.fromkeys(p for s in STRUCTURES.values() for p in s.parameters))
+    return of_kind("parameters")
 
 
 def with_envelope() -> list[str]:

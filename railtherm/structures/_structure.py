@@ -122,10 +122,10 @@ class Structure:
         series. (NaN, {}) without a steady state."""
         A, B = self.matrices(theta)
         try:
+            AiB = np.linalg.solve(A, B)  # the gain from a solve, as the fits' starts have it
             Ai = np.linalg.inv(A)
         except np.linalg.LinAlgError:
             return math.nan, {}
-        AiB = Ai @ B
         g = -float(AiB[0, 1])
         if not (g > 0 and math.isfinite(g)):
             return math.nan, {}
