@@ -114,6 +114,22 @@ class Generator:
 
 
 @dataclass(frozen=True)
+class Plan:
+    """The programme the bench runs: the thermostat's heating phase (its last KWINDOW_H the k
+    window), then two held phases compared by the fit. ``powers`` (W, absolute): the two held
+    phases' heating; None: the heating phase's last half-hour mean plus the vehicle's dQ,
+    then that mean again (the default programme)."""
+
+    heating_h: float = HEATING_H
+    up_h: float = STEP_H
+    down_h: float = STEP_H
+    powers: tuple[float, float] | None = None
+
+
+PLAN = Plan()
+
+
+@dataclass(frozen=True)
 class Truth:
     """One virtual vehicle: its parameters (SI) and its programme."""
 
@@ -211,25 +227,28 @@ def tunnel_air(rng: np.random.Generator, truth: Truth, n_fine: int) -> np.ndarra
     return truth.T_o + x
 
 
-def simulate(truth: Truth, rng: np.random.Generator) -> tuple[pd.DataFrame, Truth]:
+def simulate(
+    truth: Truth, rng: np.random.Generator, plan: Plan = PLAN
+) -> tuple[pd.DataFrame, Truth]:
     """The true states at the logger's instants and the heating power over each logger step.
 
-    Heating phase: each minute a thermostat sets the power that brings T back to T_set at the
-    minute's end (from the state and the tunnel air at the minute's start). Then the power of
-    the phase's last half hour plus dQ for STEP_H, then that power again for STEP_H."""
+    Heating phase (``plan.heating_h``): each minute a thermostat sets the power that brings T
+    back to T_set at the minute's end (from the state and the tunnel air at the minute's
+    start). Then the power of the phase's last half hour plus dQ for ``plan.up_h``, then that
+    power again for ``plan.down_h`` (or the plan's two powers)."""
     A, B = state_space(truth)
     Ad, Bd = zoh(A, B, SUBSTEP_S)
     Am, Bm = zoh(A, B, STEP_S)
     per = int(round(STEP_S / SUBSTEP_S))
-    n_steps = int(round((HEATING_H + 2 * STEP_H) * 3600 / STEP_S))
+    n_steps = int(round((plan.heating_h + plan.up_h + plan.down_h) * 3600 / STEP_S))
     To = tunnel_air(rng, truth, n_steps * per + 1)
     tau_veh = truth.C_veh / truth.K_veh
-    pre_s = (HEATING_H - KWINDOW_H) * 3600.0
+    pre_s = (plan.heating_h - KWINDOW_H) * 3600.0
     lag0 = min(truth.lag_drawn * math.exp(pre_s / tau_veh), truth.T_set - truth.T_o)
     x = np.array([truth.T_set, truth.T_set - lag0])
-    n_heat = int(round(HEATING_H * 3600 / STEP_S))
-    n_kstart = int(round((HEATING_H - KWINDOW_H) * 3600 / STEP_S))
-    n_step = int(round(STEP_H * 3600 / STEP_S))
+    n_heat = int(round(plan.heating_h * 3600 / STEP_S))
+    n_kstart = int(round((plan.heating_h - KWINDOW_H) * 3600 / STEP_S))
+    n_step = int(round(plan.up_h * 3600 / STEP_S))
     X = np.empty((n_steps + 1, 2))
     Q = np.empty(n_steps + 1)
     lag = math.nan
@@ -242,9 +261,10 @@ def simulate(truth: Truth, rng: np.random.Generator) -> tuple[pd.DataFrame, Trut
             Q[n] = max((truth.T_set - free) / Bm[0, 1], 0.0)
         elif n == n_heat:
             Q_hold = float(np.mean(Q[n_heat - 30 : n_heat]))
-            Q[n] = Q_hold + truth.dQ
+            Q_up, Q_down = plan.powers or (Q_hold + truth.dQ, Q_hold)
+            Q[n] = Q_up
         else:
-            Q[n] = Q_hold + truth.dQ if n < n_heat + n_step else Q_hold
+            Q[n] = Q_up if n < n_heat + n_step else Q_down
         for j in range(per):
             x = Ad @ x + Bd @ np.array([To[n * per + j], Q[n]])
     X[n_steps] = x
@@ -294,7 +314,12 @@ def iso(seconds: float) -> str:
 
 
 def vehicle_yaml(
-    truth: Truth, csv_name: str, setting: str, x0: str, generator: Generator = Generator()
+    truth: Truth,
+    csv_name: str,
+    setting: str,
+    x0: str,
+    generator: Generator = Generator(),
+    plan: Plan = PLAN,
 ) -> dict:
     """The vehicle file a test engineer writes for this record and setting: the instruments'
     declared accuracies and, where the bench has it, their white noise (a data sheet's
@@ -307,8 +332,9 @@ def vehicle_yaml(
     }
     if surface == "with":
         channels["surface"] = [{"column": f"surface_{j + 1}"} for j in range(N_SURFACE)]
-    heat_end = HEATING_H * 3600.0
-    end = heat_end + 2 * STEP_H * 3600.0
+    heat_end = plan.heating_h * 3600.0
+    reversal = heat_end + plan.up_h * 3600.0
+    end = reversal + plan.down_h * 3600.0
     return {
         "id": truth.vehicle,
         "class": truth.vehicle_class,
@@ -341,12 +367,12 @@ def vehicle_yaml(
                     "name": "step_up",
                     "file": "run",
                     "start": iso(heat_end),
-                    "end": iso(heat_end + STEP_H * 3600),
+                    "end": iso(reversal),
                 },
                 {
                     "name": "step_down",
                     "file": "run",
-                    "start": iso(heat_end + STEP_H * 3600),
+                    "start": iso(reversal),
                     "end": iso(end),
                 },
             ],
@@ -356,13 +382,13 @@ def vehicle_yaml(
 
 
 def write_vehicle(
-    seed: int, i: int, directory: Path, generator: Generator
+    seed: int, i: int, directory: Path, generator: Generator, plan: Plan = PLAN
 ) -> tuple[Truth, dict, Path]:
-    """Draw vehicle ``i`` of ``seed``, simulate it and write its raw CSV into ``directory``;
-    returns the truth, the drawn instrument errors and the CSV's path."""
+    """Draw vehicle ``i`` of ``seed``, simulate it under ``plan`` and write its raw CSV into
+    ``directory``; returns the truth, the drawn instrument errors and the CSV's path."""
     rng = vehicle_rng(seed, i)
     truth = draw_truth(rng, i, generator)
-    states, truth = simulate(truth, rng)
+    states, truth = simulate(truth, rng, plan)
     raw, errors = logger_file(states, rng, generator)
     csv = directory / f"{truth.vehicle}_run.csv"
     raw.to_csv(csv, index=False)
@@ -370,11 +396,17 @@ def write_vehicle(
 
 
 def write_yaml_file(
-    truth: Truth, csv: Path, setting: str, x0: str, generator: Generator = Generator()
+    truth: Truth,
+    csv: Path,
+    setting: str,
+    x0: str,
+    generator: Generator = Generator(),
+    plan: Plan = PLAN,
 ) -> Path:
     path = csv.parent / f"{truth.vehicle}_{setting.replace('/', '_')}.yaml"
+    content = vehicle_yaml(truth, csv.name, setting, x0, generator, plan)
     with open(path, "w", encoding="utf-8") as f:
-        yaml.safe_dump(vehicle_yaml(truth, csv.name, setting, x0, generator), f, sort_keys=False)
+        yaml.safe_dump(content, f, sort_keys=False)
     return path
 
 

@@ -213,7 +213,6 @@ def _design(args: argparse.Namespace) -> int:
     reference model of an unmeasured one; with --optimise, the shortest programme of the same
     shape that reaches --target with the probability asked."""
     from railtherm.study import design
-    from railtherm.study.fit import read_fit
 
     workdir = args.directory
     programme = design.load_programme(os.path.join(workdir, args.programme))
@@ -227,7 +226,7 @@ def _design(args: argparse.Namespace) -> int:
     if args.draws < 1:
         raise ConfigError("--draws", "draws", args.draws, "expected 1 or more")
     if args.vehicle:
-        prior = design.prior_from_fit(read_fit(os.path.join(workdir, args.vehicle)))
+        prior = design.prior_from_fit_file(os.path.join(workdir, args.vehicle))
     else:
         given = (("--mass-kg", args.mass_kg), ("--surface-m2", args.surface_m2))
         missing = [option for option, value in given if value is None]
@@ -257,7 +256,7 @@ def _design(args: argparse.Namespace) -> int:
         chosen, assessed = best
         print(f"\nBest programme of {chosen.hours:g} h for {target[0]} (the first phase kept):")
         for ph in chosen.phases:
-            print(f"  {ph.name}: {ph.hours:.3g} h at {ph.T_o_C:g} degC, {ph.steps[0][1]:,.0f} W")
+            print(f"  {ph.describe()}")
         print()
         print(design.markdown(design.assess(prior, chosen, target)))
     if args.optimise:

@@ -272,3 +272,156 @@ def test_the_best_programme_keeps_to_the_declared_power_limit(tmp_path):
     best, _ = design.best_of_length(prior, prog, "C_veh")
     assert best.limits == {"max_power_W": 15000.0}
     assert all(ph.steps[0][1] <= 15000.0 for ph in best.phases)
+
+
+THERMOSTAT = {
+    **PAPER_LIKE,
+    "start": "steady",
+    "limits": {"max_power_W": 20000},
+    "phases": [
+        {"name": "held at 20 °C", "hours": 10, "T_o_C": -10, "set_point_C": 20},
+        {"name": "step up", "hours": 12, "T_o_C": -10, "power_W": 16000},
+        {"name": "step down", "hours": 12, "T_o_C": -10, "power_W": 4000},
+    ],
+}
+
+
+def test_a_thermostat_phase_holds_the_air_at_its_set_point(tmp_path):
+    """From the steady state at the set point, the thermostat's power is kA (T_set - T_o)
+    each step, and the air stays at the set point until the held phases take over."""
+    prog = programme(tmp_path, THERMOSTAT)
+    u = design.programme_inputs(prog, SECOND, TRUTH)
+    x0 = design.initial_state(prog, SECOND, TRUTH, u[0])
+    assert x0 == pytest.approx([20.0, 20.0])
+    held = 10 * 3600 // 120
+    assert u[:held, 1] == pytest.approx(TRUTH["kA"] * 30.0)
+    x = models.simulate(SECOND, TRUTH, u, prog.step_s, x0)
+    assert x[: held + 1, 0] == pytest.approx(20.0)
+    assert u[held, 1] == 16000 and x[-1, 0] < x[held + 12 * 30, 0]
+
+
+def test_a_thermostat_beyond_its_heaters_holds_their_limit(tmp_path):
+    phases = [THERMOSTAT["phases"][0], {**THERMOSTAT["phases"][1], "power_W": 5000}]
+    cold = {**THERMOSTAT, "start": "soaked", "limits": {"max_power_W": 5000}, "phases": phases}
+    u = design.programme_inputs(programme(tmp_path, cold), SECOND, TRUTH)
+    assert u[0, 1] == 5000 and np.all(u[:, 1] <= 5000)
+    with pytest.raises(ValueError, match="thermostat"):
+        design.programme_inputs(programme(tmp_path, cold))
+
+
+def test_phases_the_fit_does_not_compare_give_no_information(tmp_path):
+    """The same programme with its first phase left out of the comparison predicts a wider
+    interval for every capacity, and no narrower than the steps alone."""
+    prog = programme(tmp_path, THERMOSTAT)
+    phases = [{**THERMOSTAT["phases"][0], "identify": False}, *THERMOSTAT["phases"][1:]]
+    steps_only = programme(tmp_path, {**THERMOSTAT, "phases": phases})
+    assert design.compared_rows(steps_only).sum() == 24 * 30
+    full = design.predict(SECOND, TRUTH, prog)
+    part = design.predict(SECOND, TRUTH, steps_only)
+    for p in ("C", "K_veh", "C_veh"):
+        assert part.sd_log[p] >= full.sd_log[p] * (1 - 1e-9), p
+
+
+@pytest.mark.bad_input
+def test_a_thermostat_without_a_power_limit_is_refused(tmp_path):
+    with pytest.raises(ConfigError, match=r"phases\[0\]\.set_point_C"):
+        programme(tmp_path, {**THERMOSTAT, "limits": {}})
+    silent = [{**ph, "identify": False} for ph in PAPER_LIKE["phases"]]
+    with pytest.raises(ConfigError, match="'phases'"):
+        programme(tmp_path, {**PAPER_LIKE, "phases": silent})
+
+
+def test_windows_fitted_apart_are_predicted_apart(tmp_path):
+    """The step up and the step reversed fitted as two records whose initial states are each
+    estimated (as the study's windows are): 30 noisy repeats' spread of log C, K_veh and
+    C_veh is the prediction with two windows (ratio 0.7-1.35), wider than one record's. With
+    T alone compared, two held steps from free initial states show only the two time
+    constants (the amplitudes follow the free states): three capacities and conductances are
+    then not identifiable, and the prediction says so."""
+    phases = [
+        {**THERMOSTAT["phases"][0], "identify": False},
+        {**THERMOSTAT["phases"][1], "window": "step up"},
+        {**THERMOSTAT["phases"][2], "window": "step down"},
+    ]
+    data = {**THERMOSTAT, "noise_K": {"T": 0.03, "T_veh": 0.03}, "phases": phases}
+    prog = programme(tmp_path, data)
+    assert [w[0] for w in design.fit_windows(prog)] == ["step up", "step down"]
+    apart = design.predict(SECOND, TRUTH, prog)
+    joined = [*phases[:1], *({**ph, "window": "record"} for ph in phases[1:])]
+    one = design.predict(SECOND, TRUTH, programme(tmp_path, {**data, "phases": joined}))
+    air_only = design.predict(SECOND, TRUTH, prog, outputs=["T"])
+    assert not any(air_only.identifiable.values())
+    u = design.programme_inputs(prog, SECOND, TRUTH)
+    x0 = design.initial_state(prog, SECOND, TRUTH, u[0])
+    x = models.simulate(SECOND, TRUTH, u, prog.step_s, x0)
+    rng = np.random.default_rng(34)
+    logs = []
+    for _ in range(30):
+        y = x + rng.normal(0.0, 0.03, x.shape)
+        records = [
+            pem.Experiment(name, prog.step_s, u[a:b], y[a:b], x0=y[a].copy())
+            for name, a, b in design.fit_windows(prog)
+        ]
+        fit = pem.fit(SECOND, records, fixed={"kA": TRUTH["kA"]}, x0="estimated")
+        logs.append([np.log(fit.theta[p]) for p in ("C", "K_veh", "C_veh")])
+    realised = np.std(np.array(logs), axis=0, ddof=1)
+    for p, sd in zip(("C", "K_veh", "C_veh"), realised, strict=True):
+        assert apart.sd_log[p] > one.sd_log[p], p
+        assert 0.7 < sd / apart.sd_log[p] < 1.35, (p, sd / apart.sd_log[p])
+
+
+def test_a_prbs_phase_switches_between_its_levels_no_faster_than_its_hold(tmp_path):
+    phases = [
+        PAPER_LIKE["phases"][0],
+        {
+            "name": "prbs",
+            "hours": 20,
+            "T_o_C": -10,
+            "prbs": {"low_W": 4000, "high_W": 14000, "hold_h": 1.5},
+        },
+    ]
+    prog = programme(tmp_path, {**PAPER_LIKE, "phases": phases})
+    steps = prog.phases[1].steps
+    assert {w for _, w in steps} == {4000.0, 14000.0}
+    starts = np.array([at for at, _ in steps])
+    assert starts[0] == 0 and np.all(np.diff(starts) >= 1.5) and starts[-1] < 20
+    assert np.allclose(starts / 1.5, np.round(starts / 1.5))
+    assert (
+        prog.phases[1].steps
+        == programme(tmp_path, {**PAPER_LIKE, "phases": phases}).phases[1].steps
+    )
+    # a rich input determines the capacities better than the one step of the same length
+    one_step = [PAPER_LIKE["phases"][0], {"hours": 20, "T_o_C": -10, "power_W": 14000}]
+    rich = design.predict(SECOND, TRUTH, prog)
+    plain = design.predict(SECOND, TRUTH, programme(tmp_path, {**PAPER_LIKE, "phases": one_step}))
+    assert rich.sd_log["C"] < plain.sd_log["C"]
+
+
+def test_the_tunnel_ramps_between_phases_at_its_rate_limit(tmp_path):
+    phases = [
+        {"hours": 10, "T_o_C": -10, "power_W": 8000},
+        {"hours": 10, "T_o_C": 5, "power_W": 8000},
+        {"hours": 2, "T_o_C": -20, "power_W": 8000},
+    ]
+    data = {**PAPER_LIKE, "limits": {"max_T_o_rate_K_per_h": 6}, "phases": phases}
+    u = design.programme_inputs(programme(tmp_path, data))
+    per_hour = 3600 // 120
+    T_o = u[:, 0]
+    assert np.all(np.abs(np.diff(T_o)) <= 6 / per_hour + 1e-12)
+    assert T_o[10 * per_hour + 5 * per_hour] == pytest.approx(5.0)  # 15 K at 6 K/h: 2.5 h
+    assert T_o[10 * per_hour + 2 * per_hour] == pytest.approx(-10 + 12)
+    assert T_o[-1] == pytest.approx(5 - 6 * (2 - 1 / per_hour))  # 2 h do not reach -20
+
+
+def test_sensor_groups_give_the_noise_and_offsets_of_their_means(tmp_path):
+    data = {k: v for k, v in PAPER_LIKE.items() if k != "noise_K"}
+    data["sensors"] = {
+        "T": {"count": 4, "noise_K": 0.1, "offset_K": 0.15},
+        "T_veh": {"count": 9, "noise_K": 0.09},
+        "T_o": {"count": 2, "offset_K": 0.1},
+    }
+    prog = programme(tmp_path, data)
+    assert prog.noise_K == pytest.approx({"T": 0.05, "T_veh": 0.03})
+    assert prog.systematic == pytest.approx({"T": 0.075, "T_o": 0.1 / np.sqrt(2)})
+    with pytest.raises(ConfigError, match=r"'noise_K\.T'"):
+        programme(tmp_path, {**data, "noise_K": {"T": 0.05}})

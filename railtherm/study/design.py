@@ -35,6 +35,7 @@ import numpy as np
 
 from railtherm.errors import ConfigError
 from railtherm.estimation import models
+from railtherm.estimation.acf import autocorrelation_time
 from railtherm.estimation.pem import Z95, identification
 from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_schema
 
@@ -52,8 +53,14 @@ __all__ = [
     "predict",
     "prior_for_class",
     "prior_from_fit",
+    "prior_from_fit_file",
+    "prbs_steps",
     "prior_from_reference",
+    "compared_rows",
+    "fit_windows",
+    "initial_state",
     "programme_inputs",
+    "residual_noise",
     "residuals_of",
     "scaled",
     "shortest",
@@ -68,12 +75,28 @@ COND_MAX = 1e12
 class Phase:
     """One phase of a programme: ``hours`` long at tunnel temperature ``T_o_C``, heating
     ``power_W`` held, or ``steps``: [(hours from the phase's start, W), ...] with the first at
-    0."""
+    0, or a thermostat holding the air at ``set_point_C`` (``steps`` empty). ``identify``:
+    whether the fit compares the phase's records (a phase that only brings the vehicle to its
+    state is left out), or a number of hours: its last hours compared; ``window``: the fit
+    window (a record of its own, its initial states estimated anew) the phase belongs to."""
 
     name: str
     hours: float
     T_o_C: float
     steps: tuple[tuple[float, float], ...]
+    set_point_C: float | None = None
+    identify: bool | float = True
+    window: str = "record"
+
+    def describe(self) -> str:
+        """The phase in a line: its duration, tunnel temperature and heating."""
+        if self.set_point_C is not None:
+            heating = f"thermostat at {self.set_point_C:g} degC"
+        elif len(self.steps) == 1:
+            heating = f"{self.steps[0][1]:,.0f} W"
+        else:
+            heating = ", ".join(f"{w:,.0f} W from {at:.3g} h" for at, w in self.steps)
+        return f"{self.name}: {self.hours:.3g} h at {self.T_o_C:g} degC, {heating}"
 
 
 @dataclass(frozen=True)
@@ -83,7 +106,8 @@ class Programme:
     standard uncertainties of its systematic errors ``systematic``: an offset (K) of a
     compared state's sensors or of T_o, and ``power_rel``, the relative scale error of Q_H;
     ``limits``: what the heaters and the tunnel can do (``max_power_W``, ``min_T_o_C``,
-    ``max_T_o_C``)."""
+    ``max_T_o_C``); ``start``: the vehicle's state when the programme starts, ``soaked``
+    (every state at the first T_o) or ``steady`` (the equilibrium of the first inputs)."""
 
     name: str
     phases: tuple[Phase, ...]
@@ -91,6 +115,7 @@ class Programme:
     noise_K: Mapping[str, float] = field(default_factory=dict)
     systematic: Mapping[str, float] = field(default_factory=dict)
     limits: Mapping[str, float] = field(default_factory=dict)
+    start: str = "soaked"
 
     @property
     def hours(self) -> float:
@@ -107,13 +132,30 @@ def load_programme(path: str | Path) -> Programme:
     :class:`ConfigError` naming the file, the key and the value."""
     file = str(path)
     data = read_yaml(path, display=file)
+    given = set(data) if isinstance(data, dict) else set()
     validate_schema(file, data, packaged_schema("programme"))
     check_finite(file, data)
     limits = {k: float(v) for k, v in data["limits"].items()}
     phases = []
     for i, ph in enumerate(data["phases"]):
         key = f"phases[{i}]"
-        steps = [(0.0, ph["power_W"])] if "power_W" in ph else ph["steps"]
+        if "prbs" in ph:
+            prbs = ph["prbs"]
+            if prbs["low_W"] >= prbs["high_W"]:
+                raise ConfigError(file, f"{key}.prbs.low_W", prbs["low_W"], "below high_W")
+            ph = {**ph, "steps": prbs_steps(ph["hours"], **prbs)}
+        steps = (
+            [(0.0, ph["power_W"])]
+            if "power_W" in ph
+            else ph.get("steps", [(0.0, limits.get("max_power_W", 0.0))])
+        )
+        if "set_point_C" in ph and "max_power_W" not in limits:
+            raise ConfigError(
+                file,
+                f"{key}.set_point_C",
+                ph["set_point_C"],
+                "a thermostat needs limits.max_power_W",
+            )
         for j, (at, _) in enumerate(steps):
             if (j == 0 and at != 0) or (j and at <= steps[j - 1][0]) or at >= ph["hours"]:
                 raise ConfigError(
@@ -135,30 +177,176 @@ def load_programme(path: str | Path) -> Programme:
             raise ConfigError(
                 file, f"{key}.T_o_C", ph["T_o_C"], "outside the tunnel's limits.min/max_T_o_C"
             )
-        steps = tuple((float(at), float(w)) for at, w in steps)
+        thermostat = "set_point_C" in ph
+        steps = () if thermostat else tuple((float(at), float(w)) for at, w in steps)
         phases.append(
             Phase(
-                str(ph.get("name", f"phase {i + 1}")), float(ph["hours"]), float(ph["T_o_C"]), steps
+                str(ph.get("name", f"phase {i + 1}")),
+                float(ph["hours"]),
+                float(ph["T_o_C"]),
+                steps,
+                float(ph["set_point_C"]) if thermostat else None,
+                ph.get("identify", True),
+                str(ph.get("window", "record")),
             )
         )
+    if not any(ph.identify for ph in phases):
+        raise ConfigError(file, "phases", "identify: false", "no phase is compared by the fit")
+    seen: list[str] = []
+    for i, ph in enumerate(phases):
+        if ph.identify and seen and ph.window != seen[-1] and ph.window in seen:
+            raise ConfigError(
+                file, f"phases[{i}].window", ph.window, "a window's phases follow each other"
+            )
+        if ph.identify and (not seen or ph.window != seen[-1]):
+            seen.append(ph.window)
     noise = {str(s): float(v) for s, v in data["noise_K"].items()}
     systematic = {str(k): float(v) for k, v in data["systematic"].items()}
+    if "sensors" in data:
+        if "noise_K" not in given:
+            noise = {}
+        for state, group in data["sensors"].items():
+            n = float(group["count"])
+            for found, entry, value in (
+                (noise, "noise_K", group.get("noise_K")),
+                (systematic, "systematic", group.get("offset_K")),
+            ):
+                if value is None:
+                    continue
+                if state in found and entry in given:
+                    raise ConfigError(
+                        file, f"{entry}.{state}", found[state], f"given by sensors.{state} too"
+                    )
+                found[state] = float(value) / math.sqrt(n)
+        if not noise:
+            raise ConfigError(file, "sensors", data["sensors"], "no group with a noise_K")
     name = str(data.get("name", Path(file).stem))
-    return Programme(name, tuple(phases), float(data["step_s"]), noise, systematic, limits)
+    start = str(data.get("start", "soaked"))
+    return Programme(name, tuple(phases), float(data["step_s"]), noise, systematic, limits, start)
 
 
-def programme_inputs(programme: Programme) -> np.ndarray:
-    """The inputs u = [T_o, Q_H] (N x 2) of the programme on its logger grid, each held over
-    the step that follows its sample (the paper's zero-order hold, eq. 15)."""
+def prbs_steps(hours: float, low_W: float, high_W: float, hold_h: float) -> list:
+    """A pseudo-random binary sequence of heating for a phase of ``hours``: a maximum-length
+    sequence (``scipy.signal.max_len_seq``, the shortest whose period covers the phase) with
+    each bit held ``hold_h``, high or low; as steps [hours from the phase's start, W], equal
+    neighbours merged."""
+    from scipy.signal import max_len_seq
+
+    bits = max(2, math.ceil(math.log2(hours / hold_h + 1.0)))
+    sequence = max_len_seq(bits)[0]
+    steps: list[tuple[float, float]] = []
+    for k in range(math.ceil(hours / hold_h)):
+        level = float(high_W if sequence[k % len(sequence)] else low_W)
+        if not steps or steps[-1][1] != level:
+            steps.append((k * hold_h, level))
+    return steps
+
+
+def _phase_samples(programme: Programme) -> list[int]:
+    return [int(round(ph.hours * 3600.0 / programme.step_s)) for ph in programme.phases]
+
+
+def _compared(phase: Phase, n: int, step_s: float) -> int:
+    """How many of the phase's ``n`` samples, at its end, the fit compares."""
+    if isinstance(phase.identify, bool):
+        return n if phase.identify else 0
+    return min(n, int(round(float(phase.identify) * 3600.0 / step_s)))
+
+
+def compared_rows(programme: Programme) -> np.ndarray:
+    """Boolean (N,): the logger samples the fit compares (each phase's ``identify``)."""
     rows = []
-    for phase in programme.phases:
-        n = int(round(phase.hours * 3600.0 / programme.step_s))
-        t_h = np.arange(n) * programme.step_s / 3600.0
-        at = np.array([s[0] for s in phase.steps])
-        watts = np.array([s[1] for s in phase.steps])
-        power = watts[np.searchsorted(at, t_h, side="right") - 1]
-        rows.append(np.column_stack([np.full(n, phase.T_o_C), power]))
+    for ph, n in zip(programme.phases, _phase_samples(programme), strict=True):
+        c = _compared(ph, n, programme.step_s)
+        rows.append(np.arange(n) >= n - c)
     return np.concatenate(rows)
+
+
+def fit_windows(programme: Programme) -> list[tuple[str, int, int]]:
+    """The fit's windows as (name, first sample, end sample): consecutive compared samples of
+    one ``window`` name form one record."""
+    out: list[tuple[str, int, int]] = []
+    start = 0
+    for ph, n in zip(programme.phases, _phase_samples(programme), strict=True):
+        c = _compared(ph, n, programme.step_s)
+        if c:
+            a = start + n - c
+            if out and out[-1][0] == ph.window and out[-1][2] == a:
+                out[-1] = (ph.window, out[-1][1], start + n)
+            else:
+                out.append((ph.window, a, start + n))
+        start += n
+    return out
+
+
+def initial_state(
+    programme: Programme,
+    structure: models.Structure,
+    theta: Mapping[str, float],
+    u0: Sequence[float],
+) -> np.ndarray:
+    """The state at the programme's start: every state at the first T_o (``soaked``), or the
+    equilibrium of the first inputs ``u0`` (``steady``; under a thermostat, the equilibrium at
+    its set point)."""
+    if programme.start != "steady":
+        return np.full(len(structure.states), float(u0[0]))
+    A, B = structure.matrices(theta)
+    T_o, Q_H = float(u0[0]), float(u0[1])
+    first = programme.phases[0]
+    if first.set_point_C is not None:  # the thermostat's equilibrium at its set point
+        cold = models.steady_state(A, B, np.array([T_o, 0.0])).reshape(-1)
+        per_watt = models.steady_state(A, B, np.array([0.0, 1.0])).reshape(-1)
+        Q_H = (first.set_point_C - cold[0]) / per_watt[0]
+    return models.steady_state(A, B, np.array([T_o, Q_H])).reshape(-1)
+
+
+def programme_inputs(
+    programme: Programme,
+    structure: models.Structure | None = None,
+    theta: Mapping[str, float] | None = None,
+) -> np.ndarray:
+    """The inputs u = [T_o, Q_H] (N x 2) of the programme on its logger grid, each held over
+    the step that follows its sample (the paper's zero-order hold, eq. 15). A thermostat
+    phase sets, each step, the power that brings T to its set point at the step's end, within
+    0 and ``limits.max_power_W``: that power follows the vehicle, so ``structure`` and
+    ``theta`` (the model it is predicted with) are needed; the fit takes the power as logged,
+    an input like any other."""
+    rows = []
+    rate = programme.limits.get("max_T_o_rate_K_per_h", math.inf)
+    T_o = programme.phases[0].T_o_C  # the tunnel air at the phase's start
+    for phase, n in zip(programme.phases, _phase_samples(programme), strict=True):
+        t_h = np.arange(n) * programme.step_s / 3600.0
+        if phase.set_point_C is not None:
+            power = np.full(n, math.nan)  # set below, once the state is known
+        else:
+            at = np.array([s[0] for s in phase.steps])
+            watts = np.array([s[1] for s in phase.steps])
+            power = watts[np.searchsorted(at, t_h, side="right") - 1]
+        # the tunnel ramps to the phase's temperature at its rate limit at most
+        change = phase.T_o_C - T_o
+        if math.isinf(rate):
+            air, T_o = np.full(n, phase.T_o_C), phase.T_o_C
+        else:
+            air = T_o + np.sign(change) * np.minimum(rate * t_h, abs(change))
+            T_o = T_o + math.copysign(min(rate * phase.hours, abs(change)), change)
+        rows.append(np.column_stack([air, power]))
+    u = np.concatenate(rows)
+    if not np.isnan(u[:, 1]).any():
+        return u
+    if structure is None or theta is None:
+        raise ValueError("a thermostat phase needs the structure and theta to set its power")
+    A, B = structure.matrices(theta)
+    Ad, Bd = models.discretize_zoh(A, B, programme.step_s)
+    top = float(programme.limits["max_power_W"])
+    x = initial_state(programme, structure, theta, u[0])
+    ends = np.cumsum(_phase_samples(programme))
+    for n in range(len(u)):
+        if math.isnan(u[n, 1]):
+            phase = programme.phases[int(np.searchsorted(ends, n, side="right"))]
+            free = Ad[0] @ x + Bd[0, 0] * u[n, 0]
+            u[n, 1] = min(max((phase.set_point_C - free) / Bd[0, 1], 0.0), top)
+        x = Ad @ x + Bd @ u[n, :2]
+    return u
 
 
 @dataclass(frozen=True)
@@ -217,12 +405,12 @@ def predict(
 ) -> Prediction:
     """The Fisher-information prediction of the module docstring for the parameters ``free``
     (default: every parameter but kA, as the paper's two-stage fit estimates them), compared
-    on ``outputs`` (default: the states the programme gives a noise for), the initial states
-    estimated (nuisance unknowns), from ``x0`` (default: every state at the first T_o, the
-    vehicle soaked). ``tau_samples``: the residuals' integrated autocorrelation time in
-    samples (1 for white noise), one for all outputs or one per output; ``noise_K``: the
-    residual standard deviation per output, in place of the programme's sensor noise (a
-    prior fit's RMSE, :class:`Prior`)."""
+    on ``outputs`` (default: the states the programme gives a noise for) over the phases it
+    compares, the initial states estimated (nuisance unknowns), from ``x0`` (default: the
+    programme's ``start``, :func:`initial_state`). ``tau_samples``: the residuals' integrated
+    autocorrelation time in samples (1 for white noise), one for all outputs or one per
+    output; ``noise_K``: the residual standard deviation per output, in place of the
+    programme's sensor noise (a prior fit's RMSE, :class:`Prior`)."""
     noise = {**programme.noise_K, **(noise_K or {})}
     tau = (
         {s: float(tau_samples.get(s, 1.0)) for s in noise}
@@ -238,8 +426,8 @@ def predict(
     unknown = [s for s in outputs if s not in programme.noise_K or s not in structure.states]
     if unknown or not outputs:
         raise ValueError(f"outputs {list(outputs)}: each needs a state and a noise_K entry")
-    u = programme_inputs(programme)
-    x0 = np.full(len(structure.states), u[0, 0]) if x0 is None else np.asarray(x0, float)
+    u = programme_inputs(programme, structure, theta)
+    x0 = initial_state(programme, structure, theta, u[0]) if x0 is None else np.asarray(x0, float)
     # a kA held fixed comes from the static test (eq. 10) on the same instruments: it moves
     # with their systematic errors, and the fit with it
     static = "kA" in structure.parameters and "kA" not in free
@@ -247,14 +435,19 @@ def predict(
         structure, theta, u, programme.step_s, x0, params=free + (("kA",) if static else ())
     )
     idx = [structure.states.index(s) for s in outputs]
-    # J: d y / d (log theta, x0) of every compared sample, output by output (eq. 17's e),
-    # its columns scaled to unit length for the inverse
+    rows = compared_rows(programme)
+    n_x = len(structure.states)
+    # each fit window's initial states are nuisance unknowns: the response of its samples to
+    # a state at its first sample (the whole record's free response, shifted), zero elsewhere
+    windows = fit_windows(programme)
+    starts = np.zeros((len(x), len(windows) * n_x, len(structure.states)))
+    for w, (_, a, b) in enumerate(windows):
+        starts[a:b, w * n_x : (w + 1) * n_x, :] = free_resp[: b - a].transpose(0, 2, 1)
+    # J: d y / d (log theta, window states) of every compared sample, output by output (eq.
+    # 17's e), its columns scaled to unit length for the inverse
     J = np.concatenate(
         [
-            np.column_stack(
-                [theta[p] * sens[p][:, j] for p in free]
-                + [free_resp[:, j, k] for k in range(len(structure.states))]
-            )
+            np.column_stack([theta[p] * sens[p][rows, j] for p in free] + [starts[rows, :, j]])
             for j in idx
         ]
     )
@@ -270,11 +463,11 @@ def predict(
         # the unweighted least squares of eq. 17 with noise of variance sigma_j^2 tau_j per
         # output (tau samples carry the information of one): the sandwich A J^T W J A
         A = np.linalg.inv(H)
-        weight = np.repeat([noise[s] ** 2 * max(tau[s], 1.0) for s in outputs], len(x))
+        weight = np.repeat([noise[s] ** 2 * max(tau[s], 1.0) for s in outputs], rows.sum())
         cov = A @ (Jn.T @ (weight[:, None] * Jn)) @ A / np.outer(scale, scale)
         response = A @ Jn.T  # the fit's linear response to a shift of the record
         shifts = [
-            (response @ dy.T.reshape(-1)) / scale
+            (response @ dy[rows].T.reshape(-1)) / scale
             for dy in _systematic_shifts(
                 structure, theta, programme, u, x0, x, outputs, sens if static else None
             )
@@ -315,14 +508,74 @@ class Prior:
     tau_samples: dict[str, float] = field(default_factory=dict)
 
 
+def residual_noise(fit) -> tuple[dict[str, float], dict[str, float]] | None:
+    """The noise of a fit's records, per compared output its standard deviation and
+    integrated autocorrelation time (samples), after the slow shapes its own systematic
+    errors leave in the residual are taken out: an offset of each output's sensors, a T_o
+    offset and a power scale error (the model's response to each), and an error of each
+    parameter the fit held fixed (kA from the static test: its sensitivity). Those errors
+    are the programme's systematic budget; left in, a drift they cause would count again, as
+    coloured noise. None without the fit's series (time, inputs, measured and simulated
+    states per window), or when a state is not simulated in it."""
+    series = fit.series
+    if series is None:
+        return None
+    structure = fit.structure
+    outputs = [s for s in (fit.data.get("outputs") or []) if f"{s}_residual" in series]
+    if not outputs:
+        return None
+    sims = [f"{s}_sim" for s in structure.states]
+    if any(c not in series.columns for c in [*sims, "window", "time", *structure.inputs]):
+        return None
+    theta = fit.theta
+    fixed = [p for p, q in fit.parameters.items() if q.estimated is False and p in theta]
+    shapes, residuals, spans = [], [], []
+    for _, w in series.groupby("window", sort=False):
+        dt = float(np.median(np.diff(w["time"].to_numpy(float))))
+        u = w[list(structure.inputs)].to_numpy(float)
+        x0 = w[sims].to_numpy(float)[0]
+        idx = [structure.states.index(s) for s in outputs]
+        x, sens, _ = models.sensitivities(structure, theta, u, dt, x0, params=tuple(fixed))
+        cols = [np.eye(len(outputs))[j][None, :].repeat(len(u), 0) for j in range(len(outputs))]
+        for j in (0, 1):  # a T_o offset of 1 K, a power scale error of 100 %
+            du = np.zeros_like(u)
+            du[:, j] = 1.0 if j == 0 else u[:, 1]
+            cols.append((models.simulate(structure, theta, u + du, dt, x0) - x)[:, idx])
+        cols += [theta[p] * sens[p][:, idx] for p in fixed]
+        shapes.append(np.stack(cols, axis=-1))  # (n, outputs, sources)
+        residuals.append(w[[f"{s}_residual" for s in outputs]].to_numpy(float))
+        spans.append(len(w))
+    X = np.concatenate(shapes).reshape(-1, shapes[0].shape[-1])
+    r = np.concatenate(residuals).reshape(-1)
+    ok = np.isfinite(r)
+    coef = np.linalg.lstsq(X[ok], r[ok], rcond=None)[0]
+    rest = (np.concatenate(residuals) - np.concatenate(shapes) @ coef).T  # (outputs, n)
+    noise, tau = {}, {}
+    for j, s in enumerate(outputs):
+        values = rest[j]
+        noise[s] = float(np.sqrt(np.nanmean(values**2)))
+        bounds = np.cumsum([0, *spans])
+        per = [
+            (autocorrelation_time(values[a:b][np.isfinite(values[a:b])]), b - a)
+            for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+        ]
+        tau[s] = float(sum(t * n for t, n in per) / sum(n for _, n in per))
+    return noise, tau
+
+
 def prior_from_fit(fit) -> Prior:
     """The prior of a vehicle measured before (:class:`railtherm.study.fit.Fit`): its
     estimates, the parameters it estimated (kA fixed by the static test stays fixed), and per
-    compared output the residual RMSE and autocorrelation time its record showed (in samples
-    of that record: the programme is taken at the same logger step)."""
+    compared output the residual noise and autocorrelation time its record showed (in
+    samples of that record: the programme is taken at the same logger step), with the slow
+    shapes of its systematic errors taken out where the fit's series is at hand
+    (:func:`residual_noise`), else as its measures give them."""
     measures = fit.data.get("measures") or {}
     noise = {s: float(m["overall"]["rmse"]) for s, m in measures.items()}
     tau = {s: float(m["overall"].get("autocorrelation_time", 1.0)) for s, m in measures.items()}
+    separated = residual_noise(fit)
+    if separated is not None:
+        noise, tau = separated
     estimated = {p for p, q in fit.parameters.items() if q.estimated is True}
     structure = fit.structure
     free = tuple(p for p in structure.parameters if p in estimated)
@@ -330,10 +583,26 @@ def prior_from_fit(fit) -> Prior:
     return Prior(structure, dict(fit.theta), free, source, None, noise, tau)
 
 
+def _read_with_series(path: str | Path):
+    """A fit file with its series where the study wrote it (``identify/<model>_series.csv``
+    beside ``fit_<model>.yaml``)."""
+    from railtherm.study.fit import read_fit
+
+    fit = read_fit(path)
+    series = Path(path).parent / "identify" / f"{fit.model}_series.csv"
+    return read_fit(path, series) if series.is_file() else fit
+
+
+def prior_from_fit_file(path: str | Path) -> Prior:
+    """:func:`prior_from_fit` of a fit file, with its series where the study wrote it."""
+    return prior_from_fit(_read_with_series(path))
+
+
 def residuals_of(fits) -> tuple[dict[str, float], dict[str, float]]:
-    """The residual level a class's fits show: per compared output the median RMSE and the
+    """The residual level a class's fits show: per compared output the median noise and the
     median autocorrelation time (samples) over ``fits`` (:class:`railtherm.study.fit.Fit`)
-    whose verdict is acceptable; ({}, {}) without one."""
+    whose verdict is acceptable (each as :func:`residual_noise` separates it where the fit's
+    series is at hand, else its RMSE and autocorrelation time); ({}, {}) without one."""
     from railtherm.study.quality import ACCEPTABLE
 
     rmse: dict[str, list[float]] = {}
@@ -341,9 +610,14 @@ def residuals_of(fits) -> tuple[dict[str, float], dict[str, float]]:
     for fit in fits:
         if fit.verdict != ACCEPTABLE:
             continue
-        for state, m in (fit.data.get("measures") or {}).items():
-            rmse.setdefault(state, []).append(float(m["overall"]["rmse"]))
-            tau.setdefault(state, []).append(float(m["overall"].get("autocorrelation_time", 1)))
+        measures = fit.data.get("measures") or {}
+        levels = residual_noise(fit) or (
+            {s: float(m["overall"]["rmse"]) for s, m in measures.items()},
+            {s: float(m["overall"].get("autocorrelation_time", 1)) for s, m in measures.items()},
+        )
+        for state in levels[0]:
+            rmse.setdefault(state, []).append(levels[0][state])
+            tau.setdefault(state, []).append(levels[1][state])
     return (
         {s: float(np.median(v)) for s, v in rmse.items()},
         {s: float(np.median(v)) for s, v in tau.items()},
@@ -384,12 +658,11 @@ def prior_for_class(
     residual level of its basis vehicles' second-order fits where ``results`` holds them
     (:func:`prior_from_reference`)."""
     from railtherm.study import classmodel
-    from railtherm.study.fit import read_fit
 
     members = classmodel.members_from_study(config, results, workdir=workdir)
     model = classmodel.build(members, vehicle_class, mass_kg, surface_m2)
     paths = [Path(workdir, results, "vehicles", vid, "fit_order2.yaml") for vid in model.basis]
-    fits = [read_fit(path) for path in paths if path.is_file()]
+    fits = [_read_with_series(path) for path in paths if path.is_file()]
     return prior_from_reference(model, n, seed, fits)
 
 
@@ -469,16 +742,16 @@ def assess(
     return Assessment(programme, prior, central, spread, identifiable, target, probability)
 
 
-def scaled(programme: Programme, factor: float) -> Programme:
-    """The programme with every phase (and every step within it) ``factor`` times as long."""
+def scaled(programme: Programme, factor: float, keep_first: bool = False) -> Programme:
+    """The programme with every phase (and every step within it) ``factor`` times as long;
+    with ``keep_first`` the first phase (the static k window's steady state) as it is."""
     phases = tuple(
-        Phase(
-            ph.name,
-            ph.hours * factor,
-            ph.T_o_C,
-            tuple((at * factor, watts) for at, watts in ph.steps),
+        ph
+        if keep_first and i == 0
+        else replace(
+            ph, hours=ph.hours * factor, steps=tuple((at * factor, w) for at, w in ph.steps)
         )
-        for ph in programme.phases
+        for i, ph in enumerate(programme.phases)
     )
     name = f"{programme.name} x{factor:.3g}"
     return replace(programme, name=name, phases=phases)
@@ -490,17 +763,19 @@ def shortest(
     target: tuple[str, float],
     probability: float = 0.9,
     factors: Sequence[float] = tuple(np.round(np.geomspace(0.25, 4.0, 17), 4)),
+    keep_first: bool = False,
 ) -> tuple[float, Assessment] | None:
     """The shortest version of ``programme``'s shape (its phases in proportion, each scaled by
-    one of ``factors``) whose :func:`assess` reaches ``target`` with at least
-    ``probability``; (factor, its assessment), or None when even the longest does not. The
-    factors are bisected: a longer programme of the same shape is taken to inform no less."""
+    one of ``factors``; the first kept as it is with ``keep_first``) whose :func:`assess`
+    reaches ``target`` with at least ``probability``; (factor, its assessment), or None when
+    even the longest does not. The factors are bisected: a longer programme of the same shape
+    is taken to inform no less."""
     ordered = sorted(float(f) for f in factors)
     found: dict[float, Assessment] = {}
 
     def reaches(factor: float) -> bool:  # each factor assessed once
         if factor not in found:
-            found[factor] = assess(prior, scaled(programme, factor), target)
+            found[factor] = assess(prior, scaled(programme, factor, keep_first), target)
         return (found[factor].probability or 0.0) >= probability
 
     if not reaches(ordered[-1]):
@@ -522,14 +797,16 @@ def best_of_length(
     hours: float | None = None,
     max_power_W: float | None = None,
     min_phase_h: float = 1.0,
+    vary_power: bool = True,
 ) -> tuple[Programme, Assessment]:
     """The programme of ``hours`` (default: ``programme``'s own length) that gives the
     narrowest predicted interval of ``target`` at the prior's central parameters. The first
     phase stays as given: it ends with the static k window (eq. 10), which needs its steady
     state. The later phases keep their order and tunnel temperatures; each one's duration (at
     least ``min_phase_h``) and held power (0 to ``max_power_W``, default the programme's
-    ``limits.max_power_W``, else its largest power) are chosen by Nelder-Mead, started from
-    ``programme`` scaled to ``hours``. The result is then assessed over the prior's draws. A
+    ``limits.max_power_W``, else its largest power; kept as given with ``vary_power`` False,
+    for heaters of fixed levels) are chosen by Nelder-Mead, started from ``programme`` scaled
+    to ``hours``. The result is then assessed over the prior's draws. A
     later phase with steps, or a length that leaves the later phases less than ``min_phase_h`` each,
     is a :class:`ConfigError`."""
     from scipy.optimize import minimize
@@ -560,10 +837,11 @@ def best_of_length(
     def build(z: np.ndarray) -> Programme:
         share = np.exp(z[:n] - z[:n].max())
         share /= share.sum()
-        power = power_max / (1.0 + np.exp(-z[n:]))  # within (0, power_max)
+        given = [ph.steps[0][1] for ph in rest]
+        power = power_max / (1.0 + np.exp(-z[n:])) if vary_power else given  # in (0, max)
         later = tuple(
-            Phase(
-                ph.name, min_phase_h + spare * float(share[i]), ph.T_o_C, ((0.0, float(power[i])),)
+            replace(
+                ph, hours=min_phase_h + spare * float(share[i]), steps=((0.0, float(power[i])),)
             )
             for i, ph in enumerate(rest)
         )
@@ -585,7 +863,7 @@ def best_of_length(
     scale = (total - first.hours) / max(sum(ph.hours for ph in rest), 1e-9)
     hours0 = np.array([max(ph.hours * scale - min_phase_h, 1e-3) for ph in rest])
     p0 = np.clip([ph.steps[0][1] / power_max for ph in rest], 1e-3, 1 - 1e-3)
-    z0 = np.concatenate([np.log(hours0), np.log(p0 / (1.0 - p0))])
+    z0 = np.concatenate([np.log(hours0), np.log(p0 / (1.0 - p0)) if vary_power else []])
     options = {"maxfev": 400, "xatol": 1e-3, "fatol": 1e-4}
     found = minimize(width, z0, method="Nelder-Mead", options=options)
     best = build(found.x if found.fun < width(z0) else z0)
