@@ -1409,6 +1409,52 @@ def reference_validation_figure(
     return _finish(fig, synthetic, note)
 
 
+def design_figure(table: pd.DataFrame, *, note: str | None = None) -> Figure:
+    """The design table (rows of :func:`railtherm.study.designstudy.vehicle_rows`): per
+    parameter, each vehicle's realised relative 95 % half-width (bar), the one predicted from
+    its fit (cross) and the one predicted before the tunnel from its class reference model
+    (circle, with the 5-95 % range over the model's draws); not identified: no bar."""
+    parameters = list(dict.fromkeys(table["parameter"]))
+    vehicles = list(dict.fromkeys(table["vehicle"]))
+    x = np.arange(len(vehicles))
+    with matplotlib.rc_context(_RC):
+        fig = Figure(figsize=(7.0, 2.4 * len(parameters)), dpi=DPI, layout="constrained")
+        FigureCanvasAgg(fig)
+        axes = np.atleast_1d(fig.subplots(len(parameters), 1, sharex=True))
+        for ax, p in zip(axes, parameters, strict=True):
+            part = table[table["parameter"] == p].set_index("vehicle").reindex(vehicles)
+            pct = {
+                c: 100 * part[c].astype(float).to_numpy()
+                for c in part.columns
+                if c in ("realised", "predicted", "class_median", "class_q05", "class_q95")
+            }
+            ax.bar(x, pct["realised"], 0.6, color="0.75", label="realised (its fit)")
+            ax.plot(x, pct["predicted"], "x", color="C3", ms=6, label="predicted from its fit")
+            # the class range drawn up to the axis top, an arrow where it goes beyond
+            top = 1000.0
+            for xi, q05, q95 in zip(x + 0.2, pct["class_q05"], pct["class_q95"], strict=True):
+                if np.isfinite(q05):
+                    ax.plot([xi, xi], [q05, min(q95, top)], color="C0", lw=0.8)
+                    if not q95 <= top:
+                        ax.plot(xi, top, marker="^", color="C0", ms=4)
+            ax.plot(
+                x + 0.2,
+                pct["class_median"],
+                "o",
+                color="C0",
+                ms=4,
+                label="before the tunnel (class model, 5-95 %)",
+            )
+            ax.set_yscale("log")
+            ax.set_ylim(0.5, 1.5 * top)
+            ax.set_ylabel(f"{p}: ± (95 %), %", fontsize=8)
+            ax.grid(True, lw=0.3, alpha=0.5)
+        handles, labels = axes[0].get_legend_handles_labels()
+        fig.legend(handles, labels, fontsize=7, frameon=False, ncols=3, loc="outside upper center")
+        axes[-1].set_xticks(x, vehicles, rotation=45, ha="right", fontsize=7)
+    return _finish(fig, False, note)
+
+
 # ---------------------------------------------------------------------------------------------
 # Every figure of one vehicle (rule vehicle_figures)
 

@@ -45,12 +45,14 @@ __all__ = [
     "Prediction",
     "Prior",
     "Programme",
+    "Run",
     "assess",
     "best_of_length",
     "load_programme",
     "markdown",
     "parse_target",
     "predict",
+    "predict_runs",
     "prior_for_class",
     "prior_from_fit",
     "prior_from_fit_file",
@@ -366,30 +368,158 @@ class Prediction:
     sd_log_systematic: dict[str, float] = field(default_factory=dict)
 
 
-def _systematic_shifts(structure, theta, programme, u, x0, x, outputs, sens_kA=None):
-    """The shift dy (N x outputs) of the record relative to the model, one per systematic
-    source of the programme: an offset b of a compared state's sensors (dy = b), of T_o or a
-    scale error of Q_H (the model driven by the biased inputs departs from the record by dx:
-    dy = -dx). With ``sens_kA`` (the sensitivities, kA among them) kA is fixed by the static
-    test on the same instruments, Q_H / (T - T_o) at the first phase's end, and its move
-    shifts the model too."""
+@dataclass(frozen=True)
+class Run:
+    """One simulated stretch of a programme or a record: its inputs ``u`` (N x inputs, held
+    over each step), its state ``x0`` at the first sample, and the sample ranges [a, b) the
+    fit compares, each a record whose initial states it estimates (``windows``)."""
+
+    u: np.ndarray
+    x0: np.ndarray
+    windows: tuple[tuple[int, int], ...]
+
+
+def _systematic_shifts(structure, theta, run, x, step_s, outputs, systematic, dT_k, sens):
+    """The shift dy (N x outputs) of the run's record relative to the model, one per
+    systematic source: an offset b of a compared state's sensors (dy = b), of T_o or a scale
+    error of Q_H (the model driven by the biased inputs departs from the record by dx: dy =
+    -dx). With ``sens`` (the sensitivities, kA among them) kA is fixed by the static test on
+    the same instruments, Q_H / (T - T_o) with T - T_o = ``dT_k``, and its move shifts the
+    model too; ``kA_rel`` is a random error of that kA of its own (relative)."""
     idx = [structure.states.index(s) for s in outputs]
-    k_end = int(round(programme.phases[0].hours * 3600.0 / programme.step_s)) - 1
-    dT_k = float(x[k_end, 0] - u[k_end, 0])  # T - T_o at the end of the first (steady) phase
-    for source, u_sys in programme.systematic.items():
+    for source, u_sys in systematic.items():
+        dy = np.zeros((len(x), len(outputs)))
         if source in outputs:
-            dy = np.zeros((len(x), len(outputs)))
             dy[:, outputs.index(source)] = u_sys
         elif source in ("T_o", "power_rel"):
-            du = np.zeros_like(u)
-            du[:, 0 if source == "T_o" else 1] = u_sys * (1.0 if source == "T_o" else u[:, 1])
-            dy = -(models.simulate(structure, theta, u + du, programme.step_s, x0) - x)[:, idx]
-        else:
+            du = np.zeros_like(run.u)
+            du[:, 0] = u_sys if source == "T_o" else 0.0
+            du[:, 1] = u_sys * run.u[:, 1] if source == "power_rel" else 0.0
+            dy = -(models.simulate(structure, theta, run.u + du, step_s, run.x0) - x)[:, idx]
+        elif source != "kA_rel" or sens is None:
+            yield None
             continue
-        if sens_kA is not None and dT_k != 0.0:  # d log kA of eq. 10's Q_H / (T - T_o)
-            dlog_kA = {"power_rel": u_sys, "T": -u_sys / dT_k, "T_o": u_sys / dT_k}.get(source, 0.0)
-            dy = dy - dlog_kA * theta["kA"] * sens_kA["kA"][:, idx]
+        if sens is not None and dT_k:  # d log kA of eq. 10's Q_H / (T - T_o)
+            dlog_kA = {
+                "power_rel": u_sys,
+                "T": -u_sys / dT_k,
+                "T_o": u_sys / dT_k,
+                "kA_rel": u_sys,
+            }.get(source, 0.0)
+            dy = dy - dlog_kA * theta["kA"] * sens["kA"][:, idx]
         yield dy
+
+
+def _undetermined(structure: models.Structure, free: Sequence[str]) -> Prediction:
+    inf = dict.fromkeys(free, math.inf)
+    return Prediction(structure.name, inf, dict(inf), dict.fromkeys(free, False), math.inf, inf)
+
+
+def predict_runs(
+    structure: models.Structure,
+    theta: Mapping[str, float],
+    runs: Sequence[Run],
+    step_s: float,
+    noise_K: Mapping[str, float],
+    *,
+    tau_samples: Mapping[str, float] | None = None,
+    free: Sequence[str] | None = None,
+    outputs: Sequence[str] | None = None,
+    systematic: Mapping[str, float] | None = None,
+    dT_k: float = 0.0,
+) -> Prediction:
+    """The Fisher-information prediction of the module docstring for the records of
+    ``runs`` (:class:`Run`), logged every ``step_s``: the parameters ``free`` (default every
+    parameter but kA, as the paper's two-stage fit estimates them), compared on ``outputs``
+    (default the states ``noise_K`` names: the residual sd per output, ``tau_samples`` its
+    autocorrelation time in samples), each window's initial states estimated (nuisance
+    unknowns). ``systematic``: standard uncertainties of the sources of
+    :func:`_systematic_shifts`; ``dT_k``: T - T_o of the static test that fixes kA."""
+    tau = {s: float((tau_samples or {}).get(s, 1.0)) for s in noise_K}
+    free = tuple(p for p in structure.parameters if p != "kA") if free is None else tuple(free)
+    outputs = (
+        tuple(s for s in structure.states if s in noise_K) if outputs is None else tuple(outputs)
+    )
+    unknown = [s for s in outputs if s not in noise_K or s not in structure.states]
+    if unknown or not outputs:
+        raise ValueError(f"outputs {list(outputs)}: each needs a state and a noise_K entry")
+    # a kA held fixed comes from the static test (eq. 10) on the same instruments: it moves
+    # with their systematic errors, and the fit with it
+    static = "kA" in structure.parameters and "kA" not in free
+    params = free + (("kA",) if static else ())
+    idx = [structure.states.index(s) for s in outputs]
+    n_x = len(structure.states)
+    n_w = sum(len(run.windows) for run in runs)
+    sources = dict(systematic or {})
+    blocks: list[list[np.ndarray]] = [[] for _ in outputs]  # J rows per output
+    shifts: list[list[np.ndarray]] = [[] for _ in sources]  # dy rows per source
+    w = 0
+    for run in runs:
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                x, sens, free_resp = models.sensitivities(
+                    structure, theta, run.u, step_s, run.x0, params=params
+                )
+        except FloatingPointError:  # a parameter set the logger step cannot resolve (a
+            # heavy-tailed draw with a time constant of 1e-20 s) determines nothing
+            return _undetermined(structure, free)
+        dys = list(
+            _systematic_shifts(
+                structure, theta, run, x, step_s, outputs, sources, dT_k, sens if static else None
+            )
+        )
+        for a, b in run.windows:
+            # the window's initial states: the response of its samples to a state at its
+            # first sample (the free response, shifted), zero in every other window
+            starts = np.zeros((b - a, n_w * n_x, n_x))
+            starts[:, w * n_x : (w + 1) * n_x, :] = free_resp[: b - a].transpose(0, 2, 1)
+            for k, j in enumerate(idx):
+                blocks[k].append(
+                    np.column_stack([theta[p] * sens[p][a:b, j] for p in free] + [starts[:, :, j]])
+                )
+            for k, dy in enumerate(dys):
+                if dy is not None:
+                    shifts[k].append(dy[a:b])
+            w += 1
+    # J: d y / d (log theta, window states) of every compared sample, output by output (eq.
+    # 17's e), its columns scaled to unit length for the inverse
+    J = np.concatenate([np.concatenate(rows) for rows in blocks])
+    if not np.all(np.isfinite(J)):
+        return _undetermined(structure, free)
+    n_rows = [sum(len(r) for r in rows) for rows in blocks]
+    scale = np.sqrt(np.einsum("ij,ij->j", J, J))
+    scale[scale == 0] = 1.0
+    Jn = J / scale
+    H = Jn.T @ Jn
+    eig = np.linalg.eigvalsh(H)
+    condition = float(eig[-1] / eig[0]) if eig[0] > 0 else math.inf
+    if not math.isfinite(condition) or condition > COND_MAX:
+        sd = sd_sys = dict.fromkeys(free, math.inf)
+    else:
+        # the unweighted least squares of eq. 17 with noise of variance sigma_j^2 tau_j per
+        # output (tau samples carry the information of one): the sandwich A J^T W J A
+        A = np.linalg.inv(H)
+        weight = np.repeat([noise_K[s] ** 2 * max(tau[s], 1.0) for s in outputs], n_rows)
+        cov = A @ (Jn.T @ (weight[:, None] * Jn)) @ A / np.outer(scale, scale)
+        response = A @ Jn.T  # the fit's linear response to a shift of the record
+        moved = [
+            (response @ np.concatenate(parts).T.reshape(-1)) / scale for parts in shifts if parts
+        ]
+        systematic_var = np.sum(np.square(moved), axis=0) if moved else np.zeros(len(scale))
+        sd = {
+            p: float(math.sqrt(max(cov[i, i] + systematic_var[i], 0.0))) for i, p in enumerate(free)
+        }
+        sd_sys = {p: float(math.sqrt(systematic_var[i])) for i, p in enumerate(free)}
+    # a record that does not move a parameter leaves its sd huge (or infinite): no width
+    half = {p: (math.expm1(Z95 * v) if Z95 * v < 700.0 else math.inf) for p, v in sd.items()}
+    # the fits' own rule on the predicted interval of theta * exp(+-1.96 sd)
+    identifiable = {
+        p: identification(1.0, (math.exp(-Z95 * v), math.inf if h == math.inf else 1.0 + h))[
+            "identified"
+        ]
+        for (p, v), h in zip(sd.items(), half.values(), strict=True)
+    }
+    return Prediction(structure.name, sd, half, identifiable, condition, sd_sys)
 
 
 def predict(
@@ -403,88 +533,41 @@ def predict(
     tau_samples: float | Mapping[str, float] = 1.0,
     noise_K: Mapping[str, float] | None = None,
 ) -> Prediction:
-    """The Fisher-information prediction of the module docstring for the parameters ``free``
-    (default: every parameter but kA, as the paper's two-stage fit estimates them), compared
-    on ``outputs`` (default: the states the programme gives a noise for) over the phases it
-    compares, the initial states estimated (nuisance unknowns), from ``x0`` (default: the
-    programme's ``start``, :func:`initial_state`). ``tau_samples``: the residuals' integrated
-    autocorrelation time in samples (1 for white noise), one for all outputs or one per
-    output; ``noise_K``: the residual standard deviation per output, in place of the
-    programme's sensor noise (a prior fit's RMSE, :class:`Prior`)."""
+    """The prediction of :func:`predict_runs` for a planned programme, simulated from ``x0``
+    (default: the programme's ``start``, :func:`initial_state`) with its fit windows: the
+    parameters ``free``, compared on ``outputs`` (default: the states the programme gives a
+    noise for); ``tau_samples``: the residuals' integrated autocorrelation time in samples (1
+    for white noise), one for all outputs or one per output; ``noise_K``: the residual
+    standard deviation per output, in place of the programme's sensor noise (a prior fit's,
+    :class:`Prior`). The static test that fixes kA is read at the first phase's end."""
     noise = {**programme.noise_K, **(noise_K or {})}
+    if outputs is None:
+        outputs = tuple(s for s in structure.states if s in programme.noise_K)
     tau = (
         {s: float(tau_samples.get(s, 1.0)) for s in noise}
         if isinstance(tau_samples, Mapping)
         else dict.fromkeys(noise, float(tau_samples))
     )
-    free = tuple(p for p in structure.parameters if p != "kA") if free is None else tuple(free)
-    outputs = (
-        tuple(s for s in structure.states if s in programme.noise_K)
-        if outputs is None
-        else tuple(outputs)
-    )
-    unknown = [s for s in outputs if s not in programme.noise_K or s not in structure.states]
-    if unknown or not outputs:
-        raise ValueError(f"outputs {list(outputs)}: each needs a state and a noise_K entry")
     u = programme_inputs(programme, structure, theta)
     x0 = initial_state(programme, structure, theta, u[0]) if x0 is None else np.asarray(x0, float)
-    # a kA held fixed comes from the static test (eq. 10) on the same instruments: it moves
-    # with their systematic errors, and the fit with it
-    static = "kA" in structure.parameters and "kA" not in free
-    x, sens, free_resp = models.sensitivities(
-        structure, theta, u, programme.step_s, x0, params=free + (("kA",) if static else ())
+    run = Run(u, x0, tuple((a, b) for _, a, b in fit_windows(programme)))
+    dT_k = 0.0
+    if "kA" in structure.parameters and (free is None or "kA" not in free):
+        k_end = int(round(programme.phases[0].hours * 3600.0 / programme.step_s)) - 1
+        x = models.simulate(structure, theta, u, programme.step_s, x0)
+        dT_k = float(x[k_end, 0] - u[k_end, 0])  # T - T_o at the first phase's end
+    return predict_runs(
+        structure,
+        theta,
+        [run],
+        programme.step_s,
+        noise,
+        tau_samples=tau,
+        free=free,
+        outputs=outputs,
+        systematic=programme.systematic,
+        dT_k=dT_k,
     )
-    idx = [structure.states.index(s) for s in outputs]
-    rows = compared_rows(programme)
-    n_x = len(structure.states)
-    # each fit window's initial states are nuisance unknowns: the response of its samples to
-    # a state at its first sample (the whole record's free response, shifted), zero elsewhere
-    windows = fit_windows(programme)
-    starts = np.zeros((len(x), len(windows) * n_x, len(structure.states)))
-    for w, (_, a, b) in enumerate(windows):
-        starts[a:b, w * n_x : (w + 1) * n_x, :] = free_resp[: b - a].transpose(0, 2, 1)
-    # J: d y / d (log theta, window states) of every compared sample, output by output (eq.
-    # 17's e), its columns scaled to unit length for the inverse
-    J = np.concatenate(
-        [
-            np.column_stack([theta[p] * sens[p][rows, j] for p in free] + [starts[rows, :, j]])
-            for j in idx
-        ]
-    )
-    scale = np.sqrt(np.einsum("ij,ij->j", J, J))
-    scale[scale == 0] = 1.0
-    Jn = J / scale
-    H = Jn.T @ Jn
-    eig = np.linalg.eigvalsh(H)
-    condition = float(eig[-1] / eig[0]) if eig[0] > 0 else math.inf
-    if not math.isfinite(condition) or condition > COND_MAX:
-        sd = sd_sys = dict.fromkeys(free, math.inf)
-    else:
-        # the unweighted least squares of eq. 17 with noise of variance sigma_j^2 tau_j per
-        # output (tau samples carry the information of one): the sandwich A J^T W J A
-        A = np.linalg.inv(H)
-        weight = np.repeat([noise[s] ** 2 * max(tau[s], 1.0) for s in outputs], rows.sum())
-        cov = A @ (Jn.T @ (weight[:, None] * Jn)) @ A / np.outer(scale, scale)
-        response = A @ Jn.T  # the fit's linear response to a shift of the record
-        shifts = [
-            (response @ dy[rows].T.reshape(-1)) / scale
-            for dy in _systematic_shifts(
-                structure, theta, programme, u, x0, x, outputs, sens if static else None
-            )
-        ]
-        systematic = np.sum(np.square(shifts), axis=0) if shifts else np.zeros(len(scale))
-        sd = {p: float(math.sqrt(max(cov[i, i] + systematic[i], 0.0))) for i, p in enumerate(free)}
-        sd_sys = {p: float(math.sqrt(systematic[i])) for i, p in enumerate(free)}
-    # a record that does not move a parameter leaves its sd huge (or infinite): no width
-    half = {p: (math.expm1(Z95 * v) if Z95 * v < 700.0 else math.inf) for p, v in sd.items()}
-    # the fits' own rule on the predicted interval of theta * exp(+-1.96 sd)
-    identifiable = {
-        p: identification(1.0, (math.exp(-Z95 * v), math.inf if h == math.inf else 1.0 + h))[
-            "identified"
-        ]
-        for (p, v), h in zip(sd.items(), half.values(), strict=True)
-    }
-    return Prediction(structure.name, sd, half, identifiable, condition, sd_sys)
 
 
 # ------------------------------------------------------------------------------------------

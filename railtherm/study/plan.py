@@ -215,6 +215,18 @@ class StudyPlan:
                 targets += [f"results/figures/reference_validation.{e}" for e in FIGURE_FORMATS]
         return targets
 
+    def design_outputs(self) -> list[str]:
+        """Targets of the rule design: with ``design.enabled``, second-order fits and the
+        study's Table 2 (the class models)."""
+        if not (
+            self.config["design"]["enabled"]
+            and self.second_order_vehicles()
+            and self.paper_tables()
+        ):
+            return []
+        targets = [f"results/tables/design.{ext}" for ext in ("csv", "md")]
+        return targets + [f"results/figures/design.{ext}" for ext in FIGURE_FORMATS]
+
     def all_outputs(self) -> list[str]:
         """Every target of the study (rule all), in a stable order."""
         cfg = self.config
@@ -253,6 +265,7 @@ class StudyPlan:
         if cfg["audit"]["published"]:
             targets += ["results/audit/findings.csv", "results/audit/audit.md"]
         targets += self.prediction_outputs()
+        targets += self.design_outputs()
         if self.study.campaign_data:
             targets += [
                 "results/campaign/ground_truth.csv",

@@ -90,3 +90,51 @@ rule reference_validation:
         "../envs/railtherm.yaml"
     script:
         "../scripts/reference_validation.py"
+
+
+rule design:
+    input:
+        table2="results/tables/table2.csv",
+        fits=[
+            f"results/vehicles/{vid}/fit_{table_key(vid, 2)}.yaml"
+            for vid in second_order_vehicles()
+        ],
+        series=[table_series(vid, 2) for vid in second_order_vehicles()],
+        kvalues=[
+            f"results/vehicles/{vid}/kvalue.yaml"
+            for vid in second_order_vehicles()
+            if has_kvalue(vid)
+        ],
+    output:
+        csv=report(
+            "results/tables/design.csv",
+            caption="../report/design.rst",
+            category="Tables",
+            labels={"table": "design"},
+        ),
+        md="results/tables/design.md",
+        png=report(
+            "results/figures/design.png",
+            caption="../report/design_figure.rst",
+            category="Figures",
+            labels={"figure": "design"},
+        ),
+        svg="results/figures/design.svg",
+    params:
+        vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
+        with_kvalue=[vid for vid in second_order_vehicles() if has_kvalue(vid)],
+        target=config["design"]["target"],
+        draws=config["design"]["draws"],
+        seed=config["design"]["seed"],
+        code=script_code("design.py"),
+    log:
+        "logs/design.log",
+    priority: CHAIN_PRIORITY
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/design.py"
