@@ -226,7 +226,18 @@ def _design(args: argparse.Namespace) -> int:
     if args.draws < 1:
         raise ConfigError("--draws", "draws", args.draws, "expected 1 or more")
     if args.vehicle:
-        prior = design.prior_from_fit_file(os.path.join(workdir, args.vehicle))
+        path = os.path.join(workdir, args.vehicle)
+        data = read_yaml(path, display=args.vehicle)
+        if isinstance(data, dict) and "parameters" not in data:
+            # a vehicle config, before its test: its class, mass and surface
+            for key in ("class", "mass_kg", "surface_m2"):
+                if key not in data:
+                    raise ConfigError(args.vehicle, key, None, "a vehicle config needs it here")
+            args.vehicle_class = data["class"]
+            args.mass_kg, args.surface_m2 = data["mass_kg"], data["surface_m2"]
+            args.vehicle = None
+    if args.vehicle:
+        prior = design.prior_from_fit_file(path)
     else:
         given = (("--mass-kg", args.mass_kg), ("--surface-m2", args.surface_m2))
         missing = [option for option, value in given if value is None]
@@ -259,6 +270,12 @@ def _design(args: argparse.Namespace) -> int:
             print(f"  {ph.describe()}")
         print()
         print(design.markdown(design.assess(prior, chosen, target)))
+        name = target[0]
+        before, after = assessment.central.half_width[name], assessed.central.half_width[name]
+        print(
+            f"\nAgainst the programme as given, at the prior's central parameters: {name} "
+            f"±{100 * before:.3g} % -> ±{100 * after:.3g} %."
+        )
     if args.optimise:
         name, goal = target
         if found is None:
@@ -535,7 +552,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     design.add_argument("programme", metavar="PROGRAMME.yaml", help="the planned programme")
     prior = design.add_mutually_exclusive_group(required=True)
-    prior.add_argument("--vehicle", metavar="FIT.yaml", help="a measured vehicle's checked fit")
+    prior.add_argument(
+        "--vehicle",
+        metavar="FIT_OR_CONFIG.yaml",
+        help="a measured vehicle's checked fit, or a vehicle config (its class, mass, surface)",
+    )
     prior.add_argument(
         "--class", dest="vehicle_class", metavar="CLASS", help="the class of an unmeasured vehicle"
     )

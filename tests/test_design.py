@@ -170,6 +170,40 @@ def test_the_command_predicts_the_paper_programme_for_a_class(capsys):
     assert main(args) == 0 and capsys.readouterr().out == out
 
 
+def test_the_command_takes_a_vehicle_config_before_its_test(tmp_path, capsys):
+    """A vehicle config (no fit yet) gives the class prior of its class, mass and surface;
+    --length-h reports the gain against the programme as given; a config without its mass
+    is refused naming the key."""
+    from railtherm.cli import main
+
+    config = tmp_path / "new.yaml"
+    config.write_text(
+        yaml.safe_dump({"id": "New", "class": "metro", "mass_kg": 36000, "surface_m2": 300})
+    )
+    args = [
+        "design",
+        "config/programmes/paper.yaml",
+        "--vehicle",
+        str(config),
+        "--target",
+        "C_veh=5%",
+    ]
+    assert main([*args, "--length-h", "60", "--draws", "20"]) == 0
+    out = capsys.readouterr().out
+    assert "metro reference model (36000 kg, 300 m²" in out
+    before, after = (
+        float(v.strip(" %"))
+        for v in out.split("Against the programme as given")[1]
+        .split("C_veh ±")[1]
+        .rstrip(".\n")
+        .split("-> ±")
+    )
+    assert after < before
+    config.write_text(yaml.safe_dump({"id": "New", "class": "metro", "surface_m2": 300}))
+    assert main(args) != 0
+    assert "mass_kg" in capsys.readouterr().err
+
+
 def test_the_command_takes_a_measured_vehicle_and_optimises(fit_files, capsys):
     """From a campaign vehicle's fit: its own residual level, and --optimise reports the
     shortest programme of the paper's shape that reaches the target."""
