@@ -10,6 +10,7 @@ import yaml
 from snakemake.utils import validate
 
 from railtherm.config import load_study
+from railtherm.errors import ConfigError
 from railtherm.study.plan import VEHICLE_ID, StudyPlan, group_constraint
 from railtherm.study.scenario import load_scenario
 
@@ -85,3 +86,15 @@ def test_group_constraints_of_a_fleet_stay_short():
     assert not any(re.fullmatch(constraint, v) for v in odd)
     assert group_constraint([fleet], fleet) == VEHICLE_ID
     assert re.fullmatch(group_constraint([fleet, odd], odd), "Odd")
+
+
+@pytest.mark.bad_input
+def test_a_design_target_of_no_estimated_parameter_is_refused_at_parse(campaign_plan):
+    """kA is held by the static test in the paper's fit: no design can target it."""
+    config = {
+        **campaign_plan.config,
+        "design": {**campaign_plan.config["design"], "target": "kA=5%"},
+    }
+    plan = StudyPlan(campaign_plan.study, config, campaign_plan.scenarios)
+    with pytest.raises(ConfigError, match=r"design\.target"):
+        plan.design_outputs()

@@ -14,6 +14,7 @@ import re
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from typing import Any
 
+from railtherm import structures
 from railtherm.config import Study
 from railtherm.data import ingest
 from railtherm.errors import ConfigError
@@ -224,6 +225,13 @@ class StudyPlan:
             and self.paper_tables()
         ):
             return []
+        target = self.config["design"]["target"]
+        name = target.partition("=")[0]
+        allowed = [p for p in structures.STRUCTURES["second_order"].parameters if p != "kA"]
+        if name not in allowed:
+            raise ConfigError(
+                "config/config.yaml", "design.target", target, f"a parameter of {allowed}"
+            )
         targets = [f"results/tables/design.{ext}" for ext in ("csv", "md")]
         return targets + [f"results/figures/design.{ext}" for ext in FIGURE_FORMATS]
 
