@@ -130,6 +130,9 @@ def _class_prior(members, vehicle: Mapping[str, Any], vid: str, fits, draws: int
     from railtherm.errors import ConfigError
     from railtherm.study import classmodel
 
+    missing = [k for k in ("class", "mass_kg", "surface_m2") if vehicle.get(k) is None]
+    if missing:
+        return None, f"the vehicle declares no {', '.join(missing)}"
     try:
         model = classmodel.build(
             members,
@@ -227,7 +230,7 @@ def vehicle_rows(
             rows.append(
                 {
                     "vehicle": vid,
-                    "class": vehicles[vid]["class"],
+                    "class": vehicles[vid].get("class", ""),
                     "records_h": hours,
                     "parameter": p,
                     "realised": realised,
@@ -292,7 +295,9 @@ def design_markdown(table: pd.DataFrame, source: str) -> str:
                 f"{100 * r['class_identifiable_share']:.0f} % of draws identify it"
             )
         else:
-            before = "no class model (fewer than 2 other usable vehicles)"
+            note = str(r["class_note"])
+            few = "usable vehicle" in note or "no vehicle among" in note
+            before = f"no class model ({'fewer than 2 other usable vehicles' if few else note})"
         short = ""
         if r["parameter"] == target.partition("=")[0]:
             if math.isfinite(r["shortest_h"]):
