@@ -183,6 +183,8 @@ def test_the_command_takes_a_vehicle_config_before_its_test(tmp_path, capsys):
     args = [
         "design",
         "config/programmes/paper.yaml",
+        "-d",
+        str(REPO_ROOT),
         "--vehicle",
         str(config),
         "--target",
