@@ -788,6 +788,7 @@ def load_study(
     """
     workdir = str(workdir)
     study = study_context(config, workdir, config_file)
+    check_study_plans(config, workdir, config_file)
     vehicle_cache = VehicleCache(cache) if cache is not None else None
     vehicle_paths = config.get("vehicles")
     if not isinstance(vehicle_paths, list) or not vehicle_paths:
@@ -804,6 +805,43 @@ def load_study(
     if vehicle_cache is not None:
         vehicle_cache.save()
     return study
+
+
+def check_study_plans(
+    config: Mapping[str, Any], workdir: str | os.PathLike[str] = ".", config_file: str = ""
+) -> None:
+    """The study config's settings of the design table and the annual energy, as the
+    workflow and ``railtherm validate`` alike read them: ``design.target`` a parameter the
+    second-order fit estimates, each ``energy.what_if`` readable, the ``energy`` weather and
+    profile files present and the profile valid. A mistake is a :class:`ConfigError` naming
+    ``config_file`` and the key."""
+    from railtherm import structures
+    from railtherm.study.energy import load_profile, parse_what_if
+
+    config_file = config_file or "config/config.yaml"
+    target = (config.get("design") or {}).get("target")
+    if target is not None:
+        name = str(target).partition("=")[0]
+        allowed = [p for p in structures.STRUCTURES["second_order"].parameters if p != "kA"]
+        if name not in allowed:
+            raise ConfigError(config_file, "design.target", target, f"a parameter of {allowed}")
+    energy = config.get("energy") or {}
+    for i, text in enumerate(energy.get("what_if") or []):
+        try:
+            parse_what_if(text)
+        except ConfigError as err:
+            raise ConfigError(config_file, f"energy.what_if[{i}]", text, err.reason) from None
+    if not energy.get("enabled", False):
+        return
+    for i, path in enumerate(energy.get("weather") or []):
+        if not os.path.isfile(os.path.join(str(workdir), path)):
+            raise ConfigError(config_file, f"energy.weather[{i}]", path, "weather file not found")
+    profile = energy.get("profile")
+    if profile:
+        local = os.path.join(str(workdir), profile)
+        if not os.path.isfile(local):
+            raise ConfigError(config_file, "energy.profile", profile, "profile file not found")
+        load_profile(local)
 
 
 def study_context(

@@ -89,12 +89,27 @@ def test_group_constraints_of_a_fleet_stay_short():
 
 
 @pytest.mark.bad_input
-def test_a_design_target_of_no_estimated_parameter_is_refused_at_parse(campaign_plan):
-    """kA is held by the static test in the paper's fit: no design can target it."""
-    config = {
-        **campaign_plan.config,
-        "design": {**campaign_plan.config["design"], "target": "kA=5%"},
-    }
-    plan = StudyPlan(campaign_plan.study, config, campaign_plan.scenarios)
-    with pytest.raises(ConfigError, match=r"design\.target"):
-        plan.design_outputs()
+@pytest.mark.parametrize(
+    ("section", "key"),
+    [
+        ({"design": {"target": "kA=5%"}}, "design.target"),
+        ({"energy": {"enabled": True, "what_if": ["k=-10", "x"]}}, "energy.what_if[0]"),
+        ({"energy": {"enabled": True, "weather": ["nowhere.epw"]}}, "energy.weather[0]"),
+        ({"energy": {"enabled": True, "profile": "config/config.yaml"}}, "campaign"),
+    ],
+)
+def test_plan_settings_are_refused_by_validate_as_by_the_workflow(tmp_path, section, key):
+    """A design target that is no estimated parameter, an unreadable what-if, a missing
+    weather file or a profile that is none: ``railtherm validate`` and the workflow's parse
+    (both through load_study) refuse it, naming the key."""
+    from railtherm.cli import main
+
+    config = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    for name, values in section.items():
+        config[name] = {**config.get(name, {}), **values}
+    config_path = tmp_path / "config.yaml"
+    config_path.write_text(yaml.safe_dump(config))
+    with pytest.raises(ConfigError, match=re.escape(f"'{key}'")):
+        load_study(config, workdir=REPO)
+    args = ["validate", "-d", str(REPO), "--config", str(config_path), "--headers-only"]
+    assert main(args) != 0

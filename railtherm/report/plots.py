@@ -1455,6 +1455,58 @@ def design_figure(table: pd.DataFrame, *, note: str | None = None) -> Figure:
     return _finish(fig, False, note)
 
 
+def annual_energy_figure(table: pd.DataFrame, *, note: str | None = None) -> Figure:
+    """The study's annual energy (rows of :func:`railtherm.study.energy.study_rows`): per
+    climate, each vehicle's monthly heating energy of the base variant as bars with their
+    95 % bands."""
+    from railtherm.study.energy import MONTHS
+
+    base = table[table["variant"] == "base"]
+    climates = list(dict.fromkeys(base["climate"]))
+    vehicles = list(dict.fromkeys(base["vehicle"]))
+    colors = _vehicle_colors(vehicles)
+    x = np.arange(12)
+    width = 0.8 / max(len(vehicles), 1)
+    with matplotlib.rc_context(_RC):
+        fig = Figure(figsize=(7.0, 2.6 * max(len(climates), 1)), dpi=DPI, layout="constrained")
+        FigureCanvasAgg(fig)
+        axes = np.atleast_1d(fig.subplots(max(len(climates), 1), 1, sharex=True))
+        for ax, climate in zip(axes, climates, strict=False):
+            part = base[base["climate"] == climate]
+            for i, vid in enumerate(vehicles):
+                r = part[part["vehicle"] == vid]
+                if r.empty:
+                    continue
+                r = r.iloc[0]
+                c = np.array([r[f"{m}_kWh"] for m in MONTHS], dtype=float) / 1000.0
+                lo = np.array([r[f"{m}_lo"] for m in MONTHS], dtype=float) / 1000.0
+                hi = np.array([r[f"{m}_hi"] for m in MONTHS], dtype=float) / 1000.0
+                err = None if np.isnan(lo).all() else [c - lo, hi - c]
+                ax.bar(
+                    x + (i - (len(vehicles) - 1) / 2) * width,
+                    c,
+                    width,
+                    yerr=err,
+                    color=colors[vid],
+                    error_kw={"lw": 0.6, "capsize": 0},
+                    label=vid,
+                )
+            ax.set_ylabel("heating (MWh)", fontsize=8)
+            ax.set_title(climate, fontsize=9)
+            ax.grid(True, axis="y", lw=0.3, alpha=0.5)
+        axes[-1].set_xticks(x, MONTHS, fontsize=7)
+        handles, labels = axes[0].get_legend_handles_labels()
+        fig.legend(
+            handles,
+            labels,
+            fontsize=7,
+            frameon=False,
+            ncols=min(len(labels), 7),
+            loc="outside upper center",
+        )
+    return _finish(fig, False, note)
+
+
 # ---------------------------------------------------------------------------------------------
 # Every figure of one vehicle (rule vehicle_figures)
 

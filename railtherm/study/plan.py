@@ -14,7 +14,6 @@ import re
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from typing import Any
 
-from railtherm import structures
 from railtherm.config import Study
 from railtherm.data import ingest
 from railtherm.errors import ConfigError
@@ -225,15 +224,20 @@ class StudyPlan:
             and self.paper_tables()
         ):
             return []
-        target = self.config["design"]["target"]
-        name = target.partition("=")[0]
-        allowed = [p for p in structures.STRUCTURES["second_order"].parameters if p != "kA"]
-        if name not in allowed:
-            raise ConfigError(
-                "config/config.yaml", "design.target", target, f"a parameter of {allowed}"
-            )
         targets = [f"results/tables/design.{ext}" for ext in ("csv", "md")]
         return targets + [f"results/figures/design.{ext}" for ext in FIGURE_FORMATS]
+
+    def energy_outputs(self) -> list[str]:
+        """Targets of the rule energy: with ``energy.enabled``, weather, a profile and
+        second-order fits (the settings are checked by load_study,
+        :func:`railtherm.config.check_study_plans`)."""
+        cfg = self.config["energy"]
+        if not (
+            cfg["enabled"] and cfg["weather"] and cfg["profile"] and self.second_order_vehicles()
+        ):
+            return []
+        targets = [f"results/tables/annual_energy.{ext}" for ext in ("csv", "md")]
+        return targets + [f"results/figures/annual_energy.{ext}" for ext in FIGURE_FORMATS]
 
     def all_outputs(self) -> list[str]:
         """Every target of the study (rule all), in a stable order."""
@@ -274,6 +278,7 @@ class StudyPlan:
             targets += ["results/audit/findings.csv", "results/audit/audit.md"]
         targets += self.prediction_outputs()
         targets += self.design_outputs()
+        targets += self.energy_outputs()
         if self.study.campaign_data:
             targets += [
                 "results/campaign/ground_truth.csv",

@@ -77,6 +77,7 @@ __all__ = [
     "SimulationResult",
     "UnreachableSetpoint",
     "load_parameters",
+    "parameter_draws",
     "parameter_set",
     "rejected_note",
     "simulate",
@@ -421,6 +422,30 @@ def _physical_draws(
         if count == n:
             return {p: np.concatenate(v) for p, v in kept.items()}, rejected
     return None, rejected + count
+
+
+def parameter_draws(
+    ps: ParameterSet, draws: int, rng: np.random.Generator, floor: float | None
+) -> tuple[list[dict[str, float]], int, str]:
+    """The central parameters of ``ps`` and ``draws`` parameter sets within the physical
+    limits (:func:`_physical_draws`, the air node at least ``floor``): (the sets, the central
+    first; how many draws were rejected; why there are no draws, "" when there are). No
+    draws when ``draws`` is 0 or ``ps`` draws none."""
+    thetas = [dict(ps.theta)]
+    if draws <= 0 or ps.draw is None:
+        return thetas, 0, ""
+    d, rejected = _physical_draws(ps, draws, rng, floor)
+    if d is None:
+        limits = _limits(ps.structure, floor)
+        why = (
+            f"fewer than {draws} of {MAX_DRAW_ROUNDS * draws} parameter draws lie within "
+            f"the physical limits ({limits}): the spread is dominated by the limit"
+        )
+        return thetas, 0, why
+    thetas += [
+        {p: float(d[p][i]) if p in d else ps.theta[p] for p in ps.theta} for i in range(draws)
+    ]
+    return thetas, rejected, ""
 
 
 def load_parameters(path: str | os.PathLike[str]) -> ParameterSet:
@@ -827,22 +852,9 @@ def simulate(
     withheld = ps.band_withheld
     if withheld:
         draws = 0
-    thetas = [dict(ps.theta)]
     rng = np.random.default_rng(seed)
-    rejected = 0
-    if draws > 0 and ps.draw is not None:
-        d, rejected = _physical_draws(ps, draws, rng, floor)
-        if d is None:
-            withheld = (
-                f"fewer than {draws} of {MAX_DRAW_ROUNDS * draws} parameter draws lie within "
-                f"the physical limits ({limits}): the spread is dominated by the limit"
-            )
-            rejected = 0
-        else:
-            thetas += [
-                {p: float(d[p][i]) if p in d else ps.theta[p] for p in ps.theta}
-                for i in range(draws)
-            ]
+    thetas, rejected, unbounded = parameter_draws(ps, draws, rng, floor)
+    withheld = withheld or unbounded
     noise_on = ps.sigma is not None and len(thetas) > 1 and np.any(ps.sigma > 0)
     sigma = ps.sigma if noise_on else None
     steps = _prepare(structure, thetas, G_values, scenario.dt_s, sigma, scenario.input_hold)

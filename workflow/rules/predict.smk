@@ -138,3 +138,46 @@ rule design:
         "../envs/railtherm.yaml"
     script:
         "../scripts/design.py"
+
+
+rule energy:
+    input:
+        fits=[
+            f"results/vehicles/{vid}/fit_{table_key(vid, 2)}.yaml"
+            for vid in second_order_vehicles()
+        ],
+        weather=config["energy"]["weather"],
+        profile=config["energy"]["profile"] or [],
+    output:
+        csv=report(
+            "results/tables/annual_energy.csv",
+            caption="../report/annual_energy.rst",
+            category="Tables",
+            labels={"table": "annual_energy"},
+        ),
+        md="results/tables/annual_energy.md",
+        png=report(
+            "results/figures/annual_energy.png",
+            caption="../report/annual_energy_figure.rst",
+            category="Figures",
+            labels={"figure": "annual_energy"},
+        ),
+        svg="results/figures/annual_energy.svg",
+    params:
+        vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
+        what_if=config["energy"]["what_if"],
+        step_s=config["energy"]["step_s"],
+        draws=config["energy"]["draws"],
+        seed=config["energy"]["seed"],
+        code=script_code("energy.py"),
+    log:
+        "logs/energy.log",
+    priority: CHAIN_PRIORITY
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/energy.py"

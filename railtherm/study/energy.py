@@ -1,0 +1,513 @@
+"""The annual heating energy of a vehicle: an identified model (a fit or a class reference
+model) through a typical year of weather (:mod:`railtherm.study.weather`) and an operating
+profile, with 95 % bands and paired what-ifs.
+
+**Profile** (:func:`load_profile`, schema ``railtherm/schemas/profile.schema.yaml``): the hours
+in service by weekday, the set point in service and the set-back when stabled (or heating
+off), the depot pre-heating (the set point raised that many hours before each service
+period; its energy apart), passengers by hour and their sensible heat, door openings as air
+exchanged with the outside (a conductance rho c_p V' between T and T_o, eq. 1's E_sup -
+E_exh), auxiliaries, and the heating limit of the vehicle's HVAC.
+
+**Model.** Eqs. 7-8 (or 9, or any structure of the registry) with T_o from the weather, the
+gains and the heating into the air node, the door conductance in service; each step's exact
+discretisation, the inputs held over the step. The HVAC is an ideal controller: each step it
+gives the power that brings T to the set point at the step's end, within 0 and its limit
+(the heating a well-tuned HVAC delivers; no overshoot, no cycling). Where the limit is
+reached T falls below the set point: the hours in service more than ``UNMET_K`` below it are
+the unmet demand. The year runs after a warm-up over its own last ``WARMUP_DAYS`` days (a
+typical year repeats), so the stored heat at its start is the year's own.
+
+**Bands.** The 95 % bands are the 2.5 and 97.5 % quantiles over the parameter draws of the
+identification (:func:`railtherm.study.simulate.parameter_draws`: a fit's covariance and
+systematic sources, or a class model's spread), within the physical limits. The Kalman
+estimator's process noise is not added: it moves single days, not the year's sum, by far
+less than the parameters do (the year is 525,600 steps of independent noise).
+
+**What-ifs** (``k=-10%``, ``set_back=8``, ``set_back=off``, ``preheat_h=3``) run with the same
+draws as the base, so their difference is paired: its band is that of the difference, per
+draw, not the two totals' bands combined, and it is narrower than either.
+
+Cooling is out of scope: the model has no cooling input, and a vehicle above its set point
+floats.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from railtherm.errors import ConfigError
+from railtherm.study import simulate as sim
+from railtherm.study.weather import Weather, on_grid
+from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_schema
+
+__all__ = [
+    "AnnualResult",
+    "Profile",
+    "WhatIf",
+    "annual_energy",
+    "markdown",
+    "load_profile",
+    "parse_what_if",
+    "profile_on_grid",
+    "study_markdown",
+    "study_rows",
+    "write_study_energy",
+]
+
+UNMET_K = 0.5  # a service hour more than this below the set point is unmet demand
+WARMUP_DAYS = 14
+RHO_CP_AIR = 1.2 * 1005.0  # J/(m3 K), as the scenario engine's air exchange
+DAYS_PER_MONTH = (31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31)
+WEEKDAYS = ("monday", "tuesday", "wednesday", "thursday", "friday", "saturday", "sunday")
+
+
+@dataclass(frozen=True)
+class Profile:
+    """An operating profile (:func:`load_profile`): service periods [(start h, end h)] by day
+    kind (``weekdays``, ``saturday``, ``sunday``), set points, pre-heating hours, passengers
+    per hour of a service day and their W, door exchange (m³/h in service), auxiliaries and
+    the heating limit."""
+
+    name: str
+    service: Mapping[str, tuple[tuple[float, float], ...]]
+    set_point_C: float
+    set_back_C: float | None
+    preheat_h: float
+    passengers_by_hour: tuple[float, ...]
+    W_per_passenger: float
+    door_air_m3_h: float
+    auxiliaries_W: float
+    heating_limit_W: float
+    year_starts_on: str = "monday"
+    source: str = ""
+
+
+def load_profile(path: str | Path) -> Profile:
+    """Read and check an operating profile (YAML, ``profile.schema.yaml``). A mistake is a
+    :class:`ConfigError` naming the file, the key and the value."""
+    file = str(path)
+    data = read_yaml(path, display=file)
+    validate_schema(file, data, packaged_schema("profile"))
+    check_finite(file, data)
+    service = {}
+    for kind in ("weekdays", "saturday", "sunday"):
+        periods = data["service"].get(kind, data["service"]["weekdays"])
+        end = 0.0
+        for i, (a, b) in enumerate(periods):
+            if not (end <= a < b <= 24):
+                raise ConfigError(
+                    file, f"service.{kind}[{i}]", [a, b], "periods start < end, in order, in 0-24 h"
+                )
+            end = b
+        service[kind] = tuple((float(a), float(b)) for a, b in periods)
+    by_hour = [float(v) for v in data["passengers"]["by_hour"]]
+    if len(by_hour) not in (1, 24):
+        raise ConfigError(file, "passengers.by_hour", len(by_hour), "expected 1 or 24 values")
+    doors = data["doors"]
+    return Profile(
+        name=str(data.get("name", Path(file).stem)),
+        service=service,
+        set_point_C=float(data["set_point_C"]),
+        set_back_C=None if data["set_back_C"] is None else float(data["set_back_C"]),
+        preheat_h=float(data["preheat_h"]),
+        passengers_by_hour=tuple(by_hour * 24 if len(by_hour) == 1 else by_hour),
+        W_per_passenger=float(data["passengers"].get("W_each", 80.0)),
+        door_air_m3_h=float(doors.get("openings_per_h", 0))
+        * float(doors.get("air_m3_per_opening", 0)),
+        auxiliaries_W=float(data["auxiliaries_W"]),
+        heating_limit_W=float(data["heating_limit_W"]),
+        year_starts_on=str(data["year_starts_on"]),
+        source=str(data.get("source", "")),
+    )
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A profile on the simulation grid (one value per step): in service, pre-heating, the
+    set point (NaN: heating off), the gains (W) and the door conductance (W/K)."""
+
+    in_service: np.ndarray
+    preheat: np.ndarray
+    set_point: np.ndarray
+    gains_W: np.ndarray
+    door_W_K: np.ndarray
+
+
+def profile_on_grid(profile: Profile, t_s: np.ndarray) -> Grid:
+    """The profile at every grid time ``t_s`` (seconds from the typical year's start, whose
+    first day is ``profile.year_starts_on``)."""
+    day = (t_s // 86400.0).astype(int)
+    hour = (t_s % 86400.0) / 3600.0
+    weekday = (day + WEEKDAYS.index(profile.year_starts_on)) % 7
+    kind = np.where(weekday < 5, 0, np.where(weekday == 5, 1, 2))
+    in_service = np.zeros(len(t_s), dtype=bool)
+    for k, name in enumerate(("weekdays", "saturday", "sunday")):
+        for a, b in profile.service[name]:
+            in_service |= (kind == k) & (hour >= a) & (hour < b)
+    # pre-heating: not in service, and service within the next preheat_h (the year wraps)
+    steps_ahead = int(round(profile.preheat_h * 3600.0 / (t_s[1] - t_s[0]))) if len(t_s) > 1 else 0
+    preheat = np.zeros(len(t_s), dtype=bool)
+    if steps_ahead > 0:
+        wrapped = np.concatenate([in_service, in_service[:steps_ahead]]).astype(int)
+        ahead = np.concatenate([[0], np.cumsum(wrapped)])
+        idx = np.arange(len(t_s))
+        preheat = (ahead[idx + 1 + steps_ahead] - ahead[idx + 1] > 0) & ~in_service
+    heated = in_service | preheat
+    set_back = math.nan if profile.set_back_C is None else profile.set_back_C
+    set_point = np.where(heated, profile.set_point_C, set_back)
+    people = np.asarray(profile.passengers_by_hour)[np.minimum(hour.astype(int), 23)]
+    gains = np.where(in_service, people * profile.W_per_passenger + profile.auxiliaries_W, 0.0)
+    door = np.where(in_service, RHO_CP_AIR * profile.door_air_m3_h / 3600.0, 0.0)
+    return Grid(in_service, preheat, set_point, gains, door)
+
+
+@dataclass(frozen=True)
+class WhatIf:
+    """A change to the base: ``k`` (relative change of the loss conductance kA), ``set_back``
+    (degC, or None: heating off when stabled), ``preheat_h``."""
+
+    label: str
+    k_rel: float = 0.0
+    profile: Mapping[str, Any] = field(default_factory=dict)
+
+
+def parse_what_if(text: str) -> WhatIf:
+    """``k=-10%``, ``set_back=8``, ``set_back=off`` or ``preheat_h=3``; another text is a
+    :class:`ConfigError` naming ``--what-if``."""
+    m = re.fullmatch(r"\s*(k|set_back|preheat_h)\s*=\s*([-+]?[\w.]+)(%?)\s*", str(text))
+    if m:
+        key, value, pct = m.groups()
+        try:
+            if key == "k" and pct:
+                return WhatIf(f"k {float(value):+g} %", k_rel=float(value) / 100.0)
+            if key == "set_back" and not pct:
+                off = value.lower() == "off"
+                return WhatIf(
+                    "set-back off" if off else f"set-back {float(value):g} °C",
+                    profile={"set_back_C": None if off else float(value)},
+                )
+            if key == "preheat_h" and not pct and float(value) >= 0:
+                return WhatIf(f"pre-heat {float(value):g} h", profile={"preheat_h": float(value)})
+        except ValueError:
+            pass
+    raise ConfigError(
+        "--what-if", "what_if", text, "expected k=-10%, set_back=8, set_back=off or preheat_h=3"
+    )
+
+
+@dataclass
+class AnnualResult:
+    """Per run (the central parameters first, then the draws), per variant (the base, then
+    each what-if): the annual heating energy (kWh), monthly (kWh, 12), pre-heating (kWh),
+    peak power (W) and unmet hours in service; and what the run rests on."""
+
+    label: str
+    weather: str
+    profile: str
+    variants: list[str]
+    energy_kWh: np.ndarray  # (V, S)
+    monthly_kWh: np.ndarray  # (V, S, 12)
+    preheat_kWh: np.ndarray  # (V, S)
+    peak_W: np.ndarray  # (V, S)
+    unmet_h: np.ndarray  # (V, S)
+    dt_s: float
+    draws: int
+    rejected: int = 0
+    notes: list[str] = field(default_factory=list)
+
+    def band(self, values: np.ndarray) -> tuple[float, float, float]:
+        """(central, 2.5 %, 97.5 %) of a per-run array; NaN bounds without draws."""
+        central = float(values[0])
+        if len(values) < 3:
+            return central, math.nan, math.nan
+        lo, hi = np.quantile(values[1:], [0.025, 0.975])
+        return central, float(lo), float(hi)
+
+    def difference(self, variant: int) -> tuple[float, float, float]:
+        """The what-if's paired difference in annual energy (kWh): per run, then banded."""
+        return self.band(self.energy_kWh[variant] - self.energy_kWh[0])
+
+
+def _loss_scaled(ps: sim.ParameterSet, theta: Mapping[str, float], k_rel: float) -> dict:
+    """``theta`` with the loss conductance to the outside scaled by 1 + k_rel."""
+    structure = ps.structure
+    if k_rel == 0.0:
+        return dict(theta)
+    if "kA" not in structure.parameters:
+        raise ConfigError(
+            "--what-if", "k", k_rel, f"structure {structure.name} has no kA to change"
+        )
+    return {**theta, "kA": theta["kA"] * (1.0 + k_rel)}
+
+
+def annual_energy(
+    params: Any,
+    weather: Weather,
+    profile: Profile,
+    *,
+    what_ifs: Sequence[WhatIf] = (),
+    dt_s: float = 60.0,
+    draws: int = 200,
+    seed: int = 0,
+    volume_m3: float | None = None,
+) -> AnnualResult:
+    """The annual heating energy of ``params`` (a fit, a class reference model or a
+    :class:`railtherm.study.simulate.ParameterSet`) in ``weather`` under ``profile``, with
+    ``draws`` parameter draws (0: the central run only) and the ``what_ifs`` on the same
+    draws. Every run and variant advances together, one vectorised step at a time."""
+    ps = params if isinstance(params, sim.ParameterSet) else sim.parameter_set(params)
+    if ps.not_identified:
+        raise sim.NotPredictable(
+            ps.label, "parameters", list(ps.not_identified), "not identified by the data"
+        )
+    structure = ps.structure
+    floor = sim.air_capacity(volume_m3, ps.label)
+    withheld = ps.band_withheld
+    rng = np.random.default_rng(seed)
+    thetas, rejected, unbounded = sim.parameter_draws(ps, 0 if withheld else draws, rng, floor)
+    notes = [n for n in (withheld, unbounded) if n]
+    t, T_o, _ = on_grid(weather, dt_s, "first_order")
+    if len(structure.inputs) > 2:
+        notes.append(f"irradiance inputs {list(structure.inputs[2:])} taken as 0 W/m²")
+    variants = [WhatIf("base"), *what_ifs]
+    grids = [profile_on_grid(replace(profile, **w.profile), t) for w in variants]
+    S = len(thetas)
+    runs = [_loss_scaled(ps, th, w.k_rel) for w in variants for th in thetas]
+    n = len(structure.states)
+    # one discretisation per run and door state (closed: 0; open: the profile's conductance)
+    G_open = float(grids[0].door_W_K.max())
+    A = np.array([structure.matrices(th)[0] for th in runs])
+    B = np.array([structure.matrices(th)[1] for th in runs])
+    C_air = np.array([th[structure.air] for th in runs])
+    Ad, BdT, BdQ = [], [], []
+    for G in (0.0, G_open):
+        A_g, B_g = A.copy(), B.copy()
+        A_g[:, 0, 0] -= G / C_air
+        B_g[:, 0, 0] += G / C_air
+        disc = [sim.models.discretize_zoh(a, b, dt_s) for a, b in zip(A_g, B_g, strict=True)]
+        Ad.append(np.array([d[0] for d in disc]))
+        BdT.append(np.array([d[1][:, 0] for d in disc]))
+        BdQ.append(np.array([d[1][:, 1] for d in disc]))
+    gain_Q = [b[:, 0] for b in BdQ]  # the air's response to a held watt over a step
+    V = len(variants)
+    variant = np.repeat(np.arange(V), S)
+    set_point = np.stack([g.set_point for g in grids])  # (V, N)
+    pre = np.stack([g.preheat for g in grids])
+    service = grids[0].in_service
+    door = (grids[0].door_W_K > 0).astype(int)
+    gains = grids[0].gains_W
+    limit = profile.heating_limit_W
+    month = np.searchsorted(np.cumsum(DAYS_PER_MONTH) * 86400.0, t, side="right")
+    month = np.minimum(month, 11)
+
+    def step(x, k):
+        g = door[k]
+        free = np.einsum("sij,sj->si", Ad[g], x) + BdT[g] * T_o[k] + BdQ[g] * gains[k]
+        sp = set_point[variant, k]
+        q = np.clip((sp - free[:, 0]) / gain_Q[g], 0.0, limit)
+        q = np.where(np.isnan(sp), 0.0, q)
+        return free + BdQ[g] * q[:, None], q, sp
+
+    # warm-up over the year's last days, from the steady state at the first step's inputs
+    x = np.zeros((V * S, n))
+    for r in range(V * S):
+        sp0 = set_point[variant[r], 0]
+        T_air = T_o[0] if np.isnan(sp0) else sp0
+        x[r] = T_air
+    N = len(t)
+    for k in range(N - int(WARMUP_DAYS * 86400 / dt_s), N):
+        x, _, _ = step(x, k)
+    energy = np.zeros((V * S, 12))
+    pre_J = np.zeros(V * S)
+    peak = np.zeros(V * S)
+    unmet = np.zeros(V * S)
+    for k in range(N):
+        x, q, sp = step(x, k)
+        energy[:, month[k]] += q
+        if pre[:, k].any():
+            pre_J += np.where(pre[variant, k], q, 0.0)
+        np.maximum(peak, q, out=peak)
+        if service[k]:
+            unmet += x[:, 0] < sp - UNMET_K
+    scale = dt_s / 3.6e6
+    monthly = (energy * scale).reshape(V, S, 12)
+    return AnnualResult(
+        label=ps.label,
+        weather=weather.source,
+        profile=profile.name,
+        variants=[w.label for w in variants],
+        energy_kWh=monthly.sum(axis=2),
+        monthly_kWh=monthly,
+        preheat_kWh=(pre_J * scale).reshape(V, S),
+        peak_W=peak.reshape(V, S),
+        unmet_h=(unmet * dt_s / 3600.0).reshape(V, S),
+        dt_s=dt_s,
+        draws=S - 1,
+        rejected=rejected,
+        notes=notes,
+    )
+
+
+MONTHS = ("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec")
+
+
+def _kwh(c: float, lo: float, hi: float) -> str:
+    band = "" if math.isnan(lo) else f" [{lo:,.0f}, {hi:,.0f}]"
+    return f"{c:,.0f}{band}"
+
+
+def markdown(result: AnnualResult) -> str:
+    """The annual result for readers: the year's heating energy, pre-heating, peak power and
+    unmet hours with 95 % bands, the months, and each what-if's paired difference."""
+    r = result
+    bands = "95 % bands over " + (
+        f"{r.draws} parameter draws" if r.draws else "no draws (central only)"
+    )
+    lines = [
+        f"Annual heating energy of {r.label}: weather {r.weather}, profile {r.profile}, "
+        f"{r.dt_s:g} s step; {bands}.",
+        *(f"Note: {n}." for n in r.notes),
+        "",
+        "| variant | heating (kWh/a) | of it pre-heating (kWh/a) | peak (W) | unmet (h) |",
+        "|---|---|---|---|---|",
+    ]
+    for v, name in enumerate(r.variants):
+        lines.append(
+            f"| {name} | {_kwh(*r.band(r.energy_kWh[v]))} | {_kwh(*r.band(r.preheat_kWh[v]))} "
+            f"| {_kwh(*r.band(r.peak_W[v]))} | {_kwh(*r.band(r.unmet_h[v]))} |"
+        )
+    lines += ["", "| month | " + " | ".join(MONTHS) + " |", "|---" * 13 + "|"]
+    for v, name in enumerate(r.variants[:1]):
+        cells = [f"{r.monthly_kWh[v, 0, m]:,.0f}" for m in range(12)]
+        lines.append(f"| {name} (kWh) | " + " | ".join(cells) + " |")
+    for v in range(1, len(r.variants)):
+        c, lo, hi = r.difference(v)
+        band = "" if math.isnan(lo) else f" [{lo:+,.0f}, {hi:+,.0f}]"
+        lines.append("")
+        lines.append(f"{r.variants[v]} against the base: {c:+,.0f} kWh/a{band} (paired).")
+    lines += ["", "Cooling is not modelled: above its set point the vehicle floats."]
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------------------
+# the study's table (rule energy)
+
+
+def study_rows(
+    fits: Mapping[str, Any],
+    vehicles: Mapping[str, Mapping[str, Any]],
+    weathers: Sequence[Weather],
+    profile: Profile,
+    what_ifs: Sequence[WhatIf] = (),
+    *,
+    dt_s: float = 60.0,
+    draws: int = 200,
+    seed: int = 0,
+) -> list[dict[str, Any]]:
+    """One row per vehicle with an acceptable fit, climate and variant: the annual energy,
+    pre-heating, peak and unmet hours with 95 % bands, the months (central and band) and,
+    for a what-if, its paired difference from the base."""
+    from railtherm.study.quality import ACCEPTABLE
+
+    rows = []
+    for i, (vid, fit) in enumerate(fits.items()):
+        if fit.verdict != ACCEPTABLE:
+            continue
+        for j, year in enumerate(weathers):
+            result = annual_energy(
+                fit,
+                year,
+                profile,
+                what_ifs=what_ifs,
+                dt_s=dt_s,
+                draws=draws,
+                seed=seed + 100 * i + j,
+                volume_m3=vehicles[vid].get("volume_m3"),
+            )
+            for v, variant in enumerate(result.variants):
+                row: dict[str, Any] = {
+                    "vehicle": vid,
+                    "class": vehicles[vid].get("class", ""),
+                    "climate": year.name,
+                    "weather": year.source,
+                    "variant": variant,
+                }
+                for key, values in (
+                    ("energy_kWh", result.energy_kWh[v]),
+                    ("preheat_kWh", result.preheat_kWh[v]),
+                    ("peak_W", result.peak_W[v]),
+                    ("unmet_h", result.unmet_h[v]),
+                ):
+                    row[key], row[f"{key}_lo"], row[f"{key}_hi"] = result.band(values)
+                diff = result.difference(v) if v else (math.nan,) * 3
+                row["difference_kWh"], row["difference_lo"], row["difference_hi"] = diff
+                for m, name in enumerate(MONTHS):
+                    c, lo, hi = result.band(result.monthly_kWh[v, :, m])
+                    row[f"{name}_kWh"], row[f"{name}_lo"], row[f"{name}_hi"] = c, lo, hi
+                row["draws"] = result.draws
+                rows.append(row)
+    return rows
+
+
+def study_markdown(table, profile: Profile, dt_s: float, source: str) -> str:
+    """The study's annual energy table for readers."""
+    lines = [
+        "# Annual heating energy in two typical years",
+        "",
+        f"Data: {source}. Profile {profile.name} (config/profiles/), {dt_s:g} s step, the "
+        "vehicle's identified second-order model with an ideal HVAC to the set point within "
+        f"{profile.heating_limit_W:,.0f} W; 95 % bands over parameter draws; a what-if's "
+        "difference is paired (the same draws). Cooling is not modelled. "
+        "(railtherm.study.energy)",
+        "",
+        "| vehicle | climate | variant | heating (kWh/a) | difference (kWh/a) | "
+        "pre-heating (kWh/a) | peak (kW) | unmet (h) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+
+    def band(r, key: str, scale: float = 1.0, sign: bool = False) -> str:
+        c, lo, hi = (r[key], r[f"{key}_lo"], r[f"{key}_hi"])
+        fmt = "{:+,.0f}" if sign else "{:,.0f}"
+        if isinstance(c, float) and math.isnan(c):
+            return ""
+        text = fmt.format(c / scale)
+        if not (isinstance(lo, float) and math.isnan(lo)):
+            text += f" [{fmt.format(lo / scale)}, {fmt.format(hi / scale)}]"
+        return text
+
+    for _, r in table.iterrows():
+        diff = band(
+            r.rename({"difference_kWh": "d", "difference_lo": "d_lo", "difference_hi": "d_hi"}),
+            "d",
+            sign=True,
+        )
+        lines.append(
+            f"| {r['vehicle']} | {r['climate']} | {r['variant']} | {band(r, 'energy_kWh')} | "
+            f"{diff} | {band(r, 'preheat_kWh')} | {band(r, 'peak_W', 1000.0)} | "
+            f"{band(r, 'unmet_h')} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def write_study_energy(
+    rows, profile: Profile, dt_s: float, source: str, csv: str, md: str, figure: str
+) -> None:
+    """The study's annual energy as CSV (4 significant digits) and Markdown, and its figure
+    (``figure``: the path without suffix; PNG and SVG)."""
+    import pandas as pd
+
+    from railtherm.report import plots, tables
+
+    table = pd.DataFrame(rows)
+    tables.write_csv(table, csv, digits=4)
+    with open(md, "w", encoding="utf-8") as stream:
+        stream.write(study_markdown(table, profile, dt_s, source))
+    plots.save_figure(plots.annual_energy_figure(table, note=source), figure)

@@ -1,0 +1,176 @@
+"""Typical-year weather for the annual heating energy: outdoor temperature T_o and, where a
+fit has apertures, global horizontal irradiance, from the files weather services publish.
+
+Readers (``kind``, or recognised from the file):
+
+- ``tmy3``: NREL's TMY3 CSV (``pvlib.iotools.read_tmy3``);
+- ``epw``: EnergyPlus weather (``pvlib.iotools.read_epw``);
+- ``pvgis``: a PVGIS typical meteorological year in its CSV, JSON or EPW output
+  (``pvlib.iotools.read_pvgis_tmy``);
+- ``csv``: a plain table with a time column (declared as a vehicle's raw files declare
+  theirs, :mod:`railtherm.data.timeaxis`), ``T_o`` in degC and optionally ``ghi`` in W/m².
+
+pvlib, the maintained library of the photovoltaic community for exactly these files, is an
+optional dependency (``pip install railtherm[weather]``); a plain CSV needs none.
+
+A typical year is a sequence of hourly records of one calendar year's length (8760 or 8784),
+months taken from different years. Its stamps are read as the weather service states them
+(TMY3, EPW and PVGIS stamp the end of each hour; the dry-bulb temperature is the value at
+the stamp) and made a year of elapsed seconds from the first stamp. :func:`on_grid` puts it
+on a simulation grid: linear between the hourly values (``first_order``, the default: a
+temperature is a continuous signal) or held (``zero_order``), and closed over the year's end
+(the last hour runs into the first, a typical year being read as one that repeats).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from railtherm.errors import ConfigError
+
+__all__ = ["KINDS", "Weather", "on_grid", "read_weather"]
+
+KINDS = ("tmy3", "epw", "pvgis", "csv")
+HOUR_S = 3600.0
+
+
+@dataclass(frozen=True, eq=False)
+class Weather:
+    """A typical year: hourly ``T_o`` (degC) and ``ghi`` (W/m², None where the file has
+    none) at ``t_s`` (seconds from the first record), the local ``time`` stamps, and where
+    the year comes from (``name``, ``source``, ``latitude``, ``longitude``)."""
+
+    name: str
+    source: str
+    time: pd.DatetimeIndex
+    t_s: np.ndarray
+    T_o: np.ndarray
+    ghi: np.ndarray | None
+    latitude: float = math.nan
+    longitude: float = math.nan
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def hours(self) -> int:
+        return len(self.t_s)
+
+
+def _kind_of(path: Path) -> str:
+    suffix = path.suffix.lower()
+    if suffix == ".epw":
+        return "epw"
+    if suffix == ".json":
+        return "pvgis"
+    head = path.read_text(encoding="utf-8", errors="replace")[:400]
+    if head.startswith("Latitude") or "PVGIS" in head[:200]:
+        return "pvgis"
+    first = head.splitlines()[0] if head else ""
+    if first.count(",") == 6 and first.split(",")[0].strip().isdigit():
+        return "tmy3"  # the TMY3 header: USAF, name, state, TZ, lat, lon, elevation
+    return "csv"
+
+
+def _pvlib(file: str):
+    try:
+        from pvlib import iotools
+    except ImportError as err:  # pragma: no cover - the test environment has it
+        raise ConfigError(
+            file,
+            "weather",
+            "pvlib",
+            "reading TMY3, EPW or PVGIS files needs pip install railtherm[weather] (pvlib)",
+        ) from err
+    return iotools
+
+
+def read_weather(path: str | Path, kind: str | None = None, time: dict | None = None) -> Weather:
+    """The typical year in ``path`` (``kind``: one of :data:`KINDS`, default recognised from
+    the file). ``time``: a plain CSV's time column as a vehicle config's ``format.time``
+    declares it (default ``{column: time, format: iso}``). A file that is not a year of
+    hourly records, or whose temperatures are missing or beyond -90..60 degC, is a
+    :class:`ConfigError` naming the file."""
+    path = Path(path)
+    file = str(path)
+    if not path.is_file():
+        raise ConfigError(file, "weather", file, "no such file")
+    kind = kind or _kind_of(path)
+    if kind not in KINDS:
+        raise ConfigError(file, "kind", kind, f"expected one of {list(KINDS)}")
+    ghi = None
+    lat = lon = math.nan
+    meta: dict = {}
+    if kind == "csv":
+        from railtherm.data import timeaxis
+
+        spec = time or {"column": "time", "format": "iso"}
+        table = pd.read_csv(path)
+        column = spec.get("column", "time")
+        for needed in (column, "T_o"):
+            if needed not in table.columns:
+                raise ConfigError(file, "columns", list(table.columns), f"needs {needed!r}")
+        tf = timeaxis.declared(file, spec)
+        stamps = timeaxis.parse(file, table[column].astype(str), column, tf)
+        index = pd.DatetimeIndex(stamps)
+        T_o = table["T_o"].to_numpy(float)
+        if "ghi" in table.columns:
+            ghi = table["ghi"].to_numpy(float)
+        name, source = path.stem, f"CSV {path.name}"
+    else:
+        iotools = _pvlib(file)
+        if kind == "tmy3":
+            data, meta = iotools.read_tmy3(file, map_variables=True)
+            name = str(meta.get("Name", path.stem)).strip('"').title()
+            source = f"NREL TMY3 station {meta.get('USAF', '')} ({name}, {meta.get('State', '')})"
+        elif kind == "epw":
+            data, meta = iotools.read_epw(file)
+            name = str(meta.get("city", path.stem))
+            source = f"EPW {path.name} ({name}, {meta.get('country', '')})"
+        else:
+            out = iotools.read_pvgis_tmy(file, map_variables=True)
+            data, meta = out[0], out[-1]
+            name = path.stem
+            source = f"PVGIS TMY {path.name}"
+        lat = float(meta.get("latitude", meta.get("location", {}).get("latitude", math.nan)))
+        lon = float(meta.get("longitude", meta.get("location", {}).get("longitude", math.nan)))
+        index = pd.DatetimeIndex(data.index)
+        T_o = data["temp_air"].to_numpy(float)
+        if "ghi" in data.columns:
+            ghi = data["ghi"].to_numpy(float)
+    n = len(T_o)
+    if n not in (8760, 8784):
+        raise ConfigError(file, "records", n, "a typical year has 8760 (or 8784) hourly records")
+    bad = ~np.isfinite(T_o) | (T_o < -90) | (T_o > 60)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ConfigError(file, f"T_o[{i}]", T_o[i], "missing or beyond -90..60 degC")
+    if ghi is not None:
+        ghi = np.clip(np.nan_to_num(ghi, nan=0.0), 0.0, None)
+    t_s = np.arange(n) * HOUR_S
+    return Weather(name, source, index, t_s, T_o, ghi, lat, lon, dict(meta))
+
+
+def on_grid(
+    weather: Weather, dt_s: float, hold: str = "first_order"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(t_s, T_o, ghi) on the grid 0, dt, ... up to one year (the weather's length) less a
+    step: ``first_order`` linear between the hourly values, ``zero_order`` each held over
+    its hour; the last hour runs into the first (the typical year repeats)."""
+    if hold not in ("first_order", "zero_order"):
+        raise ValueError(f"hold: first_order or zero_order, got {hold!r}")
+    period = weather.hours * HOUR_S
+    t = np.arange(0.0, period, float(dt_s))
+    knots = np.append(weather.t_s, period)
+
+    def resample(values: np.ndarray) -> np.ndarray:
+        closed = np.append(values, values[0])
+        if hold == "first_order":
+            return np.interp(t, knots, closed)
+        return values[np.minimum((t // HOUR_S).astype(int), len(values) - 1)]
+
+    ghi = None if weather.ghi is None else resample(weather.ghi)
+    return t, resample(weather.T_o), ghi

@@ -1,0 +1,143 @@
+"""railtherm.study.energy and railtherm.study.weather: the annual heating energy against
+answers known without the engine."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from railtherm.errors import ConfigError
+from railtherm.estimation import models
+from railtherm.study import energy, simulate, weather
+
+REPO = Path(__file__).resolve().parents[1]
+SAND_POINT = REPO / "config" / "weather" / "703165TY.csv"
+GREENSBORO = REPO / "config" / "weather" / "723170TYA.csv"
+SECOND = models.STRUCTURES["second_order"]
+THETA = {"kA": 700.0, "C": 9.0e6, "K_veh": 450.0, "C_veh": 1.8e7}
+ALWAYS = {"weekdays": [[0, 24]]}
+
+
+def vehicle(theta=THETA) -> simulate.ParameterSet:
+    return simulate.ParameterSet("test car", "declared", SECOND, dict(theta))
+
+
+def profile(tmp_path, **changes) -> energy.Profile:
+    data = {"service": ALWAYS, "set_point_C": 20, "heating_limit_W": 60000, **changes}
+    path = tmp_path / "profile.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return energy.load_profile(path)
+
+
+def constant_year(T_o: float) -> weather.Weather:
+    n = 8760
+    time = pd.date_range("2001-01-01 01:00", periods=n, freq="h")
+    return weather.Weather("flat", "constant", time, np.arange(n) * 3600.0, np.full(n, T_o), None)
+
+
+def test_constant_weather_costs_kA_dT_for_8760_hours_less_the_gains(tmp_path):
+    """T_o held at -5 degC, 20 degC held around the clock, 1.5 kW of auxiliaries: every
+    step heats kA (T_set - T_o) less the gains, exactly."""
+    prof = profile(tmp_path, auxiliaries_W=1500)
+    result = energy.annual_energy(vehicle(), constant_year(-5.0), prof, dt_s=600.0, draws=0)
+    expected = (THETA["kA"] * 25.0 - 1500.0) * 8760 / 1000.0
+    assert result.energy_kWh[0, 0] == pytest.approx(expected, rel=1e-9)
+    assert result.monthly_kWh[0, 0, 0] == pytest.approx(expected * 31 / 365, rel=1e-9)
+    assert result.unmet_h[0, 0] == 0 and result.preheat_kWh[0, 0] == 0
+
+
+@pytest.mark.parametrize("path", [SAND_POINT, GREENSBORO])
+def test_a_real_year_in_service_around_the_clock_is_its_degree_hours(tmp_path, path):
+    """In service around the clock at 20 degC without gains, a typical year costs kA times
+    its degree-hours below 20 degC within 3 %: the difference is the heat the capacities
+    store and give back across the hours the vehicle would float above its set point."""
+    year = weather.read_weather(path)
+    result = energy.annual_energy(vehicle(), year, profile(tmp_path), dt_s=600.0, draws=0)
+    degree_hours = np.clip(20.0 - year.T_o, 0.0, None).sum()
+    expected = THETA["kA"] * degree_hours / 1000.0
+    assert result.energy_kWh[0, 0] == pytest.approx(expected, rel=0.03)
+
+
+def test_a_what_if_is_paired_and_its_band_narrower_than_the_totals(tmp_path):
+    """k -10 % on the same draws: a saving, and the difference's band narrower than either
+    total's (the parameters' common uncertainty cancels)."""
+
+    def draw(n, rng):
+        return {p: v * np.exp(rng.normal(0.0, 0.05, n)) for p, v in THETA.items()}
+
+    ps = simulate.ParameterSet("test car", "declared", SECOND, dict(THETA), draw=draw)
+    prof = profile(tmp_path, service={"weekdays": [[6, 22]]}, set_back_C=8, preheat_h=1)
+    result = energy.annual_energy(
+        ps,
+        weather.read_weather(SAND_POINT),
+        prof,
+        what_ifs=[energy.parse_what_if("k=-10%")],
+        dt_s=1200.0,
+        draws=30,
+        seed=3,
+    )
+    base = result.band(result.energy_kWh[0])
+    less = result.band(result.energy_kWh[1])
+    diff = result.difference(1)
+    assert diff[0] < 0 and diff[2] < 0
+    assert diff[2] - diff[1] < min(base[2] - base[1], less[2] - less[1]) / 3
+    assert result.preheat_kWh[0, 0] > 0
+
+
+def test_typical_years_are_read_through_pvlib():
+    sand = weather.read_weather(SAND_POINT)
+    assert sand.hours == 8760 and sand.source.startswith("NREL TMY3 station 703165")
+    assert sand.latitude == pytest.approx(55.317) and -11 < sand.T_o.min() < sand.T_o.max() < 20
+    t, T_o, ghi = weather.on_grid(sand, 60.0)
+    assert len(t) == 525600 and T_o[60] == sand.T_o[1] and ghi is not None
+    assert T_o[30] == pytest.approx((sand.T_o[0] + sand.T_o[1]) / 2)
+
+
+@pytest.mark.bad_input
+def test_a_bad_weather_file_or_profile_names_what_is_wrong(tmp_path):
+    short = tmp_path / "short.csv"
+    short.write_text("time,T_o\n2001-01-01T00:00:00,1\n2001-01-01T01:00:00,2\n")
+    with pytest.raises(ConfigError, match="8760"):
+        weather.read_weather(short, kind="csv")
+    with pytest.raises(ConfigError, match=r"'service\.weekdays\[0\]'"):
+        profile(tmp_path, service={"weekdays": [[22, 6]]})
+    with pytest.raises(ConfigError, match="what_if"):
+        energy.parse_what_if("k=ten")
+    assert math.isnan(
+        energy.profile_on_grid(
+            profile(tmp_path, service={"weekdays": [[6, 7]]}), np.array([0.0, 600.0])
+        ).set_point[0]
+    )
+
+
+def test_the_command_prints_the_year_its_months_and_a_paired_what_if(fit_files, capsys):
+    """``railtherm energy`` on a campaign fit: the year with its band, the months, the
+    pre-heating apart and the what-if's paired difference; a bad what-if is refused before
+    anything runs."""
+    from railtherm.cli import main
+
+    fit, _ = fit_files("Metro2", "order2")
+    args = [
+        "energy",
+        str(fit),
+        "--weather",
+        str(SAND_POINT),
+        "--profile",
+        str(REPO / "config" / "profiles" / "metro_service.yaml"),
+        "--step-s",
+        "1800",
+        "--draws",
+        "10",
+    ]
+    assert main([*args, "--what-if", "k=-10%"]) == 0
+    out = capsys.readouterr().out
+    assert "weather NREL TMY3 station 703165 (Sand Point, AK)" in out
+    assert "| base | " in out and "| k -10 % | " in out and "| month | Jan |" in out
+    assert "k -10 % against the base: -" in out and "(paired)" in out
+    assert main([*args, "--what-if", "k=lots"]) != 0
+    assert "--what-if" in capsys.readouterr().err
