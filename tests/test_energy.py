@@ -141,3 +141,77 @@ def test_the_command_prints_the_year_its_months_and_a_paired_what_if(fit_files, 
     assert "k -10 % against the base: -" in out and "(paired)" in out
     assert main([*args, "--what-if", "k=lots"]) != 0
     assert "--what-if" in capsys.readouterr().err
+
+
+def test_a_kalman_fits_process_noise_widens_the_draws_not_the_central_year(tmp_path):
+    """The same parameter draws with and without a diffusion on the states: the central year
+    (no noise) is the same, the draws spread more, and a what-if stays paired (its
+    difference's band narrower than the base's)."""
+
+    def draw(n, rng):
+        return {p: v * np.exp(rng.normal(0.0, 0.03, n)) for p, v in THETA.items()}
+
+    plain = simulate.ParameterSet("car", "declared", SECOND, dict(THETA), draw=draw)
+    noisy = simulate.ParameterSet(
+        "car", "declared", SECOND, dict(THETA), draw=draw, sigma=np.array([2e-3, 1e-3])
+    )
+    year = weather.read_weather(GREENSBORO)
+    prof = profile(tmp_path)
+    what_if = [energy.parse_what_if("k=-10%")]
+    kw = {"dt_s": 3600.0, "draws": 20, "seed": 5, "what_ifs": what_if}
+    a = energy.annual_energy(plain, year, prof, **kw)
+    b = energy.annual_energy(noisy, year, prof, **kw)
+    assert b.energy_kWh[0, 0] == pytest.approx(a.energy_kWh[0, 0], rel=1e-12)
+    assert np.std(b.energy_kWh[0, 1:]) > np.std(a.energy_kWh[0, 1:])
+    lo, hi = b.difference(1)[1:]
+    assert hi - lo < np.ptp(b.energy_kWh[0, 1:])
+
+
+def _sand_point_as(kind: str, path: Path) -> weather.Weather:
+    """Sand Point's year written as an EPW or a PVGIS TMY CSV (the layouts those services
+    publish), then read back."""
+    year = weather.read_weather(SAND_POINT)
+    stamps = pd.date_range("2005-01-01 00:00", periods=8760, freq="h")
+    if kind == "epw":
+        lines = [
+            "LOCATION,Sand Point,AK,USA,TMY3,703165,55.32,-160.52,-9.0,7.0",
+            "DESIGN CONDITIONS,0",
+            "TYPICAL/EXTREME PERIODS,0",
+            "GROUND TEMPERATURES,0",
+            "HOLIDAYS/DAYLIGHT SAVINGS,No,0,0,0",
+            "COMMENTS 1,test",
+            "COMMENTS 2,test",
+            "DATA PERIODS,1,1,Data,Sunday, 1/ 1,12/31",
+        ]
+        flags = "?9?9?9?9E0?9?9?9?9?9?9?9?9?9?9?9?9?9?9?9*9*9?9?9?9"
+        for i, ts in enumerate(stamps):
+            rest = "0,0,0,0,0,0,180,2.0,10,10,9999,77777,9,999999999,0,0.0,0,88,0.0,0.0,0.0"
+            lines.append(
+                f"2005,{ts.month},{ts.day},{ts.hour + 1},60,{flags},{year.T_o[i]:.1f},0.0,80,"
+                f"101000,0,1415,300,{year.ghi[i]:.0f},{rest}"
+            )
+    else:
+        lines = [
+            "Latitude (decimal degrees): 55.317",
+            "Longitude (decimal degrees): -160.517",
+            "Elevation (m): 7.0",
+            "month,year",
+            *(f"{m},2005" for m in range(1, 13)),
+            "time(UTC),T2m,RH,G(h),Gb(n),Gd(h),IR(h),WS10m,WD10m,SP",
+            *(
+                f"{ts:%Y%m%d:%H%M},{year.T_o[i]:.2f},80,{year.ghi[i]:.0f},0,0,300,2,180,101000"
+                for i, ts in enumerate(stamps)
+            ),
+            "T2m: 2-m air temperature (degree Celsius)",
+        ]
+    path.write_text("\n".join(lines) + "\n")
+    return weather.read_weather(path)
+
+
+@pytest.mark.parametrize(("kind", "name"), [("epw", "sand.epw"), ("pvgis", "sand_pvgis.csv")])
+def test_epw_and_pvgis_years_are_read_as_published(tmp_path, kind, name):
+    year = _sand_point_as(kind, tmp_path / name)
+    reference = weather.read_weather(SAND_POINT)
+    assert year.hours == 8760 and year.latitude == pytest.approx(55.3, abs=0.05)
+    assert year.T_o == pytest.approx(np.round(reference.T_o, 1), abs=0.01)
+    assert year.ghi == pytest.approx(reference.ghi, abs=0.5)

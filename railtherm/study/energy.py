@@ -20,9 +20,9 @@ typical year repeats), so the stored heat at its start is the year's own.
 
 **Bands.** The 95 % bands are the 2.5 and 97.5 % quantiles over the parameter draws of the
 identification (:func:`railtherm.study.simulate.parameter_draws`: a fit's covariance and
-systematic sources, or a class model's spread), within the physical limits. The Kalman
-estimator's process noise is not added: it moves single days, not the year's sum, by far
-less than the parameters do (the year is 525,600 steps of independent noise).
+systematic sources, or a class model's spread), within the physical limits; a Kalman fit's
+draws each carry its identified process noise too (the diffusion of the state equation,
+discretised exactly), the same noise for the base and every what-if.
 
 **What-ifs** (``k=-10%``, ``set_back=8``, ``set_back=off``, ``preheat_h=3``) run with the same
 draws as the base, so their difference is paired: its band is that of the difference, per
@@ -274,9 +274,15 @@ def annual_energy(
     rng = np.random.default_rng(seed)
     thetas, rejected, unbounded = sim.parameter_draws(ps, 0 if withheld else draws, rng, floor)
     notes = [n for n in (withheld, unbounded) if n]
-    t, T_o, _ = on_grid(weather, dt_s, "first_order")
+    t, T_o, ghi_grid = on_grid(weather, dt_s, "first_order")
     if len(structure.inputs) > 2:
-        notes.append(f"irradiance inputs {list(structure.inputs[2:])} taken as 0 W/m²")
+        notes.append(
+            f"irradiance inputs {list(structure.inputs[2:])}: the weather's global horizontal "
+            "irradiance for each"
+            if ghi_grid is not None
+            else f"irradiance inputs {list(structure.inputs[2:])} taken as 0 W/m² (the "
+            "weather has none)"
+        )
     variants = [WhatIf("base"), *what_ifs]
     grids = [profile_on_grid(replace(profile, **w.profile), t) for w in variants]
     S = len(thetas)
@@ -284,18 +290,14 @@ def annual_energy(
     n = len(structure.states)
     # one discretisation per run and door state (closed: 0; open: the profile's conductance)
     G_open = float(grids[0].door_W_K.max())
-    A = np.array([structure.matrices(th)[0] for th in runs])
-    B = np.array([structure.matrices(th)[1] for th in runs])
-    C_air = np.array([th[structure.air] for th in runs])
-    Ad, BdT, BdQ = [], [], []
-    for G in (0.0, G_open):
-        A_g, B_g = A.copy(), B.copy()
-        A_g[:, 0, 0] -= G / C_air
-        B_g[:, 0, 0] += G / C_air
-        disc = [sim.models.discretize_zoh(a, b, dt_s) for a, b in zip(A_g, B_g, strict=True)]
-        Ad.append(np.array([d[0] for d in disc]))
-        BdT.append(np.array([d[1][:, 0] for d in disc]))
-        BdQ.append(np.array([d[1][:, 1] for d in disc]))
+    sigma = ps.sigma if (ps.sigma is not None and S > 1 and np.any(ps.sigma > 0)) else None
+    steps = sim.prepare_steps(structure, runs, np.array([0.0, G_open]), dt_s, sigma)
+    Ad = list(steps.Ad)
+    BdT = [b[:, :, 0] for b in steps.Bd]
+    BdQ = [b[:, :, 1] for b in steps.Bd]
+    # an aperture's irradiance: the weather's global horizontal irradiance for each channel
+    BdI = [b[:, :, 2:].sum(axis=2) for b in steps.Bd]
+    ghi = np.zeros_like(T_o) if ghi_grid is None else ghi_grid
     gain_Q = [b[:, 0] for b in BdQ]  # the air's response to a held watt over a step
     V = len(variants)
     variant = np.repeat(np.arange(V), S)
@@ -308,9 +310,19 @@ def annual_energy(
     month = np.searchsorted(np.cumsum(DAYS_PER_MONTH) * 86400.0, t, side="right")
     month = np.minimum(month, 11)
 
+    irradiated = len(structure.inputs) > 2
+    noise_rng = np.random.default_rng([seed, 1])
+    draws_n = S - 1
+
     def step(x, k):
         g = door[k]
         free = np.einsum("sij,sj->si", Ad[g], x) + BdT[g] * T_o[k] + BdQ[g] * gains[k]
+        if irradiated:
+            free += BdI[g] * ghi[k]
+        if sigma is not None:  # the process noise of each draw, the same for every variant
+            w = np.zeros((S, n))
+            w[1:] = noise_rng.standard_normal((draws_n, n))
+            free += np.einsum("sij,sj->si", steps.Qchol[g], np.tile(w, (V, 1)))
         sp = set_point[variant, k]
         q = np.clip((sp - free[:, 0]) / gain_Q[g], 0.0, limit)
         q = np.where(np.isnan(sp), 0.0, q)

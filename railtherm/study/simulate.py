@@ -79,6 +79,7 @@ __all__ = [
     "load_parameters",
     "parameter_draws",
     "parameter_set",
+    "prepare_steps",
     "rejected_note",
     "simulate",
 ]
@@ -511,7 +512,7 @@ def _with_exchange(
 PLAUSIBLE_AIR_C = (-60.0, 100.0)  # an interior air temperature outside: the inputs' units
 
 
-def _prepare(
+def prepare_steps(
     structure: models.Structure,
     thetas: list[dict[str, float]],
     G_values: np.ndarray,
@@ -519,6 +520,10 @@ def _prepare(
     sigma: np.ndarray | None,
     hold: str = "zero_order",
 ) -> _Steps:
+    """Per parameter set of ``thetas`` and per air-exchange conductance of ``G_values``: the
+    model's matrices with that conductance, their exact discretisation over ``dt`` under the
+    input ``hold``, their eigen-decomposition and, with the diffusion ``sigma``, the
+    Cholesky factor of each step's process noise."""
     A0, B0 = _matrices(structure, thetas)
     C_air = np.array([t[structure.air] for t in thetas])
     ramp = models.check_hold(hold) == "first_order"
@@ -857,7 +862,7 @@ def simulate(
     withheld = withheld or unbounded
     noise_on = ps.sigma is not None and len(thetas) > 1 and np.any(ps.sigma > 0)
     sigma = ps.sigma if noise_on else None
-    steps = _prepare(structure, thetas, G_values, scenario.dt_s, sigma, scenario.input_hold)
+    steps = prepare_steps(structure, thetas, G_values, scenario.dt_s, sigma, scenario.input_hold)
     if zero_irradiance:
         notes.append(f"irradiance {zero_irradiance} not in the scenario: taken as 0 W/m²")
 

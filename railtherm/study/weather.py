@@ -135,8 +135,9 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
             data, meta = out[0], out[-1]
             name = path.stem
             source = f"PVGIS TMY {path.name}"
-        lat = float(meta.get("latitude", meta.get("location", {}).get("latitude", math.nan)))
-        lon = float(meta.get("longitude", meta.get("location", {}).get("longitude", math.nan)))
+        where = {**meta.get("location", {}), **meta.get("inputs", {}), **meta}
+        lat = float(where.get("latitude", math.nan))
+        lon = float(where.get("longitude", math.nan))
         index = pd.DatetimeIndex(data.index)
         T_o = data["temp_air"].to_numpy(float)
         if "ghi" in data.columns:
