@@ -215,3 +215,20 @@ def test_epw_and_pvgis_years_are_read_as_published(tmp_path, kind, name):
     assert year.hours == 8760 and year.latitude == pytest.approx(55.3, abs=0.05)
     assert year.T_o == pytest.approx(np.round(reference.T_o, 1), abs=0.01)
     assert year.ghi == pytest.approx(reference.ghi, abs=0.5)
+
+
+def test_ready_by_preheating_starts_late_enough_and_no_later(tmp_path):
+    """Pre-heating 'ready by' the service start costs less than starting 4 h before and
+    still has the air at the set point when service starts (no unmet hour); with too weak a
+    heater for the lead it cannot, and the unmet hours say so."""
+    year = weather.read_weather(SAND_POINT)
+    common = {"service": {"weekdays": [[6, 22]]}, "set_back_C": 8, "preheat_h": 4}
+    early = profile(tmp_path, **common, heating_limit_W=30000)
+    late = profile(tmp_path, **common, heating_limit_W=30000, preheat_mode="ready_by")
+    a = energy.annual_energy(vehicle(), year, early, dt_s=300.0, draws=0)
+    b = energy.annual_energy(vehicle(), year, late, dt_s=300.0, draws=0)
+    assert b.preheat_kWh[0, 0] < 0.8 * a.preheat_kWh[0, 0]
+    assert b.energy_kWh[0, 0] < a.energy_kWh[0, 0]
+    assert a.unmet_h[0, 0] == 0 and b.unmet_h[0, 0] == 0
+    weak = profile(tmp_path, **common, heating_limit_W=16000, preheat_mode="ready_by")
+    assert energy.annual_energy(vehicle(), year, weak, dt_s=300.0, draws=0).unmet_h[0, 0] > 0

@@ -88,6 +88,7 @@ class Profile:
     heating_limit_W: float
     year_starts_on: str = "monday"
     source: str = ""
+    preheat_mode: str = "start"
 
 
 def load_profile(path: str | Path) -> Profile:
@@ -126,6 +127,7 @@ def load_profile(path: str | Path) -> Profile:
         heating_limit_W=float(data["heating_limit_W"]),
         year_starts_on=str(data["year_starts_on"]),
         source=str(data.get("source", "")),
+        preheat_mode=str(data["preheat_mode"]),
     )
 
 
@@ -139,6 +141,7 @@ class Grid:
     set_point: np.ndarray
     gains_W: np.ndarray
     door_W_K: np.ndarray
+    until_service: np.ndarray  # steps to the next service start (in the pre-heating window)
 
 
 def profile_on_grid(profile: Profile, t_s: np.ndarray) -> Grid:
@@ -160,13 +163,19 @@ def profile_on_grid(profile: Profile, t_s: np.ndarray) -> Grid:
         ahead = np.concatenate([[0], np.cumsum(wrapped)])
         idx = np.arange(len(t_s))
         preheat = (ahead[idx + 1 + steps_ahead] - ahead[idx + 1] > 0) & ~in_service
+    until = np.zeros(len(t_s), dtype=int)
+    starts = np.flatnonzero(in_service & ~np.roll(in_service, 1))
+    if preheat.any() and len(starts):
+        idx = np.flatnonzero(preheat)
+        ahead = np.concatenate([starts, starts + len(t_s)])
+        until[idx] = ahead[np.searchsorted(ahead, idx)] - idx
     heated = in_service | preheat
     set_back = math.nan if profile.set_back_C is None else profile.set_back_C
     set_point = np.where(heated, profile.set_point_C, set_back)
     people = np.asarray(profile.passengers_by_hour)[np.minimum(hour.astype(int), 23)]
     gains = np.where(in_service, people * profile.W_per_passenger + profile.auxiliaries_W, 0.0)
     door = np.where(in_service, RHO_CP_AIR * profile.door_air_m3_h / 3600.0, 0.0)
-    return Grid(in_service, preheat, set_point, gains, door)
+    return Grid(in_service, preheat, set_point, gains, door, until)
 
 
 @dataclass(frozen=True)
@@ -313,6 +322,24 @@ def annual_energy(
     irradiated = len(structure.inputs) > 2
     noise_rng = np.random.default_rng([seed, 1])
     draws_n = S - 1
+    # "ready by": in the pre-heating window each run waits, set back, until heating at full
+    # power from its state would just reach the set point at the service start (T_o held at
+    # its present value over the horizon: A^m of the stabled step and the full-power
+    # equilibrium), then heats
+    ready_by = np.array([profile.preheat_mode == "ready_by"] * V)
+    until = np.stack([g.until_service for g in grids])
+    horizon = int(until.max()) if ready_by.any() else 0
+    if horizon:
+        powers = [np.broadcast_to(np.eye(n), (V * S, n, n))]
+        for _ in range(horizon):
+            powers.append(np.einsum("sij,sjk->sik", Ad[0], powers[-1]))
+        Am = np.array(powers)  # (horizon + 1, runs, n, n)
+        A_cont = steps.A[0]
+        B_cont = steps.B[0]
+        x_per_T_o = -np.linalg.solve(A_cont, B_cont[:, :, 0:1])[:, :, 0]
+        x_per_W = -np.linalg.solve(A_cont, B_cont[:, :, 1:2])[:, :, 0]
+    started = np.zeros(V * S, dtype=bool)
+    waiting_rows = ready_by[variant]
 
     def step(x, k):
         g = door[k]
@@ -324,6 +351,17 @@ def annual_energy(
             w[1:] = noise_rng.standard_normal((draws_n, n))
             free += np.einsum("sij,sj->si", steps.Qchol[g], np.tile(w, (V, 1)))
         sp = set_point[variant, k]
+        if horizon:
+            window = pre[variant, k] & waiting_rows
+            if service[k]:
+                started[:] = False
+            elif window.any():
+                m = np.maximum(until[variant, k] - 1, 0)  # heating from the next step on
+                x_full = x_per_T_o * T_o[k] + x_per_W * limit
+                x_end = x_full + np.einsum("sij,sj->si", Am[m, np.arange(len(m))], x - x_full)
+                np.logical_or(started, window & (x_end[:, 0] < sp), out=started)
+                back = math.nan if profile.set_back_C is None else profile.set_back_C
+                sp = np.where(window & ~started, back, sp)
         q = np.clip((sp - free[:, 0]) / gain_Q[g], 0.0, limit)
         q = np.where(np.isnan(sp), 0.0, q)
         return free + BdQ[g] * q[:, None], q, sp
