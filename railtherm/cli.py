@@ -320,6 +320,7 @@ def _energy(args: argparse.Namespace) -> int:
         draws=args.draws,
         seed=args.seed,
         volume_m3=args.volume_m3,
+        hold=args.hold,
     )
     print(energy.markdown(result))
     return 0
@@ -654,6 +655,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     energy.add_argument(
         "--volume-m3", type=float, metavar="V", help="interior volume: the draws' air capacity"
+    )
+    energy.add_argument(
+        "--hold",
+        choices=("first_order", "zero_order"),
+        default="first_order",
+        help="the hourly weather between its hours: linear (default) or held",
     )
     _directory_option(energy)
     energy.set_defaults(run=_energy)

@@ -267,11 +267,14 @@ def annual_energy(
     draws: int = 200,
     seed: int = 0,
     volume_m3: float | None = None,
+    hold: str = "first_order",
 ) -> AnnualResult:
     """The annual heating energy of ``params`` (a fit, a class reference model or a
     :class:`railtherm.study.simulate.ParameterSet`) in ``weather`` under ``profile``, with
     ``draws`` parameter draws (0: the central run only) and the ``what_ifs`` on the same
-    draws. Every run and variant advances together, one vectorised step at a time."""
+    draws; the hourly weather on the grid by ``hold``
+    (:func:`railtherm.study.weather.on_grid`). Every run and variant advances together, one
+    vectorised step at a time."""
     ps = params if isinstance(params, sim.ParameterSet) else sim.parameter_set(params)
     if ps.not_identified:
         raise sim.NotPredictable(
@@ -283,7 +286,7 @@ def annual_energy(
     rng = np.random.default_rng(seed)
     thetas, rejected, unbounded = sim.parameter_draws(ps, 0 if withheld else draws, rng, floor)
     notes = [n for n in (withheld, unbounded) if n]
-    t, T_o, ghi_grid = on_grid(weather, dt_s, "first_order")
+    t, T_o, ghi_grid = on_grid(weather, dt_s, hold)
     if len(structure.inputs) > 2:
         notes.append(
             f"irradiance inputs {list(structure.inputs[2:])}: the weather's global horizontal "
@@ -461,6 +464,7 @@ def study_rows(
     dt_s: float = 60.0,
     draws: int = 200,
     seed: int = 0,
+    hold: str = "first_order",
 ) -> list[dict[str, Any]]:
     """One row per vehicle with an acceptable fit, climate and variant: the annual energy,
     pre-heating, peak and unmet hours with 95 % bands, the months (central and band) and,
@@ -481,6 +485,7 @@ def study_rows(
                 draws=draws,
                 seed=seed + 100 * i + j,
                 volume_m3=vehicles[vid].get("volume_m3"),
+                hold=hold,
             )
             for v, variant in enumerate(result.variants):
                 row: dict[str, Any] = {

@@ -169,6 +169,7 @@ rule energy:
         step_s=config["energy"]["step_s"],
         draws=config["energy"]["draws"],
         seed=config["energy"]["seed"],
+        hold=config["energy"]["hold"],
         code=script_code("energy.py"),
     log:
         "logs/energy.log",

@@ -20,6 +20,7 @@ rows = energy.study_rows(
     dt_s=snakemake.params.step_s,
     draws=snakemake.params.draws,
     seed=snakemake.params.seed,
+    hold=snakemake.params.hold,
 )
 energy.write_study_energy(
     rows,
