@@ -232,3 +232,20 @@ def test_ready_by_preheating_starts_late_enough_and_no_later(tmp_path):
     assert a.unmet_h[0, 0] == 0 and b.unmet_h[0, 0] == 0
     weak = profile(tmp_path, **common, heating_limit_W=16000, preheat_mode="ready_by")
     assert energy.annual_energy(vehicle(), year, weak, dt_s=300.0, draws=0).unmet_h[0, 0] > 0
+
+
+def test_a_csv_year_at_ten_minutes_is_read_and_one_off_the_year_refused(tmp_path):
+    """A plain CSV at a 10-minute step over a year is read (hourly or finer); the same
+    missing its last record is refused naming the records."""
+    stamps = pd.date_range("2001-01-01 00:00", periods=8760 * 6, freq="10min")
+    T_o = 5.0 + 10.0 * np.sin(2 * np.pi * np.arange(len(stamps)) / (8760 * 6))
+    table = pd.DataFrame({"time": stamps.strftime("%Y-%m-%dT%H:%M:%S"), "T_o": T_o})
+    path = tmp_path / "year.csv"
+    table.to_csv(path, index=False)
+    year = weather.read_weather(path)
+    assert year.step_s == 600 and year.hours == 8760
+    t, grid, _ = weather.on_grid(year, 300.0)
+    assert len(t) == 8760 * 12 and grid[1] == pytest.approx((T_o[0] + T_o[1]) / 2)
+    table.iloc[:-1].to_csv(path, index=False)
+    with pytest.raises(ConfigError, match="'records'"):
+        weather.read_weather(path)

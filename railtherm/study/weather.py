@@ -13,13 +13,14 @@ Readers (``kind``, or recognised from the file):
 pvlib, the maintained library of the photovoltaic community for exactly these files, is an
 optional dependency (``pip install railtherm[weather]``); a plain CSV needs none.
 
-A typical year is a sequence of hourly records of one calendar year's length (8760 or 8784),
-months taken from different years. Its stamps are read as the weather service states them
-(TMY3, EPW and PVGIS stamp the end of each hour; the dry-bulb temperature is the value at
-the stamp) and made a year of elapsed seconds from the first stamp. :func:`on_grid` puts it
-on a simulation grid: linear between the hourly values (``first_order``, the default: a
-temperature is a continuous signal) or held (``zero_order``), and closed over the year's end
-(the last hour runs into the first, a typical year being read as one that repeats).
+A typical year is a sequence of records of one calendar year's length (8760 or 8784 hours),
+hourly or at a finer regular step (a plain CSV), months taken from different years. Its
+stamps are read as the weather service states them (TMY3, EPW and PVGIS stamp the end of
+each hour; the dry-bulb temperature is the value at the stamp) and made a year of elapsed
+seconds from the first stamp. :func:`on_grid` puts it on a simulation grid: linear between
+the records (``first_order``, the default: a temperature is a continuous signal) or held
+(``zero_order``), and closed over the year's end (the last record runs into the first, a
+typical year being read as one that repeats).
 """
 
 from __future__ import annotations
@@ -54,10 +55,12 @@ class Weather:
     latitude: float = math.nan
     longitude: float = math.nan
     meta: dict = field(default_factory=dict)
+    step_s: float = HOUR_S
 
     @property
     def hours(self) -> int:
-        return len(self.t_s)
+        """The year's length in hours (8760 or 8784)."""
+        return int(round(len(self.t_s) * self.step_s / HOUR_S))
 
 
 def _kind_of(path: Path) -> str:
@@ -143,27 +146,37 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
         if "ghi" in data.columns:
             ghi = data["ghi"].to_numpy(float)
     n = len(T_o)
-    if n not in (8760, 8784):
-        raise ConfigError(file, "records", n, "a typical year has 8760 (or 8784) hourly records")
+    step = HOUR_S
+    if kind == "csv" and n > 1:  # hourly or finer, at a regular step
+        gaps = np.asarray((index[1:] - index[:-1]).total_seconds(), dtype=float)
+        step = float(np.median(gaps))
+        if not (0 < step <= HOUR_S and HOUR_S % step == 0 and np.allclose(gaps, step)):
+            raise ConfigError(file, "time", step, "a regular step of an hour or a divisor of it")
+    if round(n * step / HOUR_S) not in (8760, 8784) or not math.isclose(
+        n * step / HOUR_S, round(n * step / HOUR_S)
+    ):
+        raise ConfigError(
+            file, "records", n, "a typical year spans 8760 (or 8784) hours of records"
+        )
     bad = ~np.isfinite(T_o) | (T_o < -90) | (T_o > 60)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ConfigError(file, f"T_o[{i}]", T_o[i], "missing or beyond -90..60 degC")
     if ghi is not None:
         ghi = np.clip(np.nan_to_num(ghi, nan=0.0), 0.0, None)
-    t_s = np.arange(n) * HOUR_S
-    return Weather(name, source, index, t_s, T_o, ghi, lat, lon, dict(meta))
+    t_s = np.arange(n) * step
+    return Weather(name, source, index, t_s, T_o, ghi, lat, lon, dict(meta), step)
 
 
 def on_grid(
     weather: Weather, dt_s: float, hold: str = "first_order"
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """(t_s, T_o, ghi) on the grid 0, dt, ... up to one year (the weather's length) less a
-    step: ``first_order`` linear between the hourly values, ``zero_order`` each held over
-    its hour; the last hour runs into the first (the typical year repeats)."""
+    step: ``first_order`` linear between the records, ``zero_order`` each held over its
+    step; the last record runs into the first (the typical year repeats)."""
     if hold not in ("first_order", "zero_order"):
         raise ValueError(f"hold: first_order or zero_order, got {hold!r}")
-    period = weather.hours * HOUR_S
+    period = len(weather.t_s) * weather.step_s
     t = np.arange(0.0, period, float(dt_s))
     knots = np.append(weather.t_s, period)
 
@@ -171,7 +184,7 @@ def on_grid(
         closed = np.append(values, values[0])
         if hold == "first_order":
             return np.interp(t, knots, closed)
-        return values[np.minimum((t // HOUR_S).astype(int), len(values) - 1)]
+        return values[np.minimum((t // weather.step_s).astype(int), len(values) - 1)]
 
     ghi = None if weather.ghi is None else resample(weather.ghi)
     return t, resample(weather.T_o), ghi
