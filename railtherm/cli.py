@@ -630,7 +630,7 @@ def build_parser() -> argparse.ArgumentParser:
             "The annual heating energy of PARAMS (a checked fit or a class reference model) "
             "in a typical year of weather (TMY3, EPW, PVGIS or CSV) under an operating profile "
             "(config/profiles/): the year's kWh, its months, pre-heating, peak power and unmet "
-            "hours, with 95 %% bands from parameter draws; each --what-if on the same draws, "
+            "hours, with 95 % bands from parameter draws; each --what-if on the same draws, "
             "its difference paired (docs/energy.md)."
         ),
     )

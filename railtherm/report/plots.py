@@ -1459,13 +1459,17 @@ def annual_energy_figure(table: pd.DataFrame, *, note: str | None = None) -> Fig
     """The study's annual energy (rows of :func:`railtherm.study.energy.study_rows`): per
     climate, each vehicle's monthly heating energy of the base variant as bars with their
     95 % bands."""
-    from railtherm.study.energy import MONTHS
-
+    totals = ("energy", "preheat", "difference")
+    months = [  # the month columns, in the table's order
+        c.removesuffix("_kWh")
+        for c in table.columns
+        if c.endswith("_kWh") and c.removesuffix("_kWh") not in totals
+    ]
     base = table[table["variant"] == "base"]
     climates = list(dict.fromkeys(base["climate"]))
     vehicles = list(dict.fromkeys(base["vehicle"]))
     colors = _vehicle_colors(vehicles)
-    x = np.arange(12)
+    x = np.arange(len(months))
     width = 0.8 / max(len(vehicles), 1)
     with matplotlib.rc_context(_RC):
         fig = Figure(figsize=(7.0, 2.6 * max(len(climates), 1)), dpi=DPI, layout="constrained")
@@ -1478,9 +1482,9 @@ def annual_energy_figure(table: pd.DataFrame, *, note: str | None = None) -> Fig
                 if r.empty:
                     continue
                 r = r.iloc[0]
-                c = np.array([r[f"{m}_kWh"] for m in MONTHS], dtype=float) / 1000.0
-                lo = np.array([r[f"{m}_lo"] for m in MONTHS], dtype=float) / 1000.0
-                hi = np.array([r[f"{m}_hi"] for m in MONTHS], dtype=float) / 1000.0
+                c = np.array([r[f"{m}_kWh"] for m in months], dtype=float) / 1000.0
+                lo = np.array([r[f"{m}_lo"] for m in months], dtype=float) / 1000.0
+                hi = np.array([r[f"{m}_hi"] for m in months], dtype=float) / 1000.0
                 err = None if np.isnan(lo).all() else [c - lo, hi - c]
                 ax.bar(
                     x + (i - (len(vehicles) - 1) / 2) * width,
@@ -1494,7 +1498,7 @@ def annual_energy_figure(table: pd.DataFrame, *, note: str | None = None) -> Fig
             ax.set_ylabel("heating (MWh)", fontsize=8)
             ax.set_title(climate, fontsize=9)
             ax.grid(True, axis="y", lw=0.3, alpha=0.5)
-        axes[-1].set_xticks(x, MONTHS, fontsize=7)
+        axes[-1].set_xticks(x, months, fontsize=7)
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(
             handles,
