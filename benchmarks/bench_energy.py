@@ -3,6 +3,7 @@ step with 200 parameter draws and the ideal HVAC controller, beside the scenario
 (``railtherm.study.simulate``) on the study's 24 h pre-heating scenario, in the same run.
 
     python benchmarks/bench_energy.py [--draws 200] [--step-s 60]
+    python benchmarks/bench_energy.py --degree-hours   # the check against degree-hours
 
 Both advance every draw together, one vectorised step at a time (numpy arrays over the draws;
 the per-step work is a (draws x n x n) matrix-vector product and a few element-wise
@@ -37,11 +38,50 @@ def cpu(fn, repeats: int = 3) -> float:
     return best
 
 
+def degree_hours() -> int:
+    """The known-answer check of docs/energy.md: the annual energy against kA times the
+    year's degree-hours below the set point, Sum (20 - T_o)+ x 1 h."""
+    import tempfile
+
+    import numpy as np
+    import yaml
+
+    from railtherm.estimation import models
+
+    theta = {"kA": 700.0, "C": 9.0e6, "K_veh": 450.0, "C_veh": 1.8e7}
+    car = simulate.ParameterSet("700 W/K car", "declared", models.STRUCTURES["second_order"], theta)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "always.yaml"
+        always = {"service": {"weekdays": [[0, 24]]}, "set_point_C": 20}
+        path.write_text(yaml.safe_dump({**always, "heating_limit_W": 60000}))
+        profile = energy.load_profile(path)
+    print("| year | step | annual energy | degree-hour estimate | difference |")
+    print("|---|---|---|---|---|")
+    for name in ("703165TY.csv", "723170TYA.csv"):
+        year = weather.read_weather(REPO / "config" / "weather" / name)
+        estimate = theta["kA"] * np.clip(20.0 - year.T_o, 0.0, None).sum() / 1000.0
+        for step in (600.0, 60.0):
+            kwh = energy.annual_energy(car, year, profile, dt_s=step, draws=0).energy_kWh[0, 0]
+            print(
+                f"| {year.name} | {step:g} s | {kwh:,.0f} kWh | {estimate:,.0f} kWh | "
+                f"{100 * (kwh / estimate - 1):+.2f} % |"
+            )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=200)
     ap.add_argument("--step-s", type=float, default=60.0)
+    ap.add_argument(
+        "--degree-hours",
+        action="store_true",
+        help="a 700 W/K car in service around the clock at 20 degC without gains, in both "
+        "shipped years at 600 s and 60 s, against kA times the degree-hours below 20 degC",
+    )
     args = ap.parse_args(argv)
+    if args.degree_hours:
+        return degree_hours()
     fit = read_fit(REPO / "results" / "vehicles" / "Metro2" / "fit_order2.yaml")
     year = weather.read_weather(REPO / "config" / "weather" / "703165TY.csv")
     profile = energy.load_profile(REPO / "config" / "profiles" / "metro_service.yaml")
