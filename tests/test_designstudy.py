@@ -93,3 +93,27 @@ def test_before_the_tunnel_the_class_model_without_the_vehicle_predicts(campaign
     for _, r in table.iterrows():
         assert r["class_q05"] <= r["class_median"] <= r["class_q95"]
         assert 0.0 < r["class_identifiable_share"] <= 1.0 and r["class_note"] == ""
+
+
+def test_the_study_files_give_the_same_table_as_the_objects(campaign_study, fit_files):
+    """study_design reads what rule design gives it (fit files, series, static k files,
+    the committed Table 2, the target as the config writes it) into the table that
+    vehicle_rows makes of the objects; a vehicle without a static k has no shortest
+    programme."""
+    _, _, study = campaign_study
+    vids = ["Metro1", "Metro2"]
+    vehicles = {vid: study.vehicles[vid].data for vid in vids}
+    paths = {vid: fit_files(vid, "order2") for vid in vids}
+    table2 = REPO / "results" / "tables" / "table2.csv"
+    kvalues = {vid: str(paths[vid][0].parent / "kvalue.yaml") for vid in vids}
+    files = [str(paths[vid][0]) for vid in vids], [str(paths[vid][1]) for vid in vids]
+    table = designstudy.study_design(str(table2), vehicles, *files, kvalues, "C_veh=10%", draws=5)
+    members = classmodel.members_from_table2(table2, vehicles)
+    assert sorted(m.vehicle for m in members) == vids
+    expected = rows(campaign_study, fit_files, vids, members, draws=5)
+    pd.testing.assert_frame_equal(table, expected)
+    without_k = designstudy.study_design(
+        str(table2), vehicles, *files, {"Metro1": kvalues["Metro1"]}, "C_veh=10%", draws=0
+    )
+    assert without_k.loc[without_k["vehicle"] == "Metro2", "shortest_h"].isna().all()
+    assert without_k.loc[without_k["vehicle"] == "Metro1", "shortest_h"].notna().all()

@@ -249,3 +249,35 @@ def test_a_csv_year_at_ten_minutes_is_read_and_one_off_the_year_refused(tmp_path
     table.iloc[:-1].to_csv(path, index=False)
     with pytest.raises(ConfigError, match="'records'"):
         weather.read_weather(path)
+
+
+def test_the_study_files_give_a_row_per_vehicle_climate_and_variant(campaign_study, fit_files):
+    """study_energy reads what rule energy gives it: an acceptable fit in both shipped
+    years, the base and the what-if each a row, the what-if's paired difference beside it;
+    a fit in doubt (Metro3) gives none."""
+    _, _, study = campaign_study
+    vids = ["Metro2", "Metro3"]
+    vehicles = {vid: study.vehicles[vid].data for vid in vids}
+    fits = [str(fit_files(vid, "order2")[0]) for vid in vids]
+    profile_file = str(REPO / "config" / "profiles" / "metro_service.yaml")
+    table, prof = energy.study_energy(
+        vehicles,
+        fits,
+        [str(SAND_POINT), str(GREENSBORO)],
+        profile_file,
+        ["k=-10%"],
+        dt_s=3600.0,
+        draws=4,
+        seed=1,
+    )
+    assert prof.name == "metro_service"
+    assert list(table["vehicle"].unique()) == ["Metro2"]
+    assert list(zip(table["climate"], table["variant"], strict=True)) == [
+        ("Sand Point", "base"),
+        ("Sand Point", "k -10 %"),
+        ("Greensboro Piedmont Triad Int", "base"),
+        ("Greensboro Piedmont Triad Int", "k -10 %"),
+    ]
+    saving = table.iloc[1]["difference_kWh"]
+    assert saving == pytest.approx(table.iloc[1]["energy_kWh"] - table.iloc[0]["energy_kWh"])
+    assert saving < 0 and table["energy_kWh"].iloc[0] > table["energy_kWh"].iloc[2]

@@ -73,6 +73,7 @@ __all__ = [
     "build",
     "member_from_fit",
     "member_from_row",
+    "members_from_table2",
     "members_from_study",
     "read_reference_model",
 ]
@@ -370,6 +371,21 @@ def _read_table2(path: str, display: str) -> dict[str, dict[str, Any]]:
             raise ConfigError(display, "vehicle", vid, "listed twice")
         by_vehicle[str(vid)] = row
     return by_vehicle
+
+
+def members_from_table2(
+    path: str | os.PathLike[str], vehicles: Mapping[str, Mapping[str, Any]]
+) -> list[ClassMember]:
+    """The vehicles of ``vehicles`` ({id: vehicle config}) that have a row in the study's
+    Table 2 at ``path``, as :class:`ClassMember` (:func:`member_from_row`), in the table's
+    order; rows of other vehicles are ignored."""
+    display = str(path)
+    rows = _read_table2(display, display)
+    return [
+        member_from_row(row, vehicles[vid], table=display)
+        for vid, row in rows.items()
+        if vid in vehicles
+    ]
 
 
 def members_from_study(

@@ -420,18 +420,13 @@ def study_leave_one_out(
     **options: Any,
 ) -> pd.DataFrame:
     """:func:`leave_one_out` over a study's files: the members from its Table 2
-    (:func:`railtherm.study.classmodel.member_from_row` with each vehicle's config in ``vehicles``),
+    (:func:`railtherm.study.classmodel.members_from_table2`, each vehicle's config in ``vehicles``),
     each vehicle's second-order fit file and series table (in the order of ``vehicles``), the
     vehicles' volumes and, for a synthetic campaign, the truth of ``truth_file``. ``options``
     go to :func:`leave_one_out` (min_vehicles, draws, seed)."""
     from railtherm.study.fit import read_fit
 
-    rows = pd.read_csv(table2).to_dict("records")
-    members = [
-        classmodel.member_from_row(row, vehicles[row["vehicle"]])
-        for row in rows
-        if row["vehicle"] in vehicles
-    ]
+    members = classmodel.members_from_table2(table2, vehicles)
     fits = {vid: read_fit(path) for vid, path in zip(vehicles, fit_files, strict=True)}
     series = {vid: pd.read_csv(path) for vid, path in zip(vehicles, series_files, strict=True)}
     return leave_one_out(

@@ -36,6 +36,7 @@ from railtherm.study import design
 
 __all__ = [
     "BUDGET_SOURCES",
+    "study_design",
     "CHECKED",
     "design_markdown",
     "paper_programme",
@@ -321,3 +322,32 @@ def write_design(table: pd.DataFrame, source: str, csv: str, md: str, figure: st
     with open(md, "w", encoding="utf-8") as stream:
         stream.write(design_markdown(table, source))
     plots.save_figure(plots.design_figure(table, note=source), figure)
+
+
+def study_design(
+    table2: str,
+    vehicles: Mapping[str, Mapping[str, Any]],
+    fit_files: Sequence[str],
+    series_files: Sequence[str],
+    kvalue_files: Mapping[str, str],
+    target: str,
+    draws: int = 100,
+    seed: int = 0,
+) -> pd.DataFrame:
+    """:func:`vehicle_rows` over a study's files: each vehicle's second-order fit file and
+    its series (in the order of ``vehicles``, {id: config}), its static k result where it has
+    one (``kvalue_files``: {id: path}), the class members from its Table 2
+    (:func:`railtherm.study.classmodel.members_from_table2`) and ``target`` as the config
+    writes it (``C_veh=10%``)."""
+    from railtherm.io import read_result
+    from railtherm.study import classmodel
+    from railtherm.study.fit import read_fit
+
+    fits = {
+        vid: read_fit(path, series)
+        for vid, path, series in zip(vehicles, fit_files, series_files, strict=True)
+    }
+    kvalues = {vid: read_result(path) for vid, path in kvalue_files.items()}
+    members = classmodel.members_from_table2(table2, vehicles)
+    parsed = design.parse_target(target)
+    return vehicle_rows(fits, kvalues, vehicles, members, parsed, draws=draws, seed=seed)

@@ -57,6 +57,7 @@ __all__ = [
     "load_profile",
     "parse_what_if",
     "profile_on_grid",
+    "study_energy",
     "study_markdown",
     "study_rows",
     "write_study_energy",
@@ -552,16 +553,39 @@ def study_markdown(table, profile: Profile, dt_s: float, source: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_study_energy(
-    rows, profile: Profile, dt_s: float, source: str, csv: str, md: str, figure: str
-) -> None:
-    """The study's annual energy as CSV (4 significant digits) and Markdown, and its figure
-    (``figure``: the path without suffix; PNG and SVG)."""
+def study_energy(
+    vehicles: Mapping[str, Mapping[str, Any]],
+    fit_files: Sequence[str],
+    weather_files: Sequence[str],
+    profile_file: str,
+    what_if: Sequence[str] = (),
+    **options: Any,
+):
+    """:func:`study_rows` over a study's files: each vehicle's second-order fit (in the
+    order of ``vehicles``, {id: config}), the typical years, the profile and the what-ifs as
+    the config writes them; ``options`` go to :func:`study_rows` (dt_s, draws, seed, hold).
+    Returns the table and the profile."""
     import pandas as pd
 
+    from railtherm.study.fit import read_fit
+    from railtherm.study.weather import read_weather
+
+    fits = {vid: read_fit(path) for vid, path in zip(vehicles, fit_files, strict=True)}
+    weathers = [read_weather(path) for path in weather_files]
+    profile = load_profile(profile_file)
+    what_ifs = [parse_what_if(text) for text in what_if]
+    rows = study_rows(fits, vehicles, weathers, profile, what_ifs, **options)
+    return pd.DataFrame(rows), profile
+
+
+def write_study_energy(
+    table, profile: Profile, dt_s: float, source: str, csv: str, md: str, figure: str
+) -> None:
+    """The study's annual energy ``table`` (:func:`study_energy`) as CSV (4 significant
+    digits) and Markdown, and its figure (``figure``: the path without suffix; PNG and
+    SVG)."""
     from railtherm.report import plots, tables
 
-    table = pd.DataFrame(rows)
     tables.write_csv(table, csv, digits=4)
     with open(md, "w", encoding="utf-8") as stream:
         stream.write(study_markdown(table, profile, dt_s, source))

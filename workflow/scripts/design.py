@@ -1,36 +1,18 @@
 """Adapter for rule design: predicted against realised interval widths, and the shortest
-paper-shaped programme to the target, per vehicle."""
-
-import pandas as pd
+paper-shaped programme to the target, per vehicle (railtherm.study.designstudy)."""
 
 from railtherm import logs
-from railtherm.io import read_result
-from railtherm.study import aggregate, classmodel, design, designstudy
-from railtherm.study.fit import read_fit
+from railtherm.study import aggregate, designstudy
 
 log = logs.to_file(snakemake.log[0])
 vehicles = snakemake.params.vehicles
-fits = {
-    vid: read_fit(path, series)
-    for vid, path, series in zip(
-        vehicles, snakemake.input.fits, snakemake.input.series, strict=True
-    )
-}
-kvalues = {
-    vid: read_result(path)
-    for vid, path in zip(snakemake.params.with_kvalue, snakemake.input.kvalues, strict=True)
-}
-members = [
-    classmodel.member_from_row(row, vehicles[row["vehicle"]])
-    for row in pd.read_csv(snakemake.input.table2).to_dict("records")
-    if row["vehicle"] in vehicles
-]
-table = designstudy.vehicle_rows(
-    fits,
-    kvalues,
+table = designstudy.study_design(
+    snakemake.input.table2,
     vehicles,
-    members,
-    design.parse_target(snakemake.params.target),
+    snakemake.input.fits,
+    snakemake.input.series,
+    dict(zip(snakemake.params.with_kvalue, snakemake.input.kvalues, strict=True)),
+    snakemake.params.target,
     draws=snakemake.params.draws,
     seed=snakemake.params.seed,
 )

@@ -1,29 +1,24 @@
 """Adapter for rule energy: every acceptable second-order fit through the study's typical
-years under its operating profile, with the what-ifs paired."""
+years under its operating profile, with the what-ifs paired (railtherm.study.energy)."""
 
 from railtherm import logs
 from railtherm.study import aggregate, energy
-from railtherm.study.fit import read_fit
-from railtherm.study.weather import read_weather
 
 log = logs.to_file(snakemake.log[0])
 vehicles = snakemake.params.vehicles
-fits = {vid: read_fit(path) for vid, path in zip(vehicles, snakemake.input.fits, strict=True)}
-weathers = [read_weather(path) for path in snakemake.input.weather]
-profile = energy.load_profile(snakemake.input.profile)
-rows = energy.study_rows(
-    fits,
+table, profile = energy.study_energy(
     vehicles,
-    weathers,
-    profile,
-    [energy.parse_what_if(w) for w in snakemake.params.what_if],
+    snakemake.input.fits,
+    snakemake.input.weather,
+    snakemake.input.profile,
+    snakemake.params.what_if,
     dt_s=snakemake.params.step_s,
     draws=snakemake.params.draws,
     seed=snakemake.params.seed,
     hold=snakemake.params.hold,
 )
 energy.write_study_energy(
-    rows,
+    table,
     profile,
     snakemake.params.step_s,
     aggregate.data_source(vehicles),
@@ -31,4 +26,4 @@ energy.write_study_energy(
     snakemake.output.md,
     snakemake.output.png.removesuffix(".png"),
 )
-log.info("%d rows", len(rows))
+log.info("%d rows", len(table))
