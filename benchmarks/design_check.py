@@ -170,14 +170,7 @@ def predict(prior, programme, fit=None) -> design.Prediction:
     free = prior.free
     if fit is not None:
         free = tuple(p for p, q in fit.parameters.items() if q.estimated is True)
-    return design.predict(
-        prior.structure,
-        prior.theta,
-        programme,
-        free=free,
-        tau_samples=prior.tau_samples or 1.0,
-        noise_K=prior.noise_K,
-    )
+    return prior.predict(programme, free=free)
 
 
 # ------------------------------------------------------------------------------------------

@@ -294,6 +294,14 @@ def _design(args: argparse.Namespace) -> int:
     return 0
 
 
+def _nonnegative(args: argparse.Namespace, *names: str) -> None:
+    """Each option ``--<name>`` 0 or more, else a :class:`ConfigError` naming it."""
+    for name in names:
+        value = getattr(args, name)
+        if value < 0:
+            raise ConfigError(f"--{name.replace('_', '-')}", name, value, "expected 0 or more")
+
+
 def _energy(args: argparse.Namespace) -> int:
     """``railtherm energy``: a fit's or a class reference model's annual heating energy in a
     typical year of weather under an operating profile, with 95 % bands and what-ifs."""
@@ -301,9 +309,7 @@ def _energy(args: argparse.Namespace) -> int:
     from railtherm.study import simulate as sim
     from railtherm.study.weather import read_weather
 
-    for option, value in (("--draws", args.draws), ("--seed", args.seed)):
-        if value < 0:
-            raise ConfigError(option, option[2:], value, "expected 0 or more")
+    _nonnegative(args, "draws", "seed")
     if not args.step_s > 0:
         raise ConfigError("--step-s", "step_s", args.step_s, "expected a positive step (s)")
     what_ifs = [energy.parse_what_if(w) for w in args.what_if or ()]
@@ -343,9 +349,7 @@ def _simulate(args: argparse.Namespace) -> int:
     from railtherm.study.fit import write_yaml
     from railtherm.study.scenario import load_scenario
 
-    for option, value in (("--draws", args.draws), ("--seed", args.seed)):
-        if value < 0:
-            raise ConfigError(option, option[2:], value, "expected 0 or more")
+    _nonnegative(args, "draws", "seed")
     sim.air_capacity(args.volume_m3, "--volume-m3")
     workdir = args.directory
     local = os.path.join(workdir, args.params)

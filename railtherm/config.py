@@ -816,21 +816,25 @@ def check_study_plans(
     profile files present and the profile valid. A mistake is a :class:`ConfigError` naming
     ``config_file`` and the key."""
     from railtherm import structures
+    from railtherm.study.design import parse_target
     from railtherm.study.energy import load_profile, parse_what_if
 
     config_file = config_file or "config/config.yaml"
     target = (config.get("design") or {}).get("target")
-    if target is not None:
-        name = str(target).partition("=")[0]
-        allowed = [p for p in structures.STRUCTURES["second_order"].parameters if p != "kA"]
-        if name not in allowed:
-            raise ConfigError(config_file, "design.target", target, f"a parameter of {allowed}")
+    allowed = [p for p in structures.STRUCTURES["second_order"].parameters if p != "kA"]
     energy = config.get("energy") or {}
-    for i, text in enumerate(energy.get("what_if") or []):
+    texts = [("design.target", parse_target, target)] if target is not None else []
+    texts += [
+        (f"energy.what_if[{i}]", parse_what_if, t)
+        for i, t in enumerate(energy.get("what_if") or [])
+    ]
+    for key, parse, text in texts:
         try:
-            parse_what_if(text)
+            parsed = parse(text)
         except ConfigError as err:
-            raise ConfigError(config_file, f"energy.what_if[{i}]", text, err.reason) from None
+            raise ConfigError(config_file, key, text, err.reason) from None
+        if parse is parse_target and parsed[0] not in allowed:
+            raise ConfigError(config_file, key, text, f"a parameter of {allowed}")
     if not energy.get("enabled", False):
         return
     for i, path in enumerate(energy.get("weather") or []):

@@ -54,7 +54,7 @@ def test_the_shortest_paper_programme_reaches_the_target_and_a_shorter_one_does_
     assert row["shortest_predicted"] <= 0.10
     path, series = fit_files("Metro2", "order2")
     fit = read_fit(path, series)
-    step_s = designstudy.record_runs(fit)[1]  # the vehicle's logger step
+    step_s = design.record_runs(fit)[1]  # the vehicle's logger step
     programme = designstudy.paper_programme(fit, read_result(path.parent / "kvalue.yaml"), step_s)
     steps_h = programme.hours - programme.phases[0].hours
     factor = (row["shortest_h"] - programme.phases[0].hours) / steps_h

@@ -58,6 +58,7 @@ __all__ = [
     "prior_from_fit_file",
     "prbs_steps",
     "prior_from_reference",
+    "record_runs",
     "compared_rows",
     "fit_windows",
     "initial_state",
@@ -66,6 +67,7 @@ __all__ = [
     "residuals_of",
     "scaled",
     "shortest",
+    "spread",
 ]
 
 # an information matrix whose condition number exceeds this leaves some direction of the
@@ -590,6 +592,84 @@ class Prior:
     noise_K: dict[str, float] = field(default_factory=dict)
     tau_samples: dict[str, float] = field(default_factory=dict)
 
+    def thetas(self) -> list[dict[str, float]]:
+        """The prior's draws as parameter sets ([] without draws)."""
+        if not self.draws:
+            return []
+        n = len(next(iter(self.draws.values())))
+        return [{p: float(v[i]) for p, v in self.draws.items()} for i in range(n)]
+
+    def predict(
+        self,
+        programme: Programme,
+        theta: Mapping[str, float] | None = None,
+        free: Sequence[str] | None = None,
+    ) -> Prediction:
+        """:func:`predict` of ``programme`` at ``theta`` (default the prior's centre) for
+        ``free`` (default the prior's), with the prior's residual level."""
+        return predict(
+            self.structure,
+            self.theta if theta is None else theta,
+            programme,
+            free=self.free if free is None else free,
+            tau_samples=self.tau_samples or 1.0,
+            noise_K=self.noise_K,
+        )
+
+    def predict_runs(
+        self,
+        runs: Sequence[Run],
+        step_s: float,
+        systematic: Mapping[str, float],
+        dT_k: float = 0.0,
+        theta: Mapping[str, float] | None = None,
+    ) -> Prediction:
+        """:func:`predict_runs` of recorded ``runs`` at ``theta`` (default the centre) with
+        the prior's residual level and free parameters."""
+        return predict_runs(
+            self.structure,
+            self.theta if theta is None else theta,
+            runs,
+            step_s,
+            self.noise_K,
+            tau_samples=self.tau_samples,
+            free=self.free,
+            systematic=systematic,
+            dT_k=dT_k,
+        )
+
+
+def spread(
+    predictions: Sequence[Prediction], params: Sequence[str]
+) -> tuple[dict[str, tuple[float, float, float]], dict[str, float]]:
+    """Over ``predictions`` (one per parameter set), each parameter's 5 %, median and 95 %
+    relative 95 % half-width and the share of them that identify it."""
+    widths, shares = {}, {}
+    for p in params:
+        values = np.array([r.half_width[p] for r in predictions])
+        q05, q50, q95 = np.quantile(values, [0.05, 0.5, 0.95], method="inverted_cdf")
+        widths[p] = (float(q05), float(q50), float(q95))
+        shares[p] = float(np.mean([r.identifiable[p] for r in predictions]))
+    return widths, shares
+
+
+def record_runs(fit) -> tuple[list[Run], float] | None:
+    """A fit's identification windows as :class:`Run` (their measured inputs, the fit's
+    simulated state at each window's start, the whole window compared) and the logger step;
+    None without a series that simulates every state."""
+    series, structure = fit.series, fit.structure
+    if series is None:
+        return None
+    sims = [f"{s}_sim" for s in structure.states]
+    if any(c not in series.columns for c in [*sims, "window", "time", *structure.inputs]):
+        return None
+    runs, steps = [], []
+    for _, w in series.groupby("window", sort=False):
+        steps.append(float(np.median(np.diff(w["time"].to_numpy(float)))))
+        u = w[list(structure.inputs)].to_numpy(float)
+        runs.append(Run(u, w[sims].to_numpy(float)[0], ((0, len(w)),)))
+    return runs, float(np.median(steps))
+
 
 def residual_noise(fit) -> tuple[dict[str, float], dict[str, float]] | None:
     """The noise of a fit's records, per compared output its standard deviation and
@@ -600,30 +680,23 @@ def residual_noise(fit) -> tuple[dict[str, float], dict[str, float]] | None:
     are the programme's systematic budget; left in, a drift they cause would count again, as
     coloured noise. None without the fit's series (time, inputs, measured and simulated
     states per window), or when a state is not simulated in it."""
-    series = fit.series
-    if series is None:
+    records = record_runs(fit)
+    if records is None:
         return None
     structure = fit.structure
-    outputs = [s for s in (fit.data.get("outputs") or []) if f"{s}_residual" in series]
+    outputs = [s for s in (fit.data.get("outputs") or []) if f"{s}_residual" in fit.series]
     if not outputs:
         return None
-    sims = [f"{s}_sim" for s in structure.states]
-    if any(c not in series.columns for c in [*sims, "window", "time", *structure.inputs]):
-        return None
+    runs, step_s = records
     theta = fit.theta
-    fixed = [p for p, q in fit.parameters.items() if q.estimated is False and p in theta]
+    fixed = tuple(p for p, q in fit.parameters.items() if q.estimated is False and p in theta)
+    idx = [structure.states.index(s) for s in outputs]
+    unit = {**dict.fromkeys(outputs, 1.0), "T_o": 1.0, "power_rel": 1.0}  # 1 K, 100 %
     shapes, residuals, spans = [], [], []
-    for _, w in series.groupby("window", sort=False):
-        dt = float(np.median(np.diff(w["time"].to_numpy(float))))
-        u = w[list(structure.inputs)].to_numpy(float)
-        x0 = w[sims].to_numpy(float)[0]
-        idx = [structure.states.index(s) for s in outputs]
-        x, sens, _ = models.sensitivities(structure, theta, u, dt, x0, params=tuple(fixed))
-        cols = [np.eye(len(outputs))[j][None, :].repeat(len(u), 0) for j in range(len(outputs))]
-        for j in (0, 1):  # a T_o offset of 1 K, a power scale error of 100 %
-            du = np.zeros_like(u)
-            du[:, j] = 1.0 if j == 0 else u[:, 1]
-            cols.append((models.simulate(structure, theta, u + du, dt, x0) - x)[:, idx])
+    windows = fit.series.groupby("window", sort=False)
+    for run, (_, w) in zip(runs, windows, strict=True):
+        x, sens, _ = models.sensitivities(structure, theta, run.u, step_s, run.x0, params=fixed)
+        cols = list(_systematic_shifts(structure, theta, run, x, step_s, outputs, unit, 0.0, None))
         cols += [theta[p] * sens[p][:, idx] for p in fixed]
         shapes.append(np.stack(cols, axis=-1))  # (n, outputs, sources)
         residuals.append(w[[f"{s}_residual" for s in outputs]].to_numpy(float))
@@ -794,35 +867,16 @@ def assess(
             "--target", "target", target[0], f"not a parameter the fit estimates: {prior.free}"
         )
 
-    def one(theta: Mapping[str, float]) -> Prediction:
-        return predict(
-            prior.structure,
-            theta,
-            programme,
-            free=prior.free,
-            tau_samples=prior.tau_samples or 1.0,
-            noise_K=prior.noise_K,
-        )
-
-    central = one(prior.theta)
-    if prior.draws:
-        n = len(next(iter(prior.draws.values())))
-        runs = [one({p: float(v[i]) for p, v in prior.draws.items()}) for i in range(n)]
-    else:
-        runs = [central]
-    spread, identifiable = {}, {}
-    for p in prior.free:
-        widths = np.array([r.half_width[p] for r in runs])
-        q05, q50, q95 = np.quantile(widths, [0.05, 0.5, 0.95], method="inverted_cdf")
-        spread[p] = (float(q05), float(q50), float(q95))
-        identifiable[p] = float(np.mean([r.identifiable[p] for r in runs]))
+    central = prior.predict(programme)
+    runs = [prior.predict(programme, theta) for theta in prior.thetas()] or [central]
+    widths, identifiable = spread(runs, prior.free)
     probability = None
     if target is not None:
         name, goal = target
         probability = float(
             np.mean([r.identifiable[name] and r.half_width[name] <= goal for r in runs])
         )
-    return Assessment(programme, prior, central, spread, identifiable, target, probability)
+    return Assessment(programme, prior, central, widths, identifiable, target, probability)
 
 
 def scaled(programme: Programme, factor: float, keep_first: bool = False) -> Programme:
@@ -932,15 +986,7 @@ def best_of_length(
         return replace(programme, name=name, phases=(first, *later))
 
     def width(z: np.ndarray) -> float:
-        prediction = predict(
-            prior.structure,
-            prior.theta,
-            build(z),
-            free=prior.free,
-            tau_samples=prior.tau_samples or 1.0,
-            noise_K=prior.noise_K,
-        )
-        sd = prediction.sd_log[target]
+        sd = prior.predict(build(z)).sd_log[target]
         return float(np.log(sd)) if math.isfinite(sd) and sd > 0 else 1e6
 
     scale = (total - first.hours) / max(sum(ph.hours for ph in rest), 1e-9)

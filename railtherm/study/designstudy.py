@@ -40,7 +40,6 @@ __all__ = [
     "CHECKED",
     "design_markdown",
     "paper_programme",
-    "record_runs",
     "systematic_of",
     "vehicle_rows",
     "write_design",
@@ -60,25 +59,6 @@ STEP_RISE = 0.5  # the step raises the heating by this share of the steady power
 STEP_H = 24.0  # each step phase before scaling
 
 
-def record_runs(fit) -> tuple[list[design.Run], float] | None:
-    """The fit's identification windows as :class:`~railtherm.study.design.Run` (measured
-    inputs, the fit's simulated state at the window's start, the whole window compared) and
-    the logger step; None without a series that simulates every state."""
-    series, structure = fit.series, fit.structure
-    if series is None:
-        return None
-    sims = [f"{s}_sim" for s in structure.states]
-    if any(c not in series.columns for c in [*sims, "window", "time", *structure.inputs]):
-        return None
-    runs, steps = [], []
-    for _, w in series.groupby("window", sort=False):
-        t = w["time"].to_numpy(float)
-        steps.append(float(np.median(np.diff(t))))
-        u = w[list(structure.inputs)].to_numpy(float)
-        runs.append(design.Run(u, w[sims].to_numpy(float)[0], ((0, len(w)),)))
-    return runs, float(np.median(steps))
-
-
 def systematic_of(fit) -> dict[str, float]:
     """The standard uncertainties of the fit's systematic sources, as a programme names them
     (:data:`BUDGET_SOURCES`); sources of other kinds are left out."""
@@ -86,11 +66,14 @@ def systematic_of(fit) -> dict[str, float]:
     return {BUDGET_SOURCES[k]: float(v) for k, v in sources.items() if k in BUDGET_SOURCES}
 
 
-def paper_programme(fit, kvalue: Mapping[str, Any], step_s: float) -> design.Programme:
+def paper_programme(
+    fit, kvalue: Mapping[str, Any], step_s: float, noise_K: Mapping[str, float] | None = None
+) -> design.Programme:
     """The paper's special experiment for the vehicle (section 3.2): its k window's power and
     tunnel temperature held :data:`STEADY_H` (the fit compares the last hour), the heating
     raised by :data:`STEP_RISE` of it for :data:`STEP_H`, then reversed for as long; the two
-    steps fitted as two records. Noise and systematic uncertainties as in the fit."""
+    steps fitted as two records. Noise (``noise_K``, default the fit's separated residual
+    noise) and systematic uncertainties as in the fit."""
     base, T_o = float(kvalue["Q_H_mean"]), float(kvalue["T_o_mean"])
     up = base * (1.0 + STEP_RISE)
     phases = (
@@ -98,30 +81,16 @@ def paper_programme(fit, kvalue: Mapping[str, Any], step_s: float) -> design.Pro
         design.Phase("step up", STEP_H, T_o, ((0.0, up),), window="step up"),
         design.Phase("step down", STEP_H, T_o, ((0.0, base),), window="step down"),
     )
-    prior = design.prior_from_fit(fit)
+    noise = design.prior_from_fit(fit).noise_K if noise_K is None else noise_K
     limits = {"max_power_W": up}
     return design.Programme(
         f"paper-shaped, {fit.vehicle}",
         phases,
         step_s,
-        dict(prior.noise_K),
+        dict(noise),
         systematic_of(fit),
         limits,
         "steady",
-    )
-
-
-def _predict(prior: design.Prior, theta, runs, step_s, systematic, dT_k) -> design.Prediction:
-    return design.predict_runs(
-        prior.structure,
-        theta,
-        runs,
-        step_s,
-        prior.noise_K,
-        tau_samples=prior.tau_samples,
-        free=prior.free,
-        systematic=systematic,
-        dT_k=dT_k,
     )
 
 
@@ -164,7 +133,7 @@ def vehicle_rows(
     rows = []
     name, goal = target
     for i, (vid, fit) in enumerate(fits.items()):
-        records = record_runs(fit)
+        records = design.record_runs(fit)
         kvalue = kvalues.get(vid)
         static = fit.k_source.startswith("static test")
         dT_k = float(kvalue["delta_T"]) if (kvalue and static) else 0.0
@@ -174,7 +143,7 @@ def vehicle_rows(
         own = None
         if records is not None and not undetermined:
             runs, step_s = records
-            own = _predict(prior, prior.theta, runs, step_s, systematic_of(fit), dT_k)
+            own = prior.predict_runs(runs, step_s, systematic_of(fit), dT_k)
         cls, why = _class_prior(members, vehicles[vid], vid, fits, draws, seed + i)
         spread: dict[str, tuple] = {}
         if cls is not None and records is not None:
@@ -188,26 +157,15 @@ def vehicle_rows(
                 cls.noise_K or prior.noise_K,
                 cls.tau_samples or prior.tau_samples,
             )
-            n = len(next(iter(cls.draws.values())))
             preds = [
-                _predict(
-                    cls,
-                    {p: float(v[j]) for p, v in cls.draws.items()},
-                    runs,
-                    step_s,
-                    systematic_of(fit),
-                    dT_k,
-                )
-                for j in range(n)
+                cls.predict_runs(runs, step_s, systematic_of(fit), dT_k, theta)
+                for theta in cls.thetas()
             ]
-            for p in CHECKED:
-                widths = np.array([r.half_width[p] for r in preds])
-                q = np.quantile(widths, [0.05, 0.5, 0.95], method="inverted_cdf")
-                share = float(np.mean([r.identifiable[p] for r in preds]))
-                spread[p] = (*q, share)
+            widths, shares = design.spread(preds, CHECKED)
+            spread = {p: (*widths[p], shares[p]) for p in CHECKED}
         shortest_h = shortest_w = math.nan
         if kvalue and own is not None and name in prior.free:
-            programme = paper_programme(fit, kvalue, records[1])
+            programme = paper_programme(fit, kvalue, records[1], prior.noise_K)
             found = design.shortest(
                 prior,
                 programme,

@@ -370,12 +370,10 @@ def annual_energy(
         q = np.where(np.isnan(sp), 0.0, q)
         return free + BdQ[g] * q[:, None], q, sp
 
-    # warm-up over the year's last days, from the steady state at the first step's inputs
-    x = np.zeros((V * S, n))
-    for r in range(V * S):
-        sp0 = set_point[variant[r], 0]
-        T_air = T_o[0] if np.isnan(sp0) else sp0
-        x[r] = T_air
+    # warm-up over the year's last days, every state starting at the first set point (at T_o
+    # where the heating is off)
+    sp0 = set_point[variant, 0]
+    x = np.repeat(np.where(np.isnan(sp0), T_o[0], sp0)[:, None], n, axis=1)
     N = len(t)
     for k in range(N - int(WARMUP_DAYS * 86400 / dt_s), N):
         x, _, _ = step(x, k)
@@ -413,9 +411,13 @@ def annual_energy(
 MONTHS = ("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec")
 
 
-def _kwh(c: float, lo: float, hi: float) -> str:
-    band = "" if math.isnan(lo) else f" [{lo:,.0f}, {hi:,.0f}]"
-    return f"{c:,.0f}{band}"
+def _banded(c: float, lo: float, hi: float, scale: float = 1.0, sign: bool = False) -> str:
+    """``c [lo, hi]`` in whole units of ``scale`` ("" for NaN; no band where lo is NaN)."""
+    if math.isnan(c):
+        return ""
+    fmt = "{:+,.0f}" if sign else "{:,.0f}"
+    band = "" if math.isnan(lo) else f" [{fmt.format(lo / scale)}, {fmt.format(hi / scale)}]"
+    return fmt.format(c / scale) + band
 
 
 def markdown(result: AnnualResult) -> str:
@@ -435,13 +437,13 @@ def markdown(result: AnnualResult) -> str:
     ]
     for v, name in enumerate(r.variants):
         lines.append(
-            f"| {name} | {_kwh(*r.band(r.energy_kWh[v]))} | {_kwh(*r.band(r.preheat_kWh[v]))} "
-            f"| {_kwh(*r.band(r.peak_W[v]))} | {_kwh(*r.band(r.unmet_h[v]))} |"
+            f"| {name} | {_banded(*r.band(r.energy_kWh[v]))} | "
+            f"{_banded(*r.band(r.preheat_kWh[v]))} | {_banded(*r.band(r.peak_W[v]))} | "
+            f"{_banded(*r.band(r.unmet_h[v]))} |"
         )
     lines += ["", "| month | " + " | ".join(MONTHS) + " |", "|---" * 13 + "|"]
-    for v, name in enumerate(r.variants[:1]):
-        cells = [f"{r.monthly_kWh[v, 0, m]:,.0f}" for m in range(12)]
-        lines.append(f"| {name} (kWh) | " + " | ".join(cells) + " |")
+    cells = [f"{r.monthly_kWh[0, 0, m]:,.0f}" for m in range(12)]
+    lines.append(f"| {r.variants[0]} (kWh) | " + " | ".join(cells) + " |")
     for v in range(1, len(r.variants)):
         c, lo, hi = r.difference(v)
         band = "" if math.isnan(lo) else f" [{lo:+,.0f}, {hi:+,.0f}]"
@@ -504,7 +506,7 @@ def study_rows(
                 ):
                     row[key], row[f"{key}_lo"], row[f"{key}_hi"] = result.band(values)
                 diff = result.difference(v) if v else (math.nan,) * 3
-                row["difference_kWh"], row["difference_lo"], row["difference_hi"] = diff
+                row["difference_kWh"], row["difference_kWh_lo"], row["difference_kWh_hi"] = diff
                 for m, name in enumerate(MONTHS):
                     c, lo, hi = result.band(result.monthly_kWh[v, :, m])
                     row[f"{name}_kWh"], row[f"{name}_lo"], row[f"{name}_hi"] = c, lo, hi
@@ -530,25 +532,13 @@ def study_markdown(table, profile: Profile, dt_s: float, source: str) -> str:
     ]
 
     def band(r, key: str, scale: float = 1.0, sign: bool = False) -> str:
-        c, lo, hi = (r[key], r[f"{key}_lo"], r[f"{key}_hi"])
-        fmt = "{:+,.0f}" if sign else "{:,.0f}"
-        if isinstance(c, float) and math.isnan(c):
-            return ""
-        text = fmt.format(c / scale)
-        if not (isinstance(lo, float) and math.isnan(lo)):
-            text += f" [{fmt.format(lo / scale)}, {fmt.format(hi / scale)}]"
-        return text
+        return _banded(float(r[key]), float(r[f"{key}_lo"]), float(r[f"{key}_hi"]), scale, sign)
 
     for _, r in table.iterrows():
-        diff = band(
-            r.rename({"difference_kWh": "d", "difference_lo": "d_lo", "difference_hi": "d_hi"}),
-            "d",
-            sign=True,
-        )
         lines.append(
             f"| {r['vehicle']} | {r['climate']} | {r['variant']} | {band(r, 'energy_kWh')} | "
-            f"{diff} | {band(r, 'preheat_kWh')} | {band(r, 'peak_W', 1000.0)} | "
-            f"{band(r, 'unmet_h')} |"
+            f"{band(r, 'difference_kWh', sign=True)} | {band(r, 'preheat_kWh')} | "
+            f"{band(r, 'peak_W', 1000.0)} | {band(r, 'unmet_h')} |"
         )
     return "\n".join(lines) + "\n"
 
