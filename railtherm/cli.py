@@ -513,7 +513,11 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument(
         "--model",
         action="append",
-        choices=[key + suffix for key in structures.keys() for suffix in ("", "_kalman")],
+        choices=[
+            key + suffix
+            for key in structures.keys(include_refused=True)
+            for suffix in ("", "_kalman")
+        ],
         help=(
             "model to fit (repeatable; default: the models the vehicle file asks for); the "
             "suffix _kalman fits it by the Kalman-filter estimator"

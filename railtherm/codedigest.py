@@ -61,8 +61,12 @@ def _imported(path: Path) -> frozenset[str]:
     source = path.read_text(encoding="utf-8")
     if "railtherm" not in source and not path.is_relative_to(PACKAGE):
         return frozenset()
+    try:
+        tree = ast.parse(source, filename=str(path))
+    except SyntaxError:  # a structure module that does not parse: its bytes still count, and
+        return frozenset()  # the registry refuses it (railtherm.structures.REFUSED)
     names: set[str] = set()
-    for node in _statements(ast.parse(source, filename=str(path)).body):
+    for node in _statements(tree.body):
         if isinstance(node, ast.Import):
             for alias in node.names:
                 parts = alias.name.split(".")

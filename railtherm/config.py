@@ -313,6 +313,7 @@ def load_vehicle(
             [],
             "nothing to fit: list an order (1: eq. 9, 2: eqs. 7-8) or a model.structures entry",
         )
+    _check_structures(file, model)
     _check_model(file, model, data.get("model") or {}, solar=_solar_parameters(data))
     _check_envelope(file, data, model)
     data["model"] = model  # data is self-contained: the workflow passes it as params
@@ -484,6 +485,28 @@ def _check_channels(
         if name in inputs:
             raise ConfigError(file, key, name[2:], f"input {name} already named by {inputs[name]}")
         inputs[name] = key
+
+
+def _check_structures(file: str, model: dict[str, Any]) -> None:
+    """Every structure the vehicle asks for (``model.orders``, ``model.structures``) loaded
+    and passed the registry's checks: a refused module (:data:`railtherm.structures.REFUSED`:
+    it fails to import, leaves out or repeats an entry, or its derivatives disagree with
+    central differences) refuses the vehicles that ask for it, and only those."""
+    asked = [(f"model.orders[{i}]", n, f"order{n}") for i, n in enumerate(model["orders"])]
+    asked += [
+        (f"model.structures[{i}]", name, name)
+        for i, name in enumerate(model.get("structures") or [])
+    ]
+    for key, value, model_key in asked:
+        for refused in structures.refused(model_key):
+            raise ConfigError(
+                file,
+                key,
+                value,
+                f"the structure module is refused: {refused}. Fix the module, or drop "
+                f"{value} from {key.split('[')[0]}; vehicles that do not ask for it are "
+                "unaffected",
+            )
 
 
 def _check_envelope(file: str, data: dict[str, Any], model: dict[str, Any]) -> None:
@@ -821,7 +844,6 @@ def check_study_plans(
 
     config_file = config_file or "config/config.yaml"
     target = (config.get("design") or {}).get("target")
-    allowed = [p for p in structures.STRUCTURES["second_order"].parameters if p != "kA"]
     energy = config.get("energy") or {}
     texts = [("design.target", parse_target, target)] if target is not None else []
     texts += [
@@ -833,8 +855,10 @@ def check_study_plans(
             parsed = parse(text)
         except ConfigError as err:
             raise ConfigError(config_file, key, text, err.reason) from None
-        if parse is parse_target and parsed[0] not in allowed:
-            raise ConfigError(config_file, key, text, f"a parameter of {allowed}")
+        if parse is parse_target:
+            allowed = [p for p in structures.by_key("order2").parameters if p != "kA"]
+            if parsed[0] not in allowed:
+                raise ConfigError(config_file, key, text, f"a parameter of {allowed}")
     if not energy.get("enabled", False):
         return
     for i, path in enumerate(energy.get("weather") or []):

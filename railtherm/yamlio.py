@@ -184,11 +184,12 @@ def registry_schema(what: str) -> dict[str, Any]:
     from railtherm import structures
 
     if what == "model_keys":
-        keys = "|".join(structures.keys())
+        keys = "|".join(structures.keys(include_refused=True))
         return {"type": "string", "pattern": f"^({keys})(_kalman)?$"}
+    # a refused module's key passes the schema: the config check then says why it is refused
     values = {
-        "orders": structures.orders(),
-        "structures": structures.further(),
+        "orders": structures.orders(include_refused=True),
+        "structures": structures.further(include_refused=True),
         "states": structures.measurable_states(),
     }
     return {"enum": values[what]}

@@ -110,14 +110,16 @@ def test_every_structure_is_complete(name):
 
 def test_two_structures_under_one_key_are_refused(tmp_path):
     """A copy of an order's module keeps its order: two structures claim one model key, and
-    the import says which."""
+    the registry refuses both, saying which; the other structures load."""
     root = tmp_path / "pkg"
     shutil.copytree(PACKAGE, root / "railtherm", ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copyfile(
         PACKAGE / "structures" / "second_order.py", root / "railtherm" / "structures" / "twin.py"
     )
-    result = run(["-c", "import railtherm.structures"], tmp_path, root)
+    code = "from railtherm import structures as s; print(list(s.STRUCTURES)); s.by_key('order2')"
+    result = run(["-c", code], tmp_path, root)
     assert result.returncode != 0
+    assert "['first_order', 'interior_envelope', 'interior_fittings']" in result.stdout
     assert "'second_order' and 'twin' both declare the model key 'order2'" in result.stderr
 
 

@@ -115,10 +115,29 @@ def lfilter(b, a, x, **kwargs):
 
 
 # (A, B) of the paper's models by their usual names (eqs. 13, 14) and of the interior-envelope
-# structure: each structure module's ``matrices``
-first_order = STRUCTURES["first_order"].build
-second_order = STRUCTURES["second_order"].build
-interior_envelope = STRUCTURES["interior_envelope"].build
+# structure: each structure module's ``matrices``, looked up when called, so that a refused
+# module stops only what uses it (railtherm.structures.REFUSED)
+def _build(name: str):
+    if name not in STRUCTURES:
+        from railtherm.structures import REFUSED
+
+        raise REFUSED[name].error()
+    return STRUCTURES[name].build
+
+
+def first_order(*args, **kwargs) -> tuple[np.ndarray, np.ndarray]:
+    """(A, B) of eq. 13: railtherm/structures/first_order.py's ``matrices``."""
+    return _build("first_order")(*args, **kwargs)
+
+
+def second_order(*args, **kwargs) -> tuple[np.ndarray, np.ndarray]:
+    """(A, B) of eq. 14: railtherm/structures/second_order.py's ``matrices``."""
+    return _build("second_order")(*args, **kwargs)
+
+
+def interior_envelope(*args, **kwargs) -> tuple[np.ndarray, np.ndarray]:
+    """(A, B) of railtherm/structures/interior_envelope.py's ``matrices``."""
+    return _build("interior_envelope")(*args, **kwargs)
 
 
 def steady_state_kA(structure: Structure, theta: Mapping[str, float]) -> float:
@@ -304,6 +323,10 @@ def structure_for(name: str, irradiance: Sequence[str] = ()) -> Structure:
     (:func:`with_irradiance`; "I_sol" heats the air node, "I_sol@envelope" or "I_sol@both"
     as declared)."""
     if name not in STRUCTURES:
+        from railtherm.structures import REFUSED
+
+        if name in REFUSED:
+            raise REFUSED[name].error()
         raise KeyError(f"unknown structure {name!r}; known: {sorted(STRUCTURES)}")
     return with_irradiance(STRUCTURES[name], irradiance)
 

@@ -10,6 +10,10 @@ command line, the fits, the figures and the tables all read this registry, so a 
 one new file here (docs/structures.md).
 
 - :data:`STRUCTURES`: {name: Structure}, the paper's orders first, then by name;
+- :data:`REFUSED`: {name: Refused}, the modules that fail to import, leave out or repeat an
+  entry, or whose analytic derivatives disagree with central differences at their start
+  values, each with the reason and the fix. Each module is loaded in isolation: a refused
+  one stops only the vehicles and commands that ask for it (:func:`refused`);
 - :func:`by_key`: the structure of a model key (order1, order2, or a name);
 - :func:`keys`, :func:`orders`, :func:`further`: the model keys, the paper's orders and the
   further structures' names, as config files and the command line take them.
@@ -17,16 +21,20 @@ one new file here (docs/structures.md).
 
 from __future__ import annotations
 
-import importlib
+import os
 import pkgutil
-from dataclasses import replace
+from collections.abc import Iterable
 
+from railtherm.structures._load import Refused, load
 from railtherm.structures._structure import Structure
 
 __all__ = [
+    "REFUSED",
     "STRUCTURES",
+    "Refused",
     "Structure",
     "by_key",
+    "discover",
     "further",
     "keys",
     "measurable_states",
@@ -35,62 +43,99 @@ __all__ = [
     "nesting",
     "orders",
     "parameters",
+    "refused",
     "unit",
     "with_envelope",
 ]
 
 
-def _discover() -> dict[str, Structure]:
-    """Import every public module of this package and take its ``STRUCTURE``, named after the
-    module; ordered by the paper's order, then by name. A module without a Structure, or two
-    structures under one model key, is an error naming the file."""
-    found = []
-    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+def discover(path: Iterable[str], package: str) -> tuple[dict[str, Structure], dict[str, Refused]]:
+    """Load every public module of ``package`` (found on ``path``), each in isolation
+    (:func:`railtherm.structures._load.load`): ({name: Structure}, ordered by the paper's
+    order, then by name; {name: Refused}, the modules that fail to load or to pass the
+    checks, with the reason). Two modules that claim one model key are both refused: which
+    one a vehicle means cannot be told."""
+    found, refused = [], {}
+    for info in sorted(pkgutil.iter_modules(list(path)), key=lambda m: m.name):
         if info.name.startswith("_"):
             continue
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        declared = getattr(module, "STRUCTURE", None)
-        if not isinstance(declared, Structure):
-            raise TypeError(
-                f"{module.__file__}: a structure module declares STRUCTURE = Structure(...)"
-            )
-        found.append(replace(declared, name=info.name))
-    found.sort(key=lambda s: (s.order is None, s.order or 0, s.name))
-    by_key: dict[str, Structure] = {}
-    for s in found:
-        if s.key in by_key:
-            raise ValueError(
-                f"structures {by_key[s.key].name!r} and {s.name!r} both declare the model key "
-                f"{s.key!r} (order={s.order}): give one of them another order, or none"
-            )
-        by_key[s.key] = s
-    return {s.name: s for s in found}
+        file = os.path.join(info.module_finder.path, f"{info.name}.py")
+        loaded = load(info.name, package, file)
+        if isinstance(loaded, Refused):
+            refused[info.name] = loaded
+        else:
+            found.append((loaded, file))
+    found.sort(key=lambda sf: (sf[0].order is None, sf[0].order or 0, sf[0].name))
+    claims: dict[str, list[tuple[Structure, str]]] = {}
+    for s, file in found:
+        claims.setdefault(s.key, []).append((s, file))
+    for key, claimants in claims.items():
+        if len(claimants) > 1:
+            names = " and ".join(repr(s.name) for s, _ in claimants)
+            for s, file in claimants:
+                refused[s.name] = Refused(
+                    s.name,
+                    file,
+                    "STRUCTURE.order",
+                    s.order,
+                    f"structures {names} both declare the model key {key!r} (order="
+                    f"{s.order}): give one of them another order, or none",
+                    s.order,
+                )
+    healthy = {s.name: s for s, _ in found if s.name not in refused}
+    return healthy, dict(sorted(refused.items()))
 
 
-STRUCTURES: dict[str, Structure] = _discover()
+STRUCTURES, REFUSED = discover(__path__, __name__)
 _BY_KEY = {s.key: s for s in STRUCTURES.values()}
 
 
+def refused(key: str) -> list[Refused]:
+    """The refused modules behind a model key (order<n> or a name) that no loaded structure
+    serves: empty when none. (A refused module whose text declares order 2 beside a sound
+    second_order.py does not stop the vehicles asking for order 2.)"""
+    if key in _BY_KEY:
+        return []
+    return [r for r in REFUSED.values() if key in (r.model_key, r.name)]
+
+
 def by_key(key: str) -> Structure:
-    """The structure of a model key: order1, order2 or a further structure's name."""
+    """The structure of a model key: order1, order2 or a further structure's name. A key
+    whose module is refused raises its :class:`~railtherm.errors.ConfigError`, naming the
+    module's file, the entry and the fix."""
     if key not in _BY_KEY:
+        for r in refused(key):
+            raise r.error()
         raise KeyError(f"unknown model {key!r}; known: {', '.join(_BY_KEY)}")
     return _BY_KEY[key]
 
 
-def keys() -> list[str]:
-    """Every model key, the paper's orders first (order1, order2, then the others by name)."""
-    return list(_BY_KEY)
+def keys(include_refused: bool = False) -> list[str]:
+    """Every model key, the paper's orders first (order1, order2, then the others by name);
+    with ``include_refused``, the keys of refused modules too (the names a vehicle or the
+    command line may ask for, to be told why the structure is refused)."""
+    found = list(_BY_KEY)
+    if include_refused:
+        found += [r.model_key for r in REFUSED.values()]
+    return list(dict.fromkeys(found))
 
 
-def orders() -> list[int]:
-    """The paper's model orders ``model.orders`` takes (1, 2)."""
-    return [s.order for s in STRUCTURES.values() if s.order]
+def orders(include_refused: bool = False) -> list[int]:
+    """The paper's model orders ``model.orders`` takes (1, 2); with ``include_refused``, the
+    orders of refused modules too."""
+    found = [s.order for s in STRUCTURES.values() if s.order]
+    if include_refused:
+        found = sorted({*found, *(r.order for r in REFUSED.values() if r.order)})
+    return found
 
 
-def further() -> list[str]:
-    """The names ``model.structures`` takes: every structure that is not one of the orders."""
-    return [s.name for s in STRUCTURES.values() if not s.order]
+def further(include_refused: bool = False) -> list[str]:
+    """The names ``model.structures`` takes: every structure that is not one of the orders;
+    with ``include_refused``, the refused modules' that declare no order too."""
+    found = [s.name for s in STRUCTURES.values() if not s.order]
+    if include_refused:
+        found += [r.name for r in REFUSED.values() if not r.order]
+    return found
 
 
 def nesting() -> tuple[tuple[str, str, int], ...]:

@@ -57,6 +57,9 @@ def fit_vehicle(
     files into (``vehicles/<id>/clean/<window>.csv``, ``kvalue.yaml``,
     ``identify/<model>.yaml`` and ``_series.csv``, ``fit_<model>.yaml``)."""
     keys = list(models) if models else identify.model_keys(vehicle.data)
+    for key in keys:  # a refused structure module stops here, naming its file and the fix
+        for refused in structures.refused(identify.split_key(key)[0]):
+            raise refused.error()
     unknown = [k for k in keys if identify.split_key(k)[0] not in structures.keys()]
     if unknown:
         raise ValueError(
