@@ -855,7 +855,7 @@ def check_study_plans(
             parsed = parse(text)
         except ConfigError as err:
             raise ConfigError(config_file, key, text, err.reason) from None
-        if parse is parse_target:
+        if parse is parse_target and "order2" in structures.keys():  # else none fits order 2
             allowed = [p for p in structures.by_key("order2").parameters if p != "kA"]
             if parsed[0] not in allowed:
                 raise ConfigError(config_file, key, text, f"a parameter of {allowed}")

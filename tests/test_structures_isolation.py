@@ -176,33 +176,43 @@ def test_the_workflow_parse_refuses_the_same_vehicles(user_modules):
     assert "identify" in planned.stdout
 
 
+# {shipped module: (text replaced, by, the order it is, the other order)}: first_order.py
+# with a syntax error, second_order.py with a start value written twice
+SHIPPED = {
+    "first_order": ('    air="C_bar",', '    air="C_bar"\n    air=C_bar,', 1, 2),
+    "second_order": ('"C": 120_480.0,', '"C": 120_480.0, "kA": 5.0,', 2, 1),
+}
+
+
 @pytest.mark.bad_input
-def test_a_broken_shipped_module_stops_only_the_vehicles_of_its_order(tmp_path):
-    """first_order.py with a syntax error: the vehicle asking for order 1 is refused, naming
-    first_order.py and the line; one asking for order 2 and interior_envelope validates and
-    fits."""
-    first = (PACKAGE / "structures" / "first_order.py").read_text()
-    broken = first.replace('    air="C_bar",', '    air="C_bar"\n    air=C_bar,')
-    assert broken != first
-    root = package_copy(tmp_path / "pkg", {"first_order": broken})
+@pytest.mark.parametrize("name", list(SHIPPED))
+def test_a_broken_shipped_module_stops_only_the_vehicles_of_its_order(tmp_path, name):
+    """A shipped module broken: the vehicle asking for its order is refused, naming the
+    module's file and line; a study of a vehicle asking for the other order and
+    interior_envelope validates (with the study's design and energy settings) and fits."""
+    old, new, order, other = SHIPPED[name]
+    source = (PACKAGE / "structures" / f"{name}.py").read_text()
+    assert old in source
+    root = package_copy(tmp_path / "pkg", {name: source.replace(old, new)})
     folder = study(
         tmp_path / "study",
         {
-            "Order1": {"orders": [1], "structures": []},
-            "Order2": {"orders": [2], "structures": ["interior_envelope"]},
+            "Uses": {"orders": [order], "structures": []},
+            "Other": {"orders": [other], "structures": ["interior_envelope"]},
         },
     )
+    write_config(folder, ["Other"])
     refused, fine, fit = commands(
         root,
         folder,
-        ["validate", vehicle("Order1")],
-        ["validate", vehicle("Order2")],
-        ["fit", vehicle("Order2"), "--model", "interior_envelope"],
+        ["validate", vehicle("Uses")],
+        ["validate"],
+        ["fit", vehicle("Other"), "--model", "interior_envelope"],
     )
     assert refused[0] == 1 and "Traceback" not in refused[2]
-    assert refused[2].startswith(f"{vehicle('Order1')}: key 'model.orders[0]' = 1")
-    assert f"{root / 'railtherm' / 'structures' / 'first_order.py'}: key 'line " in refused[2]
-    assert "drop 1 from model.orders" in refused[2]
-    assert fine[0] == 0, fine[2][-2000:]
+    assert refused[2].startswith(f"{vehicle('Uses')}: key 'model.orders[0]' = {order}")
+    assert f"{root / 'railtherm' / 'structures' / f'{name}.py'}: key 'line " in refused[2]
+    assert f"drop {order} from model.orders" in refused[2]
+    assert fine[0] == 0 and fine[1].startswith("ok: 1 vehicle"), fine[2][-2000:]
     assert fit[0] == 0, fit[2][-3000:]
     assert "interior_envelope" in fit[1] and "K_o" in fit[1]

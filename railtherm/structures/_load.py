@@ -134,12 +134,15 @@ def _duplicate_keys(tree: ast.Module) -> None:
             if not isinstance(key, ast.Constant):
                 continue
             if key.value in seen:
+                first = seen[key.value]
+                where = (
+                    f"lines {first} and {key.lineno}" if first != key.lineno else f"line {first}"
+                )
                 raise _Problem(
                     f"line {key.lineno}",
                     key.value,
-                    f"this key is written twice in one dict (lines {seen[key.value]} and "
-                    f"{key.lineno}); Python keeps the last value and drops the first without "
-                    "a word: keep one entry for it",
+                    f"this key is written twice in one dict ({where}); Python keeps the "
+                    "last value and drops the first without a word: keep one entry for it",
                 )
             seen[key.value] = key.lineno
 
