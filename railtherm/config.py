@@ -313,7 +313,7 @@ def load_vehicle(
             [],
             "nothing to fit: list an order (1: eq. 9, 2: eqs. 7-8) or a model.structures entry",
         )
-    _check_structures(file, model)
+    _check_structures(file, model, data)
     _check_model(file, model, data.get("model") or {}, solar=_solar_parameters(data))
     _check_envelope(file, data, model)
     data["model"] = model  # data is self-contained: the workflow passes it as params
@@ -487,11 +487,13 @@ def _check_channels(
         inputs[name] = key
 
 
-def _check_structures(file: str, model: dict[str, Any]) -> None:
+def _check_structures(file: str, model: dict[str, Any], data: dict[str, Any] | None = None) -> None:
     """Every structure the vehicle asks for (``model.orders``, ``model.structures``) loaded
     and passed the registry's checks: a refused module (:data:`railtherm.structures.REFUSED`:
     it fails to import, leaves out or repeats an entry, or its derivatives disagree with
-    central differences) refuses the vehicles that ask for it, and only those."""
+    central differences) refuses the vehicles that ask for it, and only those. The storage
+    correction of eq. 10's kA (a k window, ``kvalue.storage_correction``, static mode) fits
+    the second-order model whatever the orders: it asks for order 2 as well."""
     asked = [(f"model.orders[{i}]", n, f"order{n}") for i, n in enumerate(model["orders"])]
     asked += [
         (f"model.structures[{i}]", name, name)
@@ -506,6 +508,21 @@ def _check_structures(file: str, model: dict[str, Any]) -> None:
                 f"the structure module is refused: {refused}. Fix the module, or drop "
                 f"{value} from {key.split('[')[0]}; vehicles that do not ask for it are "
                 "unaffected",
+            )
+    kvalue = (data or {}).get("kvalue") or {}
+    if (
+        "kvalue" in ((data or {}).get("windows") or {})
+        and kvalue.get("storage_correction", True)
+        and model.get("mode", "static") != "joint"
+    ):
+        for refused in structures.refused("order2"):
+            raise ConfigError(
+                file,
+                "kvalue.storage_correction",
+                True,
+                "the storage correction of eq. 10's kA fits the second-order model (eqs. "
+                f"7-8), whose structure module is refused: {refused}. Fix the module, or set "
+                "kvalue.storage_correction: false (or model.mode: joint)",
             )
 
 

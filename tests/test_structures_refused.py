@@ -249,3 +249,32 @@ def test_a_broken_copy_declaring_an_order_leaves_the_sound_module_of_that_order(
     assert structures.by_key("order2").name == "second_order"
     config._check_structures("v.yaml", {"orders": [1, 2], "structures": []})
     assert structures.refused("my_copy") == [copy]
+
+
+@pytest.mark.bad_input
+def test_the_storage_correction_asks_for_order_2(monkeypatch):
+    """A vehicle fitting only order 1 but with a k window corrects eq. 10's kA for storage
+    with the second-order model: with second_order.py refused it is refused at
+    kvalue.storage_correction, naming the module and both ways out; without the correction
+    (switched off, joint mode, or no k window) it passes."""
+    from railtherm import config
+
+    broken = _load.Refused(
+        "second_order", "/x/second_order.py", "line 52", "kA", "written twice: fix it", 2
+    )
+    monkeypatch.setitem(structures.REFUSED, "second_order", broken)
+    monkeypatch.delitem(structures._BY_KEY, "order2")
+    model = {"orders": [1], "structures": []}
+    k_window = {"windows": {"kvalue": {"start": 0, "end": 1}}, "kvalue": {}}
+    with pytest.raises(ConfigError) as caught:
+        config._check_structures("v.yaml", model, k_window)
+    message = str(caught.value)
+    assert message.startswith("v.yaml: key 'kvalue.storage_correction' = True")
+    assert "/x/second_order.py: key 'line 52'" in message
+    assert "set kvalue.storage_correction: false (or model.mode: joint)" in message
+    off = {**k_window, "kvalue": {"storage_correction": False}}
+    config._check_structures("v.yaml", model, off)
+    config._check_structures("v.yaml", {**model, "mode": "joint"}, k_window)
+    config._check_structures("v.yaml", model, {"windows": {}, "kvalue": {}})
+    with pytest.raises(ConfigError, match="key 'model.orders\\[1\\]' = 2"):
+        config._check_structures("v.yaml", {"orders": [1, 2]}, k_window)
