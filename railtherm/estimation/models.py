@@ -118,11 +118,9 @@ def lfilter(b, a, x, **kwargs):
 # structure: each structure module's ``matrices``, looked up when called, so that a refused
 # module stops only what uses it (railtherm.structures.REFUSED)
 def _build(name: str):
-    if name not in STRUCTURES:
-        from railtherm.structures import REFUSED
+    from railtherm.structures import named
 
-        raise REFUSED[name].error()
-    return STRUCTURES[name].build
+    return named(name).build
 
 
 def first_order(*args, **kwargs) -> tuple[np.ndarray, np.ndarray]:
@@ -322,13 +320,9 @@ def structure_for(name: str, irradiance: Sequence[str] = ()) -> Structure:
     """The structure ``name`` of :data:`STRUCTURES` with irradiance inputs ``irradiance``
     (:func:`with_irradiance`; "I_sol" heats the air node, "I_sol@envelope" or "I_sol@both"
     as declared)."""
-    if name not in STRUCTURES:
-        from railtherm.structures import REFUSED
+    from railtherm.structures import named
 
-        if name in REFUSED:
-            raise REFUSED[name].error()
-        raise KeyError(f"unknown structure {name!r}; known: {sorted(STRUCTURES)}")
-    return with_irradiance(STRUCTURES[name], irradiance)
+    return with_irradiance(named(name), irradiance)
 
 
 def discretize_zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:

@@ -38,6 +38,7 @@ __all__ = [
     "further",
     "keys",
     "measurable_states",
+    "named",
     "of_kind",
     "of_fit",
     "nesting",
@@ -108,6 +109,17 @@ def by_key(key: str) -> Structure:
             raise r.error()
         raise KeyError(f"unknown model {key!r}; known: {', '.join(_BY_KEY)}")
     return _BY_KEY[key]
+
+
+def named(name: str) -> Structure:
+    """The structure of a module name (second_order, interior_envelope). A refused module
+    raises its :class:`~railtherm.errors.ConfigError`, naming the file, the entry and the
+    fix."""
+    if name not in STRUCTURES and name in REFUSED:
+        raise REFUSED[name].error()
+    if name not in STRUCTURES:
+        raise KeyError(f"unknown structure {name!r}; known: {', '.join(STRUCTURES)}")
+    return STRUCTURES[name]
 
 
 def keys(include_refused: bool = False) -> list[str]:

@@ -55,8 +55,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from railtherm import structures
 from railtherm.errors import ConfigError
-from railtherm.estimation import models, pem
+from railtherm.estimation import pem
 from railtherm.study import identifiability, quality
 from railtherm.study.fit import Fit, write_yaml
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
@@ -187,7 +188,7 @@ def _member(
     unidentified parameters ("C, K_veh not identified (at a bound)"), then the verdict, then the
     missing metadata."""
     mass, surface = _metadata(vehicle, "mass_kg"), _metadata(vehicle, "surface_m2")
-    coupled = models.STRUCTURES[STRUCTURE].coupled
+    coupled = structures.named(STRUCTURE).coupled
     if any(p in not_identified for p in coupled):  # the others of the dynamic part neither
         not_identified = {**{p: COUPLED for p in coupled}, **not_identified}
     value = {p: None if p in not_identified else estimates.get(p) for p in FIT_PARAMETERS}
@@ -632,7 +633,7 @@ class ReferenceModel:
             p: {"identified": True} if e.get("given") else pem.identification(e["value"], e["ci95"])
             for p, e in out.items()
         }
-        coupled = models.STRUCTURES[STRUCTURE].coupled
+        coupled = structures.named(STRUCTURE).coupled
         judged |= identifiability.coupled_identification(judged, coupled)
         for p, j in judged.items():
             out[p]["identified"] = bool(j["identified"])

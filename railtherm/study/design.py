@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from railtherm import structures
 from railtherm.errors import ConfigError
 from railtherm.estimation import models
 from railtherm.estimation.acf import autocorrelation_time
@@ -786,7 +787,7 @@ def prior_from_reference(model, n: int = 200, seed: int = 0, fits=()) -> Prior:
     draws of a new vehicle of the class (deterministic with ``seed``); kA fixed, as the
     two-stage fit fixes it from the static test. ``fits``: the class's fits, whose residual
     level (:func:`residuals_of`) replaces the programme's sensor noise."""
-    structure = models.STRUCTURES[model.structure]
+    structure = structures.named(model.structure)
     draws = model.draws(n, seed)
     keep = np.all([np.isfinite(v) & (v > 0) for v in draws.values()], axis=0)
     draws = {p: v[keep] for p, v in draws.items()}
