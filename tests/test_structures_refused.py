@@ -278,3 +278,21 @@ def test_the_storage_correction_asks_for_order_2(monkeypatch):
     config._check_structures("v.yaml", model, {"windows": {}, "kvalue": {}})
     with pytest.raises(ConfigError, match="key 'model.orders\\[1\\]' = 2"):
         config._check_structures("v.yaml", {"orders": [1, 2]}, k_window)
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize(
+    "entry, message",
+    [
+        ("", "key 'STRUCTURE.jacobian' = None: a required entry is missing: give jacobian=..."),
+        (
+            "    jacobain=derivatives,\n",
+            "key 'STRUCTURE.jacobain' = None: Structure has no entry 'jacobain': did you mean "
+            "jacobian?",
+        ),
+    ],
+)
+def test_a_required_entry_left_out_or_misspelt_is_named(tmp_path, monkeypatch, entry, message):
+    source = ENVELOPE.replace("    jacobian=derivatives,\n", entry)
+    assert source != ENVELOPE
+    assert message in refused_only(tmp_path, monkeypatch, "incomplete", source)

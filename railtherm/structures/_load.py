@@ -11,11 +11,13 @@ and only a vehicle or command that asks for that structure is refused with it.
 from __future__ import annotations
 
 import ast
+import difflib
 import importlib
 import math
 import re
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -73,7 +75,7 @@ def load(name: str, package: str, file: str) -> Structure | Refused:
     """The structure of module ``package.name`` (source ``file``) named after the module, or
     the reason it is refused. Never raises for anything the module holds."""
     try:
-        source = open(file, encoding="utf-8").read()
+        source = Path(file).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
         return Refused(name, file, "(file)", None, f"cannot be read ({err}): fix the file")
     order = declared_order(source)
@@ -150,12 +152,43 @@ def _duplicate_keys(tree: ast.Module) -> None:
 def _import(module_name: str):
     try:
         return importlib.import_module(module_name)
+    except TypeError as err:
+        if "Structure.__init__()" in str(err):
+            raise _entry_problem(str(err)) from None
+        raise _Problem(
+            "(import)",
+            f"{type(err).__name__}: {err}",
+            "the module fails when imported: run it with python to see where, and fix it",
+        ) from None
     except (Exception, SystemExit) as err:  # a user's module may raise anything
         raise _Problem(
             "(import)",
             f"{type(err).__name__}: {err}",
             "the module fails when imported: run it with python to see where, and fix it",
         ) from None
+
+
+def _entry_problem(text: str) -> _Problem:
+    """``Structure(...)`` called without a required entry or with one it does not have (a
+    misspelt name): the entry and the fix."""
+    entries = [f.name for f in fields(Structure) if f.name != "name"]
+    named = re.findall(r"'(\w+)'", text)
+    if "unexpected keyword" in text and named:
+        close = difflib.get_close_matches(named[0], entries, n=1)
+        hint = f"did you mean {close[0]}? " if close else ""
+        return _Problem(
+            f"STRUCTURE.{named[0]}",
+            None,
+            f"Structure has no entry {named[0]!r}: {hint}the entries are {', '.join(entries)}",
+        )
+    if "missing" in text and named:
+        return _Problem(
+            f"STRUCTURE.{named[0]}",
+            None,
+            f"a required entry is missing: give {named[0]}=... in STRUCTURE = Structure(...) "
+            "(parameters, states, build and jacobian are required; docs/structures.md)",
+        )
+    return _Problem("STRUCTURE", text, "Structure(...) is called wrongly: fix the call")
 
 
 def check(s: Structure) -> None:
