@@ -60,7 +60,8 @@ def discover(path: Iterable[str], package: str) -> tuple[dict[str, Structure], d
     for info in sorted(pkgutil.iter_modules(list(path)), key=lambda m: m.name):
         if info.name.startswith("_"):
             continue
-        file = os.path.join(info.module_finder.path, f"{info.name}.py")
+        file = os.path.join(info.module_finder.path, info.name)
+        file = os.path.join(file, "__init__.py") if info.ispkg else f"{file}.py"
         loaded = load(info.name, package, file)
         if isinstance(loaded, Refused):
             refused[info.name] = loaded
