@@ -263,7 +263,8 @@ def test_the_storage_correction_asks_for_order_2(monkeypatch):
         "second_order", "/x/second_order.py", "line 52", "kA", "written twice: fix it", 2
     )
     monkeypatch.setitem(structures.REFUSED, "second_order", broken)
-    monkeypatch.delitem(structures._BY_KEY, "order2")
+    loaded = {k: s for k, s in structures._BY_KEY.items() if k != "order2"}
+    monkeypatch.setattr(structures, "_BY_KEY", loaded)  # the registry's own dict untouched
     model = {"orders": [1], "structures": []}
     k_window = {"windows": {"kvalue": {"start": 0, "end": 1}}, "kvalue": {}}
     with pytest.raises(ConfigError) as caught:
