@@ -116,6 +116,18 @@ def test_the_glitch_row_is_named_by_the_innovations(all_rows, model, statistic):
     assert fit["verdict"]  # reported, the verdict judged as before
 
 
+def test_railtherm_fit_prints_the_outlying_samples(capsys):
+    """The fit's text (``railtherm fit``): the glitch row under the verdict's reasons."""
+    from railtherm.cli import main
+
+    args = ["fit", "config/vehicles/Armadillo_all_rows.yaml", "--model", "interior_envelope"]
+    assert main([*args, "-d", str(VALIDATION)]) == 0
+    out = capsys.readouterr().out
+    line = [x for x in out.splitlines() if "t = 417600 s" in x]
+    assert len(line) == 1 and line[0].startswith("  ! T sample at t = 417600 s (window h2)")
+    assert "standardized residual +5.0" in line[0] and "Bonferroni over 233 samples" in line[0]
+
+
 def test_the_glitch_is_the_kalman_fits_largest_innovation(all_rows):
     """An innovation of about 11 standard deviations: no other sample comes near it."""
     found = all_rows.fits["interior_envelope_kalman"].data["outliers"]["T"]

@@ -78,6 +78,18 @@ class OutlyingSamples:
             "samples": [dict(s) for s in self.samples],
         }
 
+    @classmethod
+    def from_dict(cls, output: str, data: dict[str, Any]) -> OutlyingSamples:
+        """Back from :meth:`to_dict` (a fit file's ``outliers`` entry of ``output``)."""
+        return cls(
+            output,
+            str(data["statistic"]),
+            float(data["alpha"]),
+            int(data["n"]),
+            float(data["threshold"]),
+            tuple(dict(s) for s in data["samples"]),
+        )
+
     def texts(self) -> list[str]:
         """One sentence per outlying sample, for a fit's notes."""
         return [
