@@ -430,14 +430,15 @@ def test_armadillo_like_pysip_zero_order_hold(armadillo_experiment):
     assert kA == pytest.approx(PYSIP_ZOH["kA"], rel=0.01)
 
 
-PYSIP_PRINTED = {"R_o": 0.017593, "R_i": 0.001984, "C_w": 1.4653e7, "C_i": 1.637e6}
+# pySIP's published TwTi_RoRi fit (data/armadillo/README.md), as printed
+PYSIP_PRINTED = {"R_o": 0.01759, "R_i": 0.001984, "C_w": 1.47e7, "C_i": 1.64e6}
 
 
 def test_armadillo_with_the_first_order_hold_reproduces_pysip_published_fit():
     """pySIP's published fit set up alike: inputs linear between samples (first-order hold),
     the 232 rows of its example (the last, a glitch of +0.84 K, dropped), the indoor state
     from its first measurement, diffusion on the envelope only. R_o, R_i, C_w and C_i land
-    within 2 % of pySIP's printed values (measured: within 0.05 %)."""
+    within 0.5 % of pySIP's printed values (measured: 0.02-0.32 %)."""
     raw = pd.read_csv(REPO / "data" / "armadillo" / "armadillo_data_H2.csv").iloc[:232]
     u = raw[["T_ext", "P_hea"]].to_numpy(float)
     y = np.column_stack([raw["T_int"].to_numpy(float), np.full(len(raw), np.nan)])
@@ -447,7 +448,7 @@ def test_armadillo_with_the_first_order_hold_reproduces_pysip_published_fit():
     th = r.theta
     got = {"R_o": 1 / th["K_o"], "R_i": 1 / th["K_i"], "C_w": th["C_e"], "C_i": th["C"]}
     for k, value in PYSIP_PRINTED.items():
-        assert got[k] == pytest.approx(value, rel=0.02), k
+        assert got[k] == pytest.approx(value, rel=0.005), k
     # the same samples held by the zero-order hold (each step's mean): not the same model
     z = kalman.fit(SIE, [pem.Experiment("h2", 1800.0, models.step_means(u, "first_order"), y)],
                    x0="measured", fixed={"sigma_T": 0.0})  # fmt: skip

@@ -244,13 +244,18 @@ def test_min_used_share():
 
 
 def test_railtherm_fit_takes_the_studys_limit_and_the_vehicles_own(tmp_path, capsys):
-    """The Armadillo Box's interior-envelope model misses T by RMSE 0.25 K, only that: in
-    doubt under the wind tunnel's 0.2 K, acceptable under a field record's 0.5 K set once for
-    the study, in doubt again where the vehicle sets its own 0.2 K."""
+    """The Armadillo Box's interior-envelope model misses T by RMSE 0.21 K on all 233 rows
+    (0.200 K on pySIP's 232, too near the limit to tell), only that: in doubt under the wind
+    tunnel's 0.2 K, acceptable under a field record's 0.5 K set once for the study, in doubt
+    again where the vehicle sets its own 0.2 K."""
 
     def verdict(study_check, vehicle_check) -> str:
         root = tmp_path / f"run{len(list(tmp_path.iterdir()))}"
         study_with(root, study_check, vehicle_check)
+        vehicle = root / "config" / "vehicles" / "Armadillo.yaml"
+        data = yaml.safe_load(vehicle.read_text(encoding="utf-8"))
+        data["windows"]["identification"][0]["end"] = 417_600  # every row of the file
+        vehicle.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
         args = ["fit", "config/vehicles/Armadillo.yaml", "--model", "interior_envelope"]
         assert main([*args, "--out", "out", "-d", str(root)]) == 0
         return read_fit(root / "out/vehicles/Armadillo/fit_interior_envelope.yaml").verdict

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from railtherm import io as results_io
-from railtherm.estimation import models
+from railtherm.estimation import models, outliers
 from railtherm.study import identifiability
 
 
@@ -201,13 +201,24 @@ class Fit:
         write_yaml(self.data, path)
 
     def summary(self) -> str:
-        """A few lines for people: the model, each parameter, R^2 and the verdict."""
+        """A few lines for people: the model, each parameter, R^2, the verdict with its
+        reasons (-) and the record's outlying samples (!)."""
         lines = [
             f"{self.vehicle} {self.model} ({self.k_source}): {self.verdict}, R2 = {self.R2:.4f}"
         ]
         lines += [f"  {p}" for p in self.parameters.values()]
         lines += [f"  - {r}" for r in self.reasons]
+        lines += [f"  ! {t}" for t in self.outlying_samples()]
         return "\n".join(lines)
+
+    def outlying_samples(self) -> list[str]:
+        """The record's outlying samples (``outliers`` of the fit file,
+        :mod:`railtherm.estimation.outliers`), one sentence each."""
+        return [
+            text
+            for state, found in (self.data.get("outliers") or {}).items()
+            for text in outliers.OutlyingSamples.from_dict(state, found).texts()
+        ]
 
 
 def write_yaml(data: Mapping[str, Any], path: str | os.PathLike[str]) -> None:

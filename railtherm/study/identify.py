@@ -22,7 +22,7 @@ import pandas as pd
 from railtherm import structures
 from railtherm.data import ingest
 from railtherm.errors import ConfigError, DataError
-from railtherm.estimation import metrics, models, pem
+from railtherm.estimation import metrics, models, outliers, pem
 from railtherm.estimation.kvalue import COMPONENTS, sensor_counts, sensor_u_K, storage_corrected_kA
 from railtherm.study import identifiability, quality
 from railtherm.yamlio import packaged_schema, validate_schema
@@ -1008,6 +1008,32 @@ def innovation_tests(
     return tests
 
 
+def outlying_samples(
+    estimate: Mapping[str, Any], series: pd.DataFrame, thresholds: Mapping[str, Any]
+) -> dict[str, Any]:
+    """Each compared output's outlying samples
+    (:class:`railtherm.estimation.outliers.OutlyingSamples`): a Kalman fit's standardised
+    one-step innovations, an output-error fit's simulation residuals over their RMSE, beyond
+    the Bonferroni threshold at ``check.outlier_alpha`` over the record's samples. Reported
+    in the fit's notes and ``outliers``; they do not judge the verdict."""
+    estimator = estimate.get("estimator", "output_error")
+    alpha = float(thresholds["outlier_alpha"])
+    # a series without times (a hand-built one) names its samples by their row
+    times = series["time"] if "time" in series else pd.Series(range(len(series)))
+    return {
+        state: outliers.outlying_samples(
+            state,
+            outliers.standardized(series, state, estimator),
+            times.to_numpy(float),
+            series["window"].astype(str).to_numpy(),
+            estimator,
+            alpha,
+        )
+        for state in estimate["outputs"]
+        if outliers.has_columns(series, state, estimator)
+    }
+
+
 def innovation_reasons(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
     """The verdict's reasons of a kalman fit: an output whose one-step innovations are not
     white (:func:`innovation_tests`) - the stochastic model misses a dynamic or an input."""
@@ -1589,7 +1615,8 @@ def check(
 
     ``thresholds``: the vehicle's ``check`` section; what it leaves out takes the schema's
     default (:func:`check_thresholds`). The notes list what does not put the fit in doubt:
-    high correlations, and the checks skipped for metadata the config does not give.
+    high correlations, the checks skipped for metadata the config does not give, and the
+    record's outlying samples (:func:`outlying_samples`, also in ``outliers``).
     """
     thresholds = check_thresholds(thresholds)
     fit = estimate["fit"]
@@ -1649,6 +1676,9 @@ def check(
     judge("k_stage", list(estimate["notes"]))
     notes = [f["message"] for f in fit["flags"] if f["code"] in NOTE_ONLY_FLAGS]
     notes += skipped_checks(estimate)
+    outlying = outlying_samples(estimate, series, thresholds)
+    for found in outlying.values():
+        notes += found.texts()
     return {
         "vehicle": estimate["vehicle"],
         "synthetic": estimate["synthetic"],
@@ -1683,4 +1713,5 @@ def check(
         **({key: fit[key] for key in ("loglik", "n_params", "n_obs")} if kalman else {}),
         **({"innovations": estimate["innovations"]} if kalman else {}),
         **({"noise": fit["noise"]} if kalman and "noise" in fit else {}),
+        "outliers": {state: found.to_dict() for state, found in outlying.items()},
     }

@@ -11,6 +11,10 @@ Armadillo Box. :func:`compare` sets beside them
   and the same model, whatever their estimators.
 
 Fit quality is given both as the NRMSE fit that pySIP and MATLAB report and as R^2 of eq. 21.
+Where the reference gives a published standard uncertainty ({value, sd}), the comparison gives
+z of the difference of the logarithms over both standard uncertainties in quadrature
+(:func:`z_difference`); the markdown names the rows railtherm's fit used and the record's
+outlying samples (:mod:`railtherm.estimation.outliers`).
 """
 
 from __future__ import annotations
@@ -26,9 +30,17 @@ from railtherm import structures
 from railtherm.errors import ConfigError
 from railtherm.estimation import pem
 from railtherm.study import identifiability, identify, quality
-from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
+from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_schema
 
-__all__ = ["compare", "load_reference", "markdown", "published_parameters", "simulate_published"]
+__all__ = [
+    "compare",
+    "load_reference",
+    "markdown",
+    "published_parameters",
+    "published_sd_log",
+    "simulate_published",
+    "z_difference",
+]
 
 UNITS = {
     **{p: structures.unit(p) for p in structures.parameters()},
@@ -51,6 +63,7 @@ def load_reference(path: str | Path, display: str | None = None) -> dict[str, An
     name = display or str(path)
     data = read_yaml(path, display=name)
     validate_schema(name, data, packaged_schema("reference"))
+    check_finite(name, data)
     structure = identify.model_structure(data["model"])
     params = published_parameters(data)
     known = {*structure.parameters, "kA"}
@@ -88,15 +101,49 @@ def study_references(
     return out
 
 
+def _printed(entry: Any) -> tuple[float, float | None]:
+    """A published parameter as the reference gives it: (value, sd or None)."""
+    if isinstance(entry, Mapping):
+        return float(entry["value"]), float(entry["sd"])
+    return float(entry), None
+
+
+def _railtherm_name(name: str) -> str:
+    return "K_" + name[2:] if name.startswith("R_") else name
+
+
 def published_parameters(reference: Mapping[str, Any]) -> dict[str, float]:
     """The published parameters in railtherm's names: R_x (K/W) becomes K_x = 1 / R_x."""
     out = {}
-    for name, value in reference["parameters"].items():
-        if name.startswith("R_"):
-            out["K_" + name[2:]] = 1.0 / float(value)
-        else:
-            out[name] = float(value)
+    for name, entry in reference["parameters"].items():
+        value, _ = _printed(entry)
+        out[_railtherm_name(name)] = 1.0 / value if name.startswith("R_") else value
     return out
+
+
+def published_sd_log(reference: Mapping[str, Any]) -> dict[str, float]:
+    """The published standard uncertainties as sds of the logarithm, in railtherm's names
+    (only the parameters published with one): sd / value, which K = 1 / R shares with R
+    (d log K = -d log R)."""
+    out = {}
+    for name, entry in reference["parameters"].items():
+        value, sd = _printed(entry)
+        if sd is not None:
+            out[_railtherm_name(name)] = sd / value
+    return out
+
+
+def z_difference(value: float, sd_log: float, published: float, published_sd_log: float) -> float:
+    """z of railtherm's estimate against a published one: the difference of the logarithms
+    over both standard uncertainties (sds of the logarithm) in quadrature,
+    ln(value / published) / sqrt(sd_log^2 + published_sd_log^2). Both analyses fit the same
+    record, so their errors are correlated and this z is on the small side of the truth's:
+    |z| > 2 is a difference the two uncertainties do not explain. NaN where either is
+    missing."""
+    variance = sd_log**2 + published_sd_log**2
+    if not (np.isfinite(variance) and variance > 0 and value > 0 and published > 0):
+        return np.nan
+    return float(np.log(value / published) / np.sqrt(variance))
 
 
 def simulate_published(
@@ -124,12 +171,17 @@ def simulate_published(
     return out
 
 
-def _row(quantity, label, published, fit_entry, simulated=None, judged=None) -> dict[str, Any]:
+def _row(
+    quantity, label, published, fit_entry, simulated=None, judged=None, published_sd_log=None
+) -> dict[str, Any]:
     """One quantity; a fitted value the data do not determine
     (railtherm.estimation.pem.identification),
     or coupled to one they do not determine (``judged``: the fit's judgement with its
     structure's coupling, railtherm.study.aggregate.judged_parameters), has no value, no interval
-    and is within nothing: its ``status`` says why."""
+    and is within nothing: its ``status`` says why. ``published_sd_log``: the published
+    standard uncertainty (sd of the logarithm), when given: then ``published_sd`` (in the
+    quantity's unit) and ``z`` (:func:`z_difference`, railtherm's statistical sd, as a
+    published fit's own sd is)."""
     value = np.nan if fit_entry is None else float(fit_entry["value"])
     lo, hi = (np.nan, np.nan)
     status = "estimated"
@@ -140,16 +192,23 @@ def _row(quantity, label, published, fit_entry, simulated=None, judged=None) -> 
             value, lo, hi = np.nan, np.nan, np.nan
             status = f"not identified: {judged['reason']}"
     published = np.nan if published is None else float(published)
+    z = np.nan
+    if published_sd_log is not None and fit_entry is not None and np.isfinite(value):
+        sd_log = fit_entry.get("sd_log", fit_entry.get("sd_log_total"))
+        if sd_log is not None:
+            z = z_difference(value, float(sd_log), published, published_sd_log)
     return {
         "quantity": quantity,
         "label": label,
         "unit": unit(quantity),
         "published": published,
+        "published_sd": np.nan if published_sd_log is None else published * published_sd_log,
         "railtherm": value,
         "railtherm_lo": lo,
         "railtherm_hi": hi,
         "ratio": value / published if np.isfinite(published) and published else np.nan,
         "within_ci": bool(lo <= published <= hi) if np.isfinite(lo) else None,
+        "z": z,
         "published_simulated": np.nan if simulated is None else float(simulated),
         "status": status,
     }
@@ -171,6 +230,7 @@ def compare(
             f"{fit['vehicle']}/{fit['model']}"
         )
     theta = published_parameters(reference)
+    sds = published_sd_log(reference)
     printed = reference.get("metrics") or {}
     simulated = simulate_published(reference, tables, vehicle_data) or {}
     fitted = fit["parameters"]
@@ -178,7 +238,11 @@ def compare(
 
     judged = judged_parameters(fit)
     # every published parameter (a quantity railtherm does not estimate stays blank), then kA
-    rows = [_row(q, q, theta[q], fitted.get(q), None, judged.get(q)) for q in theta if q != "kA"]
+    rows = [
+        _row(q, q, theta[q], fitted.get(q), None, judged.get(q), sds.get(q))
+        for q in theta
+        if q != "kA"
+    ]
     published_kA = theta.get("kA", printed.get("kA"))
     rows.append(
         _row(
@@ -188,6 +252,7 @@ def compare(
             fitted.get("kA"),
             simulated.get("kA"),
             judged.get("kA"),
+            sds.get("kA"),
         )
     )
     overall = fit["measures"]["T"]["overall"]
@@ -196,6 +261,7 @@ def compare(
     table = pd.DataFrame(rows)
     table["k_source"] = fit["k_source"]
     table["input_hold"] = fit.get("input_hold", "zero_order")
+    table["rows"] = int(sum(int(w["rows"]) for w in (fit.get("rows") or {}).values()))
     table.insert(0, "model", reference["model"])
     table.insert(0, "vehicle", reference["vehicle"])
     return table
@@ -217,26 +283,58 @@ def _number(value: float, quantity: str) -> str:
     return f"{value:.4g}"
 
 
-def markdown(table: pd.DataFrame, references: list[Mapping[str, Any]], source: str) -> str:
-    """The comparison as Markdown: one table per reference, its source and location."""
+def outlier_text(fit: Mapping[str, Any]) -> str:
+    """The record's outlying samples as a fit file gives them (``outliers``, by
+    :func:`railtherm.study.identify.outlying_samples`), one sentence."""
+    parts = []
+    for state, found in (fit.get("outliers") or {}).items():
+        head = (
+            f"{state}, {found['statistic']}s beyond ±{found['threshold']:.2f} (the normal "
+            f"quantile at {found['alpha']:g} / {found['n']}, Bonferroni over the "
+            f"{found['n']} samples)"
+        )
+        samples = found["samples"]
+        if samples:
+            named = "; ".join(f"t = {s['time']:g} s: {s['z']:+.1f}" for s in samples)
+            parts.append(f"{head}: {named}")
+        else:
+            parts.append(f"{head}: none")
+    return ". ".join(parts)
+
+
+def markdown(
+    table: pd.DataFrame,
+    references: list[Mapping[str, Any]],
+    source: str,
+    fits: Sequence[Mapping[str, Any]] | None = None,
+) -> str:
+    """The comparison as Markdown: one table per reference, its source and location, and,
+    given ``fits`` (the fit files compared, in the order of ``references``), the record's
+    outlying samples."""
     parts = [f"**Published analyses of the same data beside railtherm.** Data: {source}.", ""]
     kalman = False
-    for ref in references:
+    for i, ref in enumerate(references):
         rows = table[(table["vehicle"] == ref["vehicle"]) & (table["model"] == ref["model"])]
         estimator = "PEM"
         if str(ref["model"]).endswith("_kalman"):
             estimator, kalman = "Kalman ML", True
+        record = (
+            f" railtherm's fit used {int(rows['rows'].iloc[0])} rows." if "rows" in rows else ""
+        )
+        outlying = ""
+        if fits is not None and fits[i].get("outliers"):
+            outlying = f" Outlying samples: {outlier_text(fits[i])}."
         parts += [
             f"### {ref['vehicle']}, {ref['model']}",
             "",
             f"Published: {' '.join(ref['source'].split())} ({ref['location']}).",
             "",
             f"railtherm's kA: {rows['k_source'].iloc[0]}. Inputs between samples: "
-            f"{HOLD_WORDS[rows['input_hold'].iloc[0]]}.",
+            f"{HOLD_WORDS[rows['input_hold'].iloc[0]]}.{record}{outlying}",
             "",
             f"| quantity | unit | published | railtherm ({estimator}) | 95 % interval | "
-            "railtherm / published | published parameters, simulated by railtherm |",
-            "|:--|:--|--:|--:|:--|--:|--:|",
+            "railtherm / published | z | published parameters, simulated by railtherm |",
+            "|:--|:--|--:|--:|:--|--:|--:|--:|",
         ]
         for r in rows.itertuples():
             ci = (
@@ -248,13 +346,28 @@ def markdown(table: pd.DataFrame, references: list[Mapping[str, Any]], source: s
             value = _number(r.railtherm, r.quantity)
             if r.status != "estimated":
                 value = "not identified"
+            published = _number(r.published, r.quantity)
+            sd = getattr(r, "published_sd", np.nan)
+            if np.isfinite(sd):
+                published += f" ± {_number(sd, r.quantity)}"
+            z = getattr(r, "z", np.nan)
             parts.append(
-                f"| {r.label} | {r.unit} | {_number(r.published, r.quantity)} | "
-                f"{value} | {ci} | {ratio} | "
+                f"| {r.label} | {r.unit} | {published} | {value} | {ci} | {ratio} | "
+                f"{f'{z:+.2f}' if np.isfinite(z) else '–'} | "
                 f"{_number(r.published_simulated, r.quantity)} |"
             )
         parts.append("")
     parts += [
+        "- published ± sd: the published standard uncertainty, where the publication gives "
+        "one (a resistance's carried to the conductance, the same relative sd). z: "
+        "ln(railtherm / published) over both standard uncertainties in quadrature "
+        "(railtherm's statistical sd, as a published fit's own); both fits read the same "
+        "record, so |z| > 2 is a difference their uncertainties do not explain.",
+        "- Outlying samples: samples whose standardized innovation (Kalman ML) or simulation "
+        "residual over its RMSE (PEM) lies beyond the two-sided normal quantile at alpha / N "
+        "(check.outlier_alpha, 0.05 by default; Bonferroni over the N samples: a record the "
+        "model describes shows one with probability at most alpha); reported, never removed "
+        "- the rows a fit uses are its vehicle config's windows.",
         "- railtherm (PEM): simulation-error PEM (eqs. 17-18, K = 0) of the same structure, "
         "intervals with the systematic budget. Published parameters, simulated by railtherm: "
         "the published values run through railtherm's simulator (eq. 15, the fit's input "
