@@ -20,7 +20,6 @@ from railtherm.study import energy, weather
 REPO = Path(__file__).resolve().parents[1]
 SAND_POINT = REPO / "config" / "weather" / "703165TY.csv"
 PROFILE = REPO / "config" / "profiles" / "metro_service.yaml"
-pytestmark = pytest.mark.bad_input
 
 
 def write_profile(path: Path, **changes) -> Path:
@@ -41,6 +40,7 @@ def sand_point_in(unit: str) -> np.ndarray:
     return {"degF": T * 9 / 5 + 32, "K": T + 273.15, "degC": T}[unit]
 
 
+@pytest.mark.bad_input
 @pytest.mark.parametrize("unit, hint", [("degF", "read as degF"), ("K", "read as K")])
 def test_a_weather_year_in_another_unit_is_refused_with_its_mean_and_extremes(tmp_path, unit, hint):
     """Sand Point's year written in degF (mean 39 degF, read as degC: a hot year of 0 kWh)
@@ -67,6 +67,7 @@ def test_a_weather_year_in_another_unit_is_refused_with_its_mean_and_extremes(tm
     assert year.T_o.mean() == pytest.approx(true.mean())
 
 
+@pytest.mark.bad_input
 def test_a_year_too_hot_for_earth_is_refused_even_without_a_guess(tmp_path):
     """A year at 40 degC throughout: no climate has that annual mean."""
     path = csv_year(tmp_path / "hot.csv", np.full(8760, 40.0))
@@ -74,6 +75,7 @@ def test_a_year_too_hot_for_earth_is_refused_even_without_a_guess(tmp_path):
         weather.read_weather(path)
 
 
+@pytest.mark.bad_input
 def test_the_energy_command_refuses_a_degF_year(tmp_path, capsys):
     path = csv_year(tmp_path / "year.csv", sand_point_in("degF"))
     code = main(["energy", "fit.yaml", "--weather", str(path), "--profile", str(PROFILE)])
@@ -81,6 +83,7 @@ def test_the_energy_command_refuses_a_degF_year(tmp_path, capsys):
     assert code == 1 and "read as degF" in err and "check the unit" in err, err
 
 
+@pytest.mark.bad_input
 def test_a_set_back_above_the_set_point_is_refused_in_the_profile(tmp_path):
     with pytest.raises(ConfigError) as err:
         energy.load_profile(write_profile(tmp_path / "p.yaml", set_point_C=18, set_back_C=22))
@@ -100,6 +103,7 @@ def test_a_set_back_above_the_set_point_is_refused_in_the_profile(tmp_path):
         ("preheat_h=-2", ["preheat_h=-2", "0 h or more", "preheat_h=3"]),
     ],
 )
+@pytest.mark.bad_input
 def test_a_what_if_that_cannot_hold_is_refused_by_the_command(tmp_path, capsys, text, fragments):
     """`railtherm energy --what-if`: a change that makes kA not positive, a value that is no
     finite number, a negative pre-heating - one line naming --what-if, the text and the fix,
@@ -114,6 +118,7 @@ def test_a_what_if_that_cannot_hold_is_refused_by_the_command(tmp_path, capsys, 
         assert fragment in err, (fragment, err)
 
 
+@pytest.mark.bad_input
 def test_a_set_back_what_if_above_the_set_point_is_refused_by_the_command(tmp_path, capsys):
     """metro_service holds 20 degC in service: a what-if set-back of 24 contradicts it."""
     args = ["energy", "fit.yaml", "--weather", str(SAND_POINT), "--profile", str(PROFILE)]
@@ -126,6 +131,7 @@ def test_a_set_back_what_if_above_the_set_point_is_refused_by_the_command(tmp_pa
 @pytest.mark.parametrize(
     "option, value", [("--step-s", "inf"), ("--volume-m3", "nan"), ("--volume-m3", "-5")]
 )
+@pytest.mark.bad_input
 def test_a_non_finite_or_negative_number_option_is_refused(capsys, option, value):
     args = ["energy", "fit.yaml", "--weather", str(SAND_POINT), "--profile", str(PROFILE)]
     assert main([*args, option, value]) == 1
@@ -133,6 +139,7 @@ def test_a_non_finite_or_negative_number_option_is_refused(capsys, option, value
     assert option in err and value in err, err
 
 
+@pytest.mark.bad_input
 def test_a_contradicting_what_if_built_in_code_is_refused_by_the_engine(tmp_path):
     """The engine itself refuses a what-if the parser would not give (a library caller)."""
     from railtherm.estimation import models
@@ -180,6 +187,7 @@ def energy_study(**section) -> None:
         ),
     ],
 )
+@pytest.mark.bad_input
 def test_the_study_config_refuses_the_same_settings(
     tmp_path, monkeypatch, capsys, section, fragments
 ):

@@ -25,7 +25,6 @@ from railtherm.estimation import kvalue
 from railtherm.study import run
 
 REPO = Path(__file__).resolve().parents[1]
-pytestmark = pytest.mark.bad_input
 
 # a metro car of the paper's class (k = 700 / 241.6 = 2.9 W/(m2 K)), eqs. 7-8, SI units
 KA, C, K_VEH, C_VEH = 700.0, 9.0e6, 450.0, 1.8e7
@@ -93,6 +92,7 @@ def write_generated(root: Path, config: dict) -> str:
     return "config/vehicles/Gen.yaml"
 
 
+@pytest.mark.bad_input
 def test_the_independent_record_written_in_degC_and_declared_degF_is_refused(
     tmp_path, monkeypatch, capsys
 ):
@@ -115,6 +115,7 @@ def fitted(root: Path, vehicle_file: str):
     return run.fit_vehicle(study.vehicles["Gen"], ["order2"], workdir=root).fits["order2"]
 
 
+@pytest.mark.bad_input
 def test_the_independent_record_without_a_k_window_is_put_in_doubt(tmp_path):
     """Without a k window (kA fitted jointly) the degF record fits as well as the truth, with
     kA 1.8 times too large; the verdict is in doubt with the channel, its unit and the check
@@ -152,6 +153,7 @@ def config_data(tmp_path, **changes) -> dict:
     )
 
 
+@pytest.mark.bad_input
 def test_a_heated_cabin_colder_than_the_tunnel_is_refused_naming_both_units(tmp_path):
     """Indoor air declared degF, the tunnel degC: 20 degC reads -6.7 degC, colder than a 0 degC
     tunnel under 20 kW of heating - no k exists; the message names both groups' units."""
@@ -177,6 +179,7 @@ def test_a_heated_cabin_colder_than_the_tunnel_is_refused_naming_both_units(tmp_
         assert fragment in text, (fragment, text)
 
 
+@pytest.mark.bad_input
 def test_degF_data_declared_degC_is_refused_above_the_heated_range(tmp_path):
     """68 degF read as 68 degC: a cabin no k-value test holds; the message says the numbers
     read as degF give 20 degC."""
@@ -194,6 +197,7 @@ def test_the_heated_range_is_a_setting(tmp_path):
     assert k.k == pytest.approx(20_000.0 / (30.0 * AREA))
 
 
+@pytest.mark.bad_input
 def test_a_k_far_from_its_class_is_a_plausibility_note_naming_units(tmp_path):
     """k = 8 W/(m2 K) for a metro (Table 2: 2.4-3.1): inside the physical range, more than
     twice the class's highest: noted with the class, the factor and every channel's unit; a
@@ -226,6 +230,7 @@ def test_the_class_ranges_are_those_of_the_papers_table_2():
     assert {c: (min(v), max(v)) for c, v in by_class.items()} == plausibility.CLASS_K_W_M2K
 
 
+@pytest.mark.bad_input
 def test_a_heated_record_colder_than_the_tunnel_is_a_verdict_reason(tmp_path):
     """On the identification records (no k window to refuse): heated rows with T below T_o
     on average give a reason naming the file, the columns and their units."""
