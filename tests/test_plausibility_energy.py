@@ -10,6 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_cli import setup_repo, write_study
 from test_config import VEHICLE_FILE
 
@@ -215,3 +217,16 @@ def test_a_complete_energy_section_passes(tmp_path, monkeypatch, capsys):
     csv_year(tmp_path / "year.csv", sand_point_in("degC"))
     energy_study(weather=["year.csv"], profile="profile.yaml", what_if=["set_back=8", "k=-10%"])
     assert main(["validate", "--headers-only"]) == 0, capsys.readouterr().err
+
+
+@settings(max_examples=80, deadline=None)
+@given(change=st.floats(-300.0, 300.0, allow_nan=False))
+def test_a_k_what_if_is_accepted_exactly_when_kA_stays_positive(change):
+    """k=<change>% parses to a factor 1 + change/100 on kA when that factor is positive, and
+    is refused naming -100 % otherwise."""
+    text = f"k={change!r}%"
+    if change > -100.0:
+        assert 1.0 + energy.parse_what_if(text).k_rel > 0.0
+    else:
+        with pytest.raises(ConfigError, match="above -100 %"):
+            energy.parse_what_if(text)

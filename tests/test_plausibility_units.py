@@ -15,6 +15,8 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.linalg import expm
 
 from railtherm.cli import main
@@ -278,3 +280,36 @@ def test_a_campaign_fit_and_armadillos_carry_no_unit_check(fit_files):
         path, _ = fit_files(vehicle, model)
         fit = read_yaml(path)
         assert not [r for r in fit["reasons"] if "check the unit" in r], (vehicle, fit["reasons"])
+
+
+@pytest.mark.bad_input
+@settings(max_examples=60, deadline=None)
+@given(
+    cabin=st.floats(15.0, 35.0),
+    tunnel=st.floats(-30.0, 5.0),
+    power=st.floats(5_000.0, 60_000.0),
+)
+def test_any_comfortable_cabin_written_in_degC_and_declared_degF_is_refused(cabin, tunnel, power):
+    """Whatever the test's levels (a cabin at 15-35 degC, a tunnel at -30 to 5 degC), the k
+    window read in degF stops naming degF; read in degC it passes."""
+    data = {
+        "class": "metro",
+        "raw_files": {"cwt": "gen.csv"},
+        "channels": {
+            "indoor_air": [{"column": "T_in", "unit": "degF"}],
+            "outdoor_air": [{"column": "T_out", "unit": "degF"}],
+        },
+    }
+
+    def read_as_degF(x: float) -> float:
+        return (x - 32.0) * 5.0 / 9.0
+
+    with pytest.raises(DataError, match="declared degF.*check the unit"):
+        plausibility.check_k_window(
+            window(read_as_degF(cabin), read_as_degF(tunnel), power), data, "gen.csv"
+        )
+    right = {
+        **data,
+        "channels": {g: [{**c, "unit": "degC"} for c in v] for g, v in data["channels"].items()},
+    }
+    plausibility.check_k_window(window(cabin, tunnel, power), right, "gen.csv")

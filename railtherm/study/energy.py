@@ -206,7 +206,9 @@ def parse_what_if(text: str) -> WhatIf:
     that is no finite number, a change of k of -100 % or less (a loss conductance kA not
     positive) or a negative pre-heating is a :class:`ConfigError` naming ``--what-if`` and
     the fix."""
-    m = re.fullmatch(r"\s*(k|set_back|preheat_h)\s*=\s*([-+]?[\w.]+)(%?)\s*", str(text))
+    m = re.fullmatch(
+        r"\s*(k|set_back|preheat_h)\s*=\s*([-+]?[\w.]+(?:[eE][-+]\d+)?)(%?)\s*", str(text)
+    )
     if m:
         key, value, pct = m.groups()
         if key == "set_back" and not pct and value.lower() == "off":
