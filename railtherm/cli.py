@@ -44,6 +44,7 @@ line on stderr and exit status 1.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from collections.abc import Sequence
@@ -310,13 +311,22 @@ def _energy(args: argparse.Namespace) -> int:
     from railtherm.study.weather import read_weather
 
     _nonnegative(args, "draws", "seed")
-    if not args.step_s > 0:
+    if not (math.isfinite(args.step_s) and args.step_s > 0):
         raise ConfigError("--step-s", "step_s", args.step_s, "expected a positive step (s)")
-    what_ifs = [energy.parse_what_if(w) for w in args.what_if or ()]
+    volume = args.volume_m3
+    if volume is not None and not (math.isfinite(volume) and volume > 0):
+        raise ConfigError(
+            "--volume-m3", "volume_m3", volume, "expected the interior volume in m³, above 0"
+        )
+    texts = list(args.what_if or ())
+    what_ifs = [energy.parse_what_if(w) for w in texts]
     workdir = args.directory
-    params = sim.load_parameters(os.path.join(workdir, args.params))
-    year = read_weather(os.path.join(workdir, args.weather), kind=args.kind)
+    # the settings first (they contradict each other or not whatever the parameters), then
+    # the weather, then the parameters
     profile = energy.load_profile(os.path.join(workdir, args.profile))
+    energy.check_what_ifs(profile, what_ifs, texts, "--what-if", ["what_if"] * len(texts))
+    year = read_weather(os.path.join(workdir, args.weather), kind=args.kind)
+    params = sim.load_parameters(os.path.join(workdir, args.params))
     result = energy.annual_energy(
         params,
         year,

@@ -269,7 +269,11 @@ def load_vehicle(
     _check_metadata(file, data)
     validate_schema(file, data, vehicle_schema())
 
-    for section, key in (("cleaning", "temperature_range_degC"), ("check", "k_range_W_m2K")):
+    for section, key in (
+        ("cleaning", "temperature_range_degC"),
+        ("check", "k_range_W_m2K"),
+        ("check", "heated_air_range_degC"),
+    ):
         lo, hi = data[section][key]
         if not lo < hi:
             raise ConfigError(
@@ -853,11 +857,13 @@ def check_study_plans(
     """The study config's settings of the design table and the annual energy, as the
     workflow and ``railtherm validate`` alike read them: ``design.target`` a parameter the
     second-order fit estimates, each ``energy.what_if`` readable, the ``energy`` weather and
-    profile files present and the profile valid. A mistake is a :class:`ConfigError` naming
+    profile files given (when enabled), present and the profile valid, and no what-if
+    contradicting the profile (:func:`railtherm.study.energy.check_what_ifs`, which
+    ``railtherm energy`` runs on its ``--what-if`` too). A mistake is a :class:`ConfigError` naming
     ``config_file`` and the key."""
     from railtherm import structures
     from railtherm.study.design import parse_target
-    from railtherm.study.energy import load_profile, parse_what_if
+    from railtherm.study.energy import check_what_ifs, load_profile, parse_what_if
 
     config_file = config_file or "config/config.yaml"
     target = (config.get("design") or {}).get("target")
@@ -867,6 +873,7 @@ def check_study_plans(
         (f"energy.what_if[{i}]", parse_what_if, t)
         for i, t in enumerate(energy.get("what_if") or [])
     ]
+    what_ifs = []
     for key, parse, text in texts:
         try:
             parsed = parse(text)
@@ -876,17 +883,39 @@ def check_study_plans(
             allowed = [p for p in structures.by_key("order2").parameters if p != "kA"]
             if parsed[0] not in allowed:
                 raise ConfigError(config_file, key, text, f"a parameter of {allowed}")
+        if parse is parse_what_if:
+            what_ifs.append(parsed)
     if not energy.get("enabled", False):
         return
-    for i, path in enumerate(energy.get("weather") or []):
+    weather = energy.get("weather") or []
+    for i, path in enumerate(weather):
         if not os.path.isfile(os.path.join(str(workdir), path)):
             raise ConfigError(config_file, f"energy.weather[{i}]", path, "weather file not found")
     profile = energy.get("profile")
-    if profile:
-        local = os.path.join(str(workdir), profile)
-        if not os.path.isfile(local):
-            raise ConfigError(config_file, "energy.profile", profile, "profile file not found")
-        load_profile(local)
+    if not profile:
+        raise ConfigError(
+            config_file,
+            "energy.profile",
+            profile,
+            "energy.enabled is true but no operating profile is given: name one, e.g. "
+            "profile: config/profiles/metro_service.yaml (docs/energy.md), or set "
+            "energy.enabled: false",
+        )
+    local = os.path.join(str(workdir), profile)
+    if not os.path.isfile(local):
+        raise ConfigError(config_file, "energy.profile", profile, "profile file not found")
+    loaded = load_profile(local)
+    if not weather:
+        raise ConfigError(
+            config_file,
+            "energy.weather",
+            weather,
+            "energy.enabled is true but no typical year is given: list one or more weather "
+            "files (TMY3, EPW, PVGIS or CSV), e.g. weather: [config/weather/703165TY.csv], or "
+            "set energy.enabled: false",
+        )
+    what_if_keys = [f"energy.what_if[{i}]" for i in range(len(what_ifs))]
+    check_what_ifs(loaded, what_ifs, energy.get("what_if") or [], config_file, what_if_keys)
 
 
 def study_context(

@@ -72,6 +72,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from railtherm.data import plausibility
 from railtherm.errors import DataError
 from railtherm.estimation.acf import autocorrelation_time
 
@@ -533,8 +534,12 @@ K_RANGE = (0.1, 10.0)  # W/(m2 K): the default of check.k_range_W_m2K
 
 def for_vehicle(window: pd.DataFrame, vehicle_data: Mapping[str, Any], source: str) -> KValue:
     """:func:`static_k` with A, mass, settings, instruments and sensor counts from a vehicle's
-    validated config (``Vehicle.data``); a surface or mass the config does not give is None."""
+    validated config (``Vehicle.data``); a surface or mass the config does not give is None.
+    A heated cabin colder than the tunnel or at a temperature no k-value test holds is refused
+    first, and a k far from the vehicle class's is a plausibility note
+    (:mod:`railtherm.data.plausibility`: a temperature channel's unit)."""
     A, mass = vehicle_data.get("surface_m2"), vehicle_data.get("mass_kg")
+    plausibility.check_k_window(window, vehicle_data, source)
     result = static_k(
         window,
         A=None if A is None else float(A),
@@ -552,6 +557,9 @@ def for_vehicle(window: pd.DataFrame, vehicle_data: Mapping[str, Any], source: s
             "channels right (W or kW, degC, K or degF), and A the whole surface?"
         )
         result = dataclasses.replace(result, plausibility=(why,))
+    far = plausibility.k_class_reason(result.k, vehicle_data, "the static test's (eq. 10)")
+    if far is not None:
+        result = dataclasses.replace(result, plausibility=(*result.plausibility, far))
     return result
 
 

@@ -53,6 +53,8 @@ __all__ = [
     "Profile",
     "WhatIf",
     "annual_energy",
+    "check_what_ifs",
+    "contradiction",
     "markdown",
     "load_profile",
     "parse_what_if",
@@ -113,6 +115,16 @@ def load_profile(path: str | Path) -> Profile:
     by_hour = [float(v) for v in data["passengers"]["by_hour"]]
     if len(by_hour) not in (1, 24):
         raise ConfigError(file, "passengers.by_hour", len(by_hour), "expected 1 or 24 values")
+    set_back = data["set_back_C"]
+    if set_back is not None and set_back > data["set_point_C"]:
+        raise ConfigError(
+            file,
+            "set_back_C",
+            set_back,
+            f"above set_point_C = {data['set_point_C']:g} degC: the set-back is the lower "
+            "temperature held when stabled; give set_back_C at most set_point_C, or null "
+            "(heating off when stabled)",
+        )
     doors = data["doors"]
     return Profile(
         name=str(data.get("name", Path(file).stem)),
@@ -190,27 +202,95 @@ class WhatIf:
 
 
 def parse_what_if(text: str) -> WhatIf:
-    """``k=-10%``, ``set_back=8``, ``set_back=off`` or ``preheat_h=3``; another text is a
-    :class:`ConfigError` naming ``--what-if``."""
-    m = re.fullmatch(r"\s*(k|set_back|preheat_h)\s*=\s*([-+]?[\w.]+)(%?)\s*", str(text))
+    """``k=-10%``, ``set_back=8``, ``set_back=off`` or ``preheat_h=3``; another text, a value
+    that is no finite number, a change of k of -100 % or less (a loss conductance kA not
+    positive) or a negative pre-heating is a :class:`ConfigError` naming ``--what-if`` and
+    the fix."""
+    m = re.fullmatch(
+        r"\s*(k|set_back|preheat_h)\s*=\s*([-+]?[\w.]+(?:[eE][-+]\d+)?)(%?)\s*", str(text)
+    )
     if m:
         key, value, pct = m.groups()
+        if key == "set_back" and not pct and value.lower() == "off":
+            return WhatIf("set-back off", profile={"set_back_C": None})
         try:
-            if key == "k" and pct:
-                return WhatIf(f"k {float(value):+g} %", k_rel=float(value) / 100.0)
-            if key == "set_back" and not pct:
-                off = value.lower() == "off"
-                return WhatIf(
-                    "set-back off" if off else f"set-back {float(value):g} °C",
-                    profile={"set_back_C": None if off else float(value)},
-                )
-            if key == "preheat_h" and not pct and float(value) >= 0:
-                return WhatIf(f"pre-heat {float(value):g} h", profile={"preheat_h": float(value)})
+            number = float(value)
         except ValueError:
-            pass
+            number = None
+        if number is not None and (key == "k") == bool(pct):
+            if not math.isfinite(number):
+                raise ConfigError(
+                    "--what-if",
+                    "what_if",
+                    text,
+                    f"{key} = {value} is not a finite number: give one, e.g. {EXAMPLES[key]}",
+                )
+            if key == "k":
+                if not number > -100.0:
+                    raise ConfigError(
+                        "--what-if",
+                        "what_if",
+                        text,
+                        f"k {number:+g} % makes the loss conductance kA {1 + number / 100:+g} "
+                        "times its identified value, not positive: give a change above "
+                        "-100 %, e.g. k=-10%",
+                    )
+                return WhatIf(f"k {number:+g} %", k_rel=number / 100.0)
+            if key == "set_back":
+                return WhatIf(f"set-back {number:g} °C", profile={"set_back_C": number})
+            if number < 0:
+                raise ConfigError(
+                    "--what-if", "what_if", text, "pre-heating lasts 0 h or more, e.g. preheat_h=3"
+                )
+            return WhatIf(f"pre-heat {number:g} h", profile={"preheat_h": number})
     raise ConfigError(
         "--what-if", "what_if", text, "expected k=-10%, set_back=8, set_back=off or preheat_h=3"
     )
+
+
+EXAMPLES = {"k": "k=-10%", "set_back": "set_back=8 (or set_back=off)", "preheat_h": "preheat_h=3"}
+
+
+def contradiction(profile: Profile, what_if: WhatIf) -> str | None:
+    """Why ``what_if`` contradicts ``profile`` (a set-back above its set point, or outside the
+    profile's own limits of set-back and pre-heating), or None. The CLI (``--what-if``) and
+    the study config (``energy.what_if``) refuse it alike, each naming its own key."""
+    limits = packaged_schema("profile")["properties"]
+    changed = dict(what_if.profile)
+    set_back = changed.get("set_back_C")
+    if set_back is not None:
+        lo, hi = limits["set_back_C"]["minimum"], limits["set_back_C"]["maximum"]
+        if set_back > profile.set_point_C:
+            return (
+                f"the set-back {set_back:g} degC is above the profile's set point "
+                f"{profile.set_point_C:g} degC (set_point_C of {profile.name}): the set-back is "
+                f"the lower temperature held when stabled; give at most "
+                f"set_back={profile.set_point_C:g}, or set_back=off"
+            )
+        if not lo <= set_back <= hi:
+            return f"the set-back {set_back:g} degC lies outside {lo:g}..{hi:g} degC"
+    preheat = changed.get("preheat_h")
+    if preheat is not None and preheat > limits["preheat_h"]["maximum"]:
+        return (
+            f"pre-heating {preheat:g} h is more than the profile's limit of "
+            f"{limits['preheat_h']['maximum']:g} h (preheat_h)"
+        )
+    return None
+
+
+def check_what_ifs(
+    profile: Profile,
+    what_ifs: Sequence[WhatIf],
+    texts: Sequence[str],
+    file: str,
+    keys: Sequence[str],
+) -> None:
+    """A :class:`ConfigError` naming ``file``, the what-if's key (``keys[i]``) and its text
+    (``texts[i]``) for the first what-if that contradicts ``profile`` (:func:`contradiction`)."""
+    for what_if, text, key in zip(what_ifs, texts, keys, strict=True):
+        reason = contradiction(profile, what_if)
+        if reason is not None:
+            raise ConfigError(file, key, text, reason)
 
 
 @dataclass
@@ -255,6 +335,13 @@ def _loss_scaled(ps: sim.ParameterSet, theta: Mapping[str, float], k_rel: float)
         raise ConfigError(
             "--what-if", "k", k_rel, f"structure {structure.name} has no kA to change"
         )
+    if not (math.isfinite(k_rel) and k_rel > -1.0):
+        raise ConfigError(
+            "--what-if",
+            "k",
+            f"{100 * k_rel:+g}%",
+            "makes the loss conductance kA not positive: give a change above -100 %",
+        )
     return {**theta, "kA": theta["kA"] * (1.0 + k_rel)}
 
 
@@ -276,6 +363,10 @@ def annual_energy(
     draws; the hourly weather on the grid by ``hold``
     (:func:`railtherm.study.weather.on_grid`). Every run and variant advances together, one
     vectorised step at a time."""
+    for w in what_ifs:
+        reason = contradiction(profile, w)
+        if reason is not None:
+            raise ConfigError("--what-if", "what_if", w.label, reason)
     ps = params if isinstance(params, sim.ParameterSet) else sim.parameter_set(params)
     if ps.not_identified:
         raise sim.NotPredictable(

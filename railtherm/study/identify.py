@@ -21,6 +21,7 @@ import pandas as pd
 
 from railtherm import structures
 from railtherm.data import ingest
+from railtherm.data import plausibility as units_plausibility
 from railtherm.errors import ConfigError, DataError
 from railtherm.estimation import metrics, models, outliers, pem
 from railtherm.estimation.kvalue import COMPONENTS, sensor_counts, sensor_u_K, storage_corrected_kA
@@ -668,6 +669,7 @@ def identify(
         "fit": fitted,
         "systematic": budget,
         "cross_validation": _cross_validate(structure, exps, options) if len(exps) > 1 else [],
+        "unit_checks": unit_checks(fitted, vehicle_data, tables),
     }
     series = _series(structure, exps, result)
     if estimator == "kalman":
@@ -677,6 +679,25 @@ def identify(
         estimate["fit"]["loglik"] = float(result.loglik)
         estimate["fit"]["n_params"] = int(result.n_params)
     return estimate, series
+
+
+def unit_checks(
+    fitted: Mapping[str, Any], vehicle_data: Mapping[str, Any], tables: Mapping[str, pd.DataFrame]
+) -> list[str]:
+    """The plausibility of the records and of the fitted k against a temperature channel's
+    unit (:mod:`railtherm.data.plausibility`): a heated cabin colder than the tunnel or never
+    at a heated cabin's temperature, and k = kA / A far from the vehicle class's; sentences
+    naming the raw files, the channels and their declared units, for the verdict."""
+    out = units_plausibility.record_reasons(tables, vehicle_data)
+    entry = fitted["parameters"].get("kA")
+    A = surface(vehicle_data)
+    if entry is not None and A and identifiability.parameter_identification(entry)["identified"]:
+        far = units_plausibility.k_class_reason(
+            float(entry["value"]) / A, vehicle_data, "the fit's"
+        )
+        if far is not None:
+            out.append(far)
+    return out
 
 
 # the storage correction's iteration kA <-> stage two: stop when kA moves less than this share
@@ -1449,6 +1470,10 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
       that of the air in ``volume_m3`` (rho c_p = 1206 J/(m^3 K)): the node holds the air and
       what is in equilibrium with it;
     - an effective solar aperture a_<name> at most the whole outer surface A;
+    - the records and the fitted k against a temperature channel's unit (``unit_checks``
+      of the estimate, :func:`unit_checks`): a heated cabin colder than the tunnel or never
+      at a heated cabin's temperature (``heated_air_range_degC``), k far from the vehicle
+      class's (``k_class_factor``);
     - a conductance between two nodes (K_veh, K_i, K_o) at most
       ``max_conductance_per_area_W_m2K`` (default 200 W/(m^2 K)) of the outer surface A:
       more than forced convection in the tunnel's wind carries over the whole surface. (kA
@@ -1551,6 +1576,7 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 f"{estimate['volume_m3']:g} m³ ({floor:.4g} J/K): a unit mistake (power in kW "
                 "declared W, time in minutes declared seconds?) or the wrong volume"
             )
+    out.extend(estimate.get("unit_checks") or ())
     return out
 
 

@@ -73,7 +73,8 @@ def fit_vehicle(
             ingest.write_tidy(table, os.path.join(base, "clean", f"{name}.csv"))
     k = None
     if "kvalue" in tables:
-        source = f"{vehicle.id} ({ingest.window_spec(vehicle.data, 'kvalue')[2]})"
+        raw_name, _, key = ingest.window_spec(vehicle.data, "kvalue")
+        source = f"{vehicle.raw_files[raw_name]} ({key})"
         k = kvalue.for_vehicle(tables["kvalue"], vehicle.data, source=source)
         if base is not None:
             write_yaml(k.to_dict(), os.path.join(base, "kvalue.yaml"))

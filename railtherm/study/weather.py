@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from railtherm.data import units
 from railtherm.errors import ConfigError
 
 __all__ = ["KINDS", "Weather", "on_grid", "read_weather"]
@@ -95,8 +96,9 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
     """The typical year in ``path`` (``kind``: one of :data:`KINDS`, default recognised from
     the file). ``time``: a plain CSV's time column as a vehicle config's ``format.time``
     declares it (default ``{column: time, format: iso}``). A file that is not a year of
-    hourly records, or whose temperatures are missing or beyond -90..60 degC, is a
-    :class:`ConfigError` naming the file."""
+    hourly records, or whose temperatures are missing or whose mean or extremes no climate
+    has in degC (a file in degF or K: :func:`_check_climate`), is a :class:`ConfigError`
+    naming the file and the column."""
     path = Path(path)
     file = str(path)
     if not path.is_file():
@@ -158,14 +160,55 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
         raise ConfigError(
             file, "records", n, "a typical year spans 8760 (or 8784) hours of records"
         )
-    bad = ~np.isfinite(T_o) | (T_o < -90) | (T_o > 60)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ConfigError(file, f"T_o[{i}]", T_o[i], "missing or beyond -90..60 degC")
+    missing = ~np.isfinite(T_o)
+    if missing.any():
+        i = int(np.flatnonzero(missing)[0])
+        raise ConfigError(file, f"{COLUMNS[kind]}[{i}]", T_o[i], "missing: a typical year has none")
+    _check_climate(file, kind, T_o)
     if ghi is not None:
         ghi = np.clip(np.nan_to_num(ghi, nan=0.0), 0.0, None)
     t_s = np.arange(n) * step
     return Weather(name, source, index, t_s, T_o, ghi, lat, lon, dict(meta), step)
+
+
+# the dry-bulb temperature's column as each kind of file names it, and its unit (degC in all)
+COLUMNS = {"tmy3": "Dry-bulb (C)", "epw": "Dry Bulb Temperature", "pvgis": "T2m", "csv": "T_o"}
+# Earth's climate: the extremes ever measured (-89.2 degC, Vostok 1983; 56.7 degC, Death
+# Valley 1913) and the annual means of inhabited places (about -20 degC at Oymyakon to 35
+# degC at Dallol), with a margin; a typical year of any place lies within
+T_O_EXTREMES = (-90.0, 57.0)
+T_O_ANNUAL_MEAN = (-30.0, 35.0)
+
+
+def _check_climate(file: str, kind: str, T_o: np.ndarray) -> None:
+    """Refuse a year whose mean or extremes no climate on Earth has in degC - a file in degF
+    or K read as degC (a degF year read as degC is a hot year: 0 kWh of heating): a
+    :class:`ConfigError` naming the file, the column, its unit, the observed mean and
+    extremes, and what they are in the unit the numbers are more likely in."""
+    lo, hi = (float(T_o.min()), float(T_o.max()))
+    mean = float(T_o.mean())
+    (x_lo, x_hi), (m_lo, m_hi) = T_O_EXTREMES, T_O_ANNUAL_MEAN
+    if x_lo <= lo and hi <= x_hi and m_lo <= mean <= m_hi:
+        return
+    seen = f"mean {mean:.1f}, min {lo:.1f}, max {hi:.1f}"
+    guesses = []
+    for unit, (factor, shift) in units.TEMPERATURE_UNITS.items():
+        if unit == "degC":
+            continue
+        c_lo, c_hi, c_mean = (factor * v + shift for v in (lo, hi, mean))
+        if x_lo <= c_lo and c_hi <= x_hi and m_lo <= c_mean <= m_hi:
+            guesses.append(
+                f"read as {unit} they are mean {c_mean:.1f}, min {c_lo:.1f}, max {c_hi:.1f} degC"
+            )
+    why = "; ".join(guesses) + "; " if guesses else ""
+    raise ConfigError(
+        file,
+        COLUMNS[kind],
+        seen,
+        f"the year's temperatures read in degC (the unit of a {kind} file's {COLUMNS[kind]}) "
+        f"have no climate on Earth (extremes {x_lo:g} to {x_hi:g} degC, an annual mean "
+        f"{m_lo:g} to {m_hi:g} degC): {why}check the unit: the file must give degC",
+    )
 
 
 def on_grid(
