@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from railtherm.errors import ConfigError
+from railtherm.errors import ConfigError, first_line
 
 __all__ = ["KINDS", "Weather", "on_grid", "read_weather"]
 
@@ -85,7 +85,7 @@ def _misread(path: Path, kind: str, err: BaseException) -> str:
     """Why ``path`` does not read as ``kind`` and the fix: the kind the file looks like."""
     looks = _kind_of(path)
     what = _KIND_NAMES.get(kind, "a plain CSV")
-    cause = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
+    cause = f"{type(err).__name__}: {first_line(err)}" if str(err).strip() else type(err).__name__
     if looks != kind:
         fix = (
             f"it looks like {_KIND_NAMES.get(looks, 'a plain CSV')} file: give kind "
