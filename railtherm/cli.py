@@ -310,8 +310,9 @@ def _energy(args: argparse.Namespace) -> int:
     from railtherm.study.weather import read_weather
 
     _nonnegative(args, "draws", "seed")
-    if not args.step_s > 0:
-        raise ConfigError("--step-s", "step_s", args.step_s, "expected a positive step (s)")
+    problem = energy.step_problem(args.step_s)
+    if problem:
+        raise ConfigError("--step-s", "step_s", args.step_s, problem)
     what_ifs = [energy.parse_what_if(w) for w in args.what_if or ()]
     workdir = args.directory
     params = sim.load_parameters(os.path.join(workdir, args.params))

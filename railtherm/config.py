@@ -817,7 +817,7 @@ def check_study_plans(
     ``config_file`` and the key."""
     from railtherm import structures
     from railtherm.study.design import parse_target
-    from railtherm.study.energy import load_profile, parse_what_if
+    from railtherm.study.energy import load_profile, parse_what_if, step_problem
 
     config_file = config_file or "config/config.yaml"
     target = (config.get("design") or {}).get("target")
@@ -837,6 +837,9 @@ def check_study_plans(
             raise ConfigError(config_file, key, text, f"a parameter of {allowed}")
     if not energy.get("enabled", False):
         return
+    step = step_problem(float(energy.get("step_s", 300)))
+    if step:
+        raise ConfigError(config_file, "energy.step_s", energy.get("step_s"), step)
     for i, path in enumerate(energy.get("weather") or []):
         if not os.path.isfile(os.path.join(str(workdir), path)):
             raise ConfigError(config_file, f"energy.weather[{i}]", path, "weather file not found")

@@ -146,3 +146,25 @@ def test_energy_table_without_an_acceptable_fit_says_so(tmp_path, monkeypatch):
     assert "No vehicle has an acceptable second-order fit" in text
     assert "Metro3: fit assumptions in doubt" in text and "fit_<model>.yaml" in text
     assert (tmp_path / "fig.png").stat().st_size > 0
+
+
+# -------------------------------------------------- an energy step longer than the hour
+@pytest.mark.bad_input
+@pytest.mark.parametrize("step", ["86400", "4e7"])
+def test_railtherm_energy_with_a_step_of_a_day_or_more_is_refused(tmp_path, capsys, step):
+    """A step of a day, or of more than the year, once gave a year of 0 kWh and rc 0."""
+    argv = ["energy", "params.yaml", "--weather", str(TMY3), "--profile", str(PROFILE)]
+    assert main([*argv, "--step-s", step, "-d", str(tmp_path)]) == 1
+    err = one_line(capsys)
+    assert "--step-s: key 'step_s'" in err and "at most 3600 s" in err
+
+
+@pytest.mark.bad_input
+def test_a_study_energy_step_of_a_day_names_the_config_key():
+    from railtherm.config import check_study_plans
+
+    config = {"energy": {"enabled": True, "step_s": 86400}}
+    with pytest.raises(ConfigError) as caught:
+        check_study_plans(config, REPO, "config/config.yaml")
+    text = str(caught.value)
+    assert "config/config.yaml: key 'energy.step_s' = 86400" in text and "at most 3600 s" in text

@@ -457,6 +457,21 @@ def markdown(result: AnnualResult) -> str:
 # the study's table (rule energy)
 
 
+def step_problem(dt_s: float) -> str | None:
+    """Why ``dt_s`` cannot be the simulation step of a year under a profile (None where it
+    can): the profile's hours (service, passengers, pre-heating) and the weather's hourly
+    records need a step of an hour or less; a longer one skips them (a step of a day, or of
+    more than the year, gives a year of 0 kWh)."""
+    if not (math.isfinite(dt_s) and dt_s > 0):
+        return "expected a positive step (s), e.g. 60"
+    if dt_s > 3600.0:
+        return (
+            "longer than an hour: the profile's hours and the weather's hourly records fall "
+            "between the steps; give a step of at most 3600 s, e.g. 60 or 300"
+        )
+    return None
+
+
 def study_columns() -> list[str]:
     """The columns of the study's annual energy table (:func:`study_rows`), in order: an
     empty table (no vehicle with an acceptable fit) has them too."""
