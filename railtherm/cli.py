@@ -311,8 +311,9 @@ def _energy(args: argparse.Namespace) -> int:
     from railtherm.study.weather import read_weather
 
     _nonnegative(args, "draws", "seed")
-    if not (math.isfinite(args.step_s) and args.step_s > 0):
-        raise ConfigError("--step-s", "step_s", args.step_s, "expected a positive step (s)")
+    problem = energy.step_problem(args.step_s)
+    if problem:
+        raise ConfigError("--step-s", "step_s", args.step_s, problem)
     volume = args.volume_m3
     if volume is not None and not (math.isfinite(volume) and volume > 0):
         raise ConfigError(

@@ -863,7 +863,7 @@ def check_study_plans(
     ``config_file`` and the key."""
     from railtherm import structures
     from railtherm.study.design import parse_target
-    from railtherm.study.energy import check_what_ifs, load_profile, parse_what_if
+    from railtherm.study.energy import check_what_ifs, load_profile, parse_what_if, step_problem
 
     config_file = config_file or "config/config.yaml"
     target = (config.get("design") or {}).get("target")
@@ -887,6 +887,9 @@ def check_study_plans(
             what_ifs.append(parsed)
     if not energy.get("enabled", False):
         return
+    step = step_problem(float(energy.get("step_s", 300)))
+    if step:
+        raise ConfigError(config_file, "energy.step_s", energy.get("step_s"), step)
     weather = energy.get("weather") or []
     for i, path in enumerate(weather):
         if not os.path.isfile(os.path.join(str(workdir), path)):

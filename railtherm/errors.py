@@ -5,6 +5,13 @@ from __future__ import annotations
 from typing import Any
 
 
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's message, or its type's name where the message is
+    empty (a message for the user is never built from nothing)."""
+    lines = str(exc).strip().splitlines()
+    return lines[0] if lines else type(exc).__name__
+
+
 class RailthermError(Exception):
     """Base class of every error railtherm raises for bad input."""
 

@@ -25,7 +25,7 @@ import yaml
 if TYPE_CHECKING:
     from jsonschema.exceptions import ValidationError
 
-from railtherm.errors import ConfigError
+from railtherm.errors import ConfigError, first_line
 
 # ---------------------------------------------------------------------------------------------
 # YAML
@@ -124,7 +124,7 @@ def read_yaml(path: str | os.PathLike[str], display: str | None = None) -> Any:
         problem_mark = getattr(exc, "problem_mark", None)
         context_mark = getattr(exc, "context_mark", None)
         mark = context_mark or problem_mark
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        problem = getattr(exc, "problem", None) or first_line(exc)
         context = getattr(exc, "context", None)
         if context:
             problem = f"{context}, {problem}"

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from railtherm.errors import DataError
+from railtherm.errors import DataError, first_line
 
 __all__ = [
     "READERS",
@@ -234,7 +234,7 @@ def _read_error(path: str, kind: str, exc: BaseException) -> DataError:
     elif isinstance(exc, FileNotFoundError) and kind != "csv":
         reason = "no such file"
     else:
-        reason = f"cannot read the file as {_WHAT[kind]}: {str(exc).splitlines()[0]}"
+        reason = f"cannot read the file as {_WHAT[kind]}: {first_line(exc)}"
         if kind != "csv":
             reason += "; is format.reader right?"
         elif "Expected" in str(exc) and "fields" in str(exc):

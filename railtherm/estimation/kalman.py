@@ -933,7 +933,10 @@ class _Likelihood:
         res = self._raw(v, order, steady)
         if self.offset_out and math.isfinite(res[0]):
             res = self._with_offsets(v, order, steady, res)
-        self._cache = {key: (order, res)}
+        # a failed pass of the derivatives is not cached: their solves can fail where the
+        # likelihood (a lower order) is finite, which a cached failure would hide
+        if order == 0 or math.isfinite(res[0]):
+            self._cache = {key: (order, res)}
         return res
 
     def _with_offsets(self, v, order, steady, res):
@@ -1158,8 +1161,38 @@ def _hessian(
     for i in range(U):
         step = np.zeros(U)
         step[i] = h
-        H[:, i] = (lik.evaluate(v + step, 1)[1] - g0) / h
+        H[:, i] = (_gradient(lik, v + step) - g0) / h
     return (H + H.T) / 2.0
+
+
+def _gradient(lik: _Likelihood, v: np.ndarray) -> np.ndarray:
+    """The NLL's gradient at v; NaN where it cannot be evaluated (the information built from
+    it then leaves the unknowns it touches unresolved, :func:`_finite_information`)."""
+    nll, g, _ = lik.evaluate(v, 1)
+    if g is None or not math.isfinite(nll):
+        return np.full(len(v), np.nan)
+    return np.asarray(g, dtype=float)
+
+
+def _information(lik: _Likelihood, v: np.ndarray) -> np.ndarray:
+    """The Fisher information at v; where the filter's second-order pass cannot give it
+    (evaluate returns None), the observed information from the gradient (:func:`_hessian`)."""
+    nll, _, F = lik.evaluate(v, 2)
+    if F is not None and math.isfinite(nll):
+        return F
+    return _hessian(lik, v, _gradient(lik, v))
+
+
+def _finite_information(Hk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``Hk`` with the rows and columns of unknowns whose information is not finite set to
+    zero, and a mask of those unknowns (their variance is then unbounded: not identified)."""
+    bad = ~np.all(np.isfinite(Hk), axis=0) | ~np.all(np.isfinite(Hk), axis=1)
+    if not bad.any():
+        return Hk, bad
+    Hk = np.array(Hk, dtype=float)
+    Hk[bad, :] = 0.0
+    Hk[:, bad] = 0.0
+    return Hk, bad
 
 
 @pem._single_threaded_blas
@@ -1320,7 +1353,7 @@ def fit(
         raise ValueError("the likelihood cannot be evaluated at the output-error optimum")
     sol = _optimise(lik, v0, lo, hi, clip)
     v = sol.x
-    H = _hessian(lik, v, lik.evaluate(v, 1)[1])
+    H = _hessian(lik, v, _gradient(lik, v))
     levels = pem._noise_levels(structure, input_noise or {}, experiments)
     meat = None
     if any(levels):
@@ -1335,7 +1368,7 @@ def fit(
         )
         # the Fisher information: the compensated point is no stationary point of the NLL, so
         # its observed information holds the residuals' second-order terms
-        H = lik.evaluate(v, 2)[2]
+        H = _information(lik, v)
         meat = _input_noise_meat(lik, v, _kept(lik, sol, v, lo, hi), levels)
     result = _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost, meat)
     result.input_noise_sd = [dict(level) for level in levels] if any(levels) else []
@@ -1401,6 +1434,12 @@ def _optimise(lik: _Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace
                 v[i] = held[i]
             continue
         nll, g, F = lik.evaluate(v, 2)
+        if g is None or F is None or not math.isfinite(nll):
+            # the information cannot be evaluated at the point reached (a derivative's
+            # Lyapunov or discretisation solve fails where the likelihood itself does not):
+            # no scoring step to judge convergence by; the quasi-Newton solve below goes on
+            message = f"the Fisher information cannot be evaluated at the point reached ({message})"
+            break
         release = [i for i, b in held.items() if _pull(lik, i, b, v, v0, g, lo, hi) > KKT_TOL]
         if release:
             for i in release:
@@ -1639,7 +1678,7 @@ def _input_noise_terms(lik: _Likelihood, v, levels, lo, hi):
     moved = [i for i in range(U) if i < P or i >= lik.Qn]
     for _ in range(20):
         value, g, F = criterion(v, 2, moved)
-        if g is None:
+        if g is None or F is None:  # the information cannot be evaluated here: no step
             break
         Fm, gm = F[np.ix_(moved, moved)], g[moved]
         step = np.zeros(U)
@@ -1696,9 +1735,11 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
     cov = np.full((U, U), np.nan)
     var = np.full(U, np.inf)
     if len(keep):
-        ck, unresolved = _pinv_sym(H[np.ix_(keep, keep)])
+        Hk, bad = _finite_information(H[np.ix_(keep, keep)])
+        ck, unresolved = _pinv_sym(Hk)
         if meat is not None:
-            ck = ck + ck @ meat[np.ix_(keep, keep)] @ ck
+            ck = ck + ck @ np.nan_to_num(meat[np.ix_(keep, keep)]) @ ck
+        unresolved = unresolved | bad
         vk = np.diag(ck).copy()
         vk[unresolved] = np.inf
         cov[np.ix_(keep, keep)] = ck
@@ -1721,9 +1762,12 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         with np.errstate(over="ignore"):
             ci[p] = (float(np.exp(lv - pem.Z95 * sd[i])), float(np.exp(lv + pem.Z95 * sd[i])))
         sd_log[p] = float(sd[i])
-    if P:
-        ev = np.linalg.eigvalsh(H[:P, :P])
+    HP = H[:P, :P]
+    if P and np.all(np.isfinite(HP)):
+        ev = np.linalg.eigvalsh(HP)
         cond = float(math.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else math.inf
+    elif P:  # an information that cannot be evaluated conditions nothing
+        cond = math.inf
     else:
         cond = 1.0
     noise_ci, noise_sd = {}, {}

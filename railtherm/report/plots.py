@@ -1499,6 +1499,17 @@ def annual_energy_figure(table: pd.DataFrame, *, note: str | None = None) -> Fig
             ax.set_title(climate, fontsize=9)
             ax.grid(True, axis="y", lw=0.3, alpha=0.5)
         axes[-1].set_xticks(x, months, fontsize=7)
+        if base.empty:  # no vehicle with an acceptable fit: the figure says so
+            axes[0].text(
+                0.5,
+                0.5,
+                "no vehicle with an acceptable second-order fit",
+                ha="center",
+                va="center",
+                transform=axes[0].transAxes,
+                fontsize=8,
+            )
+            return _finish(fig, False, note)
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(
             handles,

@@ -197,6 +197,7 @@ def load_programme(path: str | Path) -> Programme:
         )
     if not any(ph.identify for ph in phases):
         raise ConfigError(file, "phases", "identify: false", "no phase is compared by the fit")
+    _check_step(file, float(data["step_s"]), phases)
     seen: list[str] = []
     for i, ph in enumerate(phases):
         if ph.identify and seen and ph.window != seen[-1] and ph.window in seen:
@@ -228,6 +229,33 @@ def load_programme(path: str | Path) -> Programme:
     name = str(data.get("name", Path(file).stem))
     start = str(data.get("start", "soaked"))
     return Programme(name, tuple(phases), float(data["step_s"]), noise, systematic, limits, start)
+
+
+def _check_step(file: str, step_s: float, phases: Sequence[Phase]) -> None:
+    """Every phase, and every compared part of one, holds at least one logger sample of
+    ``step_s``: a step longer than a phase (a logger step of a day against phases of hours)
+    leaves it no sample, and a fit without samples determines nothing."""
+    samples = [int(round(ph.hours * 3600.0 / step_s)) for ph in phases]
+    for i, (ph, n) in enumerate(zip(phases, samples, strict=True)):
+        if n < 1:
+            raise ConfigError(
+                file,
+                "step_s",
+                step_s,
+                f"longer than phases[{i}] ({ph.name}, {ph.hours:g} h = {ph.hours * 3600:g} s), "
+                f"which gets no logger sample: give a step_s of at most "
+                f"{min(p.hours for p in phases) * 3600 / 10:g} s (ten samples in the shortest "
+                "phase), e.g. 60",
+            )
+    for i, (ph, n) in enumerate(zip(phases, samples, strict=True)):
+        if not isinstance(ph.identify, bool) and _compared(ph, n, step_s) < 1:
+            raise ConfigError(
+                file,
+                f"phases[{i}].identify",
+                ph.identify,
+                f"the compared {ph.identify:g} h hold no logger sample of step_s {step_s:g} s: "
+                f"compare at least {step_s / 3600:g} h or give a shorter step_s",
+            )
 
 
 def prbs_steps(hours: float, low_W: float, high_W: float, hold_h: float) -> list:
@@ -484,6 +512,9 @@ def predict_runs(
                 if dy is not None:
                     shifts[k].append(dy[a:b])
             w += 1
+    if not any(len(r) for rows in blocks for r in rows):  # no compared sample (a programme
+        # scaled, or a phase shortened, below its logger step) determines nothing
+        return _undetermined(structure, free)
     # J: d y / d (log theta, window states) of every compared sample, output by output (eq.
     # 17's e), its columns scaled to unit length for the inverse
     J = np.concatenate([np.concatenate(rows) for rows in blocks])
@@ -551,9 +582,13 @@ def predict(
         if isinstance(tau_samples, Mapping)
         else dict.fromkeys(noise, float(tau_samples))
     )
+    windows = tuple((a, b) for _, a, b in fit_windows(programme))
+    if not windows:  # phases scaled below the logger step: no compared sample
+        free = tuple(p for p in structure.parameters if p != "kA") if free is None else free
+        return _undetermined(structure, tuple(free))
     u = programme_inputs(programme, structure, theta)
     x0 = initial_state(programme, structure, theta, u[0]) if x0 is None else np.asarray(x0, float)
-    run = Run(u, x0, tuple((a, b) for _, a, b in fit_windows(programme)))
+    run = Run(u, x0, windows)
     dT_k = 0.0
     if "kA" in structure.parameters and (free is None or "kA" not in free):
         k_end = int(round(programme.phases[0].hours * 3600.0 / programme.step_s)) - 1

@@ -548,6 +548,44 @@ def markdown(result: AnnualResult) -> str:
 # the study's table (rule energy)
 
 
+def step_problem(dt_s: float) -> str | None:
+    """Why ``dt_s`` cannot be the simulation step of a year under a profile (None where it
+    can): the profile's hours (service, passengers, pre-heating) and the weather's hourly
+    records need a step of an hour or less; a longer one skips them (a step of a day, or of
+    more than the year, gives a year of 0 kWh)."""
+    if not (math.isfinite(dt_s) and dt_s > 0):
+        return "expected a positive step (s), e.g. 60"
+    if dt_s > 3600.0:
+        return (
+            "longer than an hour: the profile's hours and the weather's hourly records fall "
+            "between the steps; give a step of at most 3600 s, e.g. 60 or 300"
+        )
+    return None
+
+
+def study_columns() -> list[str]:
+    """The columns of the study's annual energy table (:func:`study_rows`), in order: an
+    empty table (no vehicle with an acceptable fit) has them too."""
+    columns = ["vehicle", "class", "climate", "weather", "variant"]
+    for key in ("energy_kWh", "preheat_kWh", "peak_W", "unmet_h", "difference_kWh"):
+        columns += [key, f"{key}_lo", f"{key}_hi"]
+    for name in MONTHS:
+        columns += [f"{name}_kWh", f"{name}_lo", f"{name}_hi"]
+    return [*columns, "draws"]
+
+
+def no_acceptable_fit(verdicts: Mapping[str, str]) -> str:
+    """The statement of an empty energy table: no vehicle has an acceptable fit (``verdicts``:
+    {vehicle: its fit's verdict}), where to read why and what gives a row."""
+    found = "; ".join(f"{vid}: {v}" for vid, v in verdicts.items()) or "no vehicle in the study"
+    return (
+        f"No vehicle has an acceptable second-order fit ({found}), so there is no annual "
+        "energy to compute. Each fit's verdict and its reasons are in "
+        "results/vehicles/<id>/fit_<model>.yaml; a fit judged acceptable gives a row (or run "
+        "railtherm energy on a class reference model)."
+    )
+
+
 def study_rows(
     fits: Mapping[str, Any],
     vehicles: Mapping[str, Mapping[str, Any]],
@@ -625,6 +663,8 @@ def study_markdown(table, profile: Profile, dt_s: float, source: str) -> str:
     def band(r, key: str, scale: float = 1.0, sign: bool = False) -> str:
         return _banded(float(r[key]), float(r[f"{key}_lo"]), float(r[f"{key}_hi"]), scale, sign)
 
+    if table.empty:
+        lines[-2:] = [no_acceptable_fit(table.attrs.get("verdicts", {}))]
     for _, r in table.iterrows():
         lines.append(
             f"| {r['vehicle']} | {r['climate']} | {r['variant']} | {band(r, 'energy_kWh')} | "
@@ -656,7 +696,9 @@ def study_energy(
     profile = load_profile(profile_file)
     what_ifs = [parse_what_if(text) for text in what_if]
     rows = study_rows(fits, vehicles, weathers, profile, what_ifs, **options)
-    return pd.DataFrame(rows), profile
+    table = pd.DataFrame(rows, columns=study_columns())
+    table.attrs["verdicts"] = {vid: str(fit.verdict) for vid, fit in fits.items()}
+    return table, profile
 
 
 def write_study_energy(

@@ -828,10 +828,11 @@ def storage_corrected_k(
             start = storage_corrected_kA(k_window, **joint_theta).kA
             if math.isfinite(start) and start > 0:
                 kA, initial = start, joint_theta
+        unusable = None  # why the alternation's step could not be used, if it could not
         try:
             step = _storage_alternation(balance, kA, initial, history)
-        except ValueError:
-            step = None
+        except ValueError as err:
+            step, unusable = None, err
         if step is None and initial is not None:
             # the alternation runs away where stage two's capacities follow kA steeply (the
             # balance's kA moves more than the kA it was given): solve kA = balance(kA) by
@@ -839,10 +840,7 @@ def storage_corrected_k(
             method = "secant"
             step = _storage_secant(balance, float(joint.theta["kA"]), kA, joint_theta, history)
         if step is None:
-            raise ValueError(
-                "the k window's balance and stage two do not settle on one kA "
-                f"(last kA {history[-1]:.4g} W/K)"
-            )
+            raise ValueError(_unsettled(history, kA, unusable))
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:
         record["reason"] = f"the correction failed ({err}); eq. 10's kA is fixed"
         return record
@@ -872,6 +870,18 @@ def storage_corrected_k(
         history_kA=[float(v) for v in history],
     )
     return record
+
+
+def _unsettled(history: Sequence[float], kA: float, unusable: Exception | None) -> str:
+    """Why the storage correction found no kA: the balances it reached (``history``, empty
+    where the first stage-two fit at ``kA`` could not be used, for the reason ``unusable``)."""
+    if history:
+        last = f"last kA {history[-1]:.4g} W/K after {len(history)} fits"
+    else:
+        last = f"no usable stage-two fit from kA = {kA:.4g} W/K"
+    if unusable is not None:
+        last += f"; {unusable}"
+    return f"the k window's balance and stage two do not settle on one kA ({last})"
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from railtherm.data import units
-from railtherm.errors import ConfigError
+from railtherm.errors import ConfigError, first_line
 
 __all__ = ["KINDS", "Weather", "on_grid", "read_weather"]
 
@@ -79,6 +79,24 @@ def _kind_of(path: Path) -> str:
     return "csv"
 
 
+_KIND_NAMES = {"tmy3": "an NREL TMY3", "epw": "an EnergyPlus EPW", "pvgis": "a PVGIS TMY"}
+
+
+def _misread(path: Path, kind: str, err: BaseException) -> str:
+    """Why ``path`` does not read as ``kind`` and the fix: the kind the file looks like."""
+    looks = _kind_of(path)
+    what = _KIND_NAMES.get(kind, "a plain CSV")
+    cause = f"{type(err).__name__}: {first_line(err)}" if str(err).strip() else type(err).__name__
+    if looks != kind:
+        fix = (
+            f"it looks like {_KIND_NAMES.get(looks, 'a plain CSV')} file: give kind "
+            f"{looks} (railtherm energy --kind {looks}) or leave the kind out to recognise it"
+        )
+    else:
+        fix = f"check that it is {what} file as its service publishes it"
+    return f"does not read as {what} file ({cause}); {fix}"
+
+
 def _pvlib(file: str):
     try:
         from pvlib import iotools
@@ -113,7 +131,10 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
         from railtherm.data import timeaxis
 
         spec = time or {"column": "time", "format": "iso"}
-        table = pd.read_csv(path)
+        try:
+            table = pd.read_csv(path)
+        except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as err:
+            raise ConfigError(file, "kind", kind, _misread(path, kind, err)) from err
         column = spec.get("column", "time")
         for needed in (column, "T_o"):
             if needed not in table.columns:
@@ -127,24 +148,31 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
         name, source = path.stem, f"CSV {path.name}"
     else:
         iotools = _pvlib(file)
-        if kind == "tmy3":
-            data, meta = iotools.read_tmy3(file, map_variables=True)
-            name = str(meta.get("Name", path.stem)).strip('"').title()
-            source = f"NREL TMY3 station {meta.get('USAF', '')} ({name}, {meta.get('State', '')})"
-        elif kind == "epw":
-            data, meta = iotools.read_epw(file)
-            name = str(meta.get("city", path.stem))
-            source = f"EPW {path.name} ({name}, {meta.get('country', '')})"
-        else:
-            out = iotools.read_pvgis_tmy(file, map_variables=True)
-            data, meta = out[0], out[-1]
-            name = path.stem
-            source = f"PVGIS TMY {path.name}"
-        where = {**meta.get("location", {}), **meta.get("inputs", {}), **meta}
-        lat = float(where.get("latitude", math.nan))
-        lon = float(where.get("longitude", math.nan))
-        index = pd.DatetimeIndex(data.index)
-        T_o = data["temp_air"].to_numpy(float)
+        # pvlib's readers fail on a file of another kind with whatever their parsing meets
+        # (a missing header key, an index out of range, a bad number): every such failure is
+        # the file's kind, said with the kind the file looks like
+        try:
+            if kind == "tmy3":
+                data, meta = iotools.read_tmy3(file, map_variables=True)
+                name = str(meta.get("Name", path.stem)).strip('"').title()
+                state = meta.get("State", "")
+                source = f"NREL TMY3 station {meta.get('USAF', '')} ({name}, {state})"
+            elif kind == "epw":
+                data, meta = iotools.read_epw(file)
+                name = str(meta.get("city", path.stem))
+                source = f"EPW {path.name} ({name}, {meta.get('country', '')})"
+            else:
+                out = iotools.read_pvgis_tmy(file, map_variables=True)
+                data, meta = out[0], out[-1]
+                name = path.stem
+                source = f"PVGIS TMY {path.name}"
+            where = {**meta.get("location", {}), **meta.get("inputs", {}), **meta}
+            lat = float(where.get("latitude", math.nan))
+            lon = float(where.get("longitude", math.nan))
+            index = pd.DatetimeIndex(data.index)
+            T_o = data["temp_air"].to_numpy(float)
+        except Exception as err:  # noqa: BLE001 - a third-party parser's any failure
+            raise ConfigError(file, "kind", kind, _misread(path, kind, err)) from err
         if "ghi" in data.columns:
             ghi = data["ghi"].to_numpy(float)
     n = len(T_o)

@@ -26,4 +26,6 @@ energy.write_study_energy(
     snakemake.output.md,
     snakemake.output.png.removesuffix(".png"),
 )
+if table.empty:
+    log.warning(energy.no_acceptable_fit(table.attrs.get("verdicts", {})))
 log.info("%d rows", len(table))
