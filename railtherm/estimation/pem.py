@@ -252,7 +252,6 @@ class _Problem:
         )
         self._key = None
         self._jac_key = None
-        self._pos = None
         self.uT = [np.ascontiguousarray(e.forcing.T) for e in self.exps]
         self.yT = [np.ascontiguousarray(e.y.T) for e in self.exps]
 
@@ -338,64 +337,43 @@ class _Problem:
     def cost_x0_projected(self, v) -> tuple[float, np.ndarray]:
         """e^T e at the parameters of v with the estimated initial states at their best
         (within their bounds), and that v. The outputs are linear in x0 (x[n] depends on x0
-        through Ad^n), so for fixed
+        through Ad^n, :func:`railtherm.estimation.models.free_response_head`), so for fixed
         parameters the best initial states are one small linear least-squares problem per
         experiment:
         a start's cost is judged with the initial states the data give it, not a guess."""
-        from railtherm.estimation import loops  # compiled on first use
-
-        with np.errstate(over="ignore", invalid="ignore"):
-            th = self.theta(v)
-        if not all(math.isfinite(x) and x > 0 for x in th.values()):
+        _, sims = self._evaluate(v, derivatives=False)
+        if sims is None:
             return math.inf, v
-        steps: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         v = v.copy()
         total, k = 0.0, 0
-        try:
-            with np.errstate(over="ignore", invalid="ignore"):
-                for e, uT, yT, x0, fr, pos, m in zip(
-                    self.exps, self.uT, self.yT, self.x0s(v), self.x0_free, *self._positions(),
-                    strict=True,
-                ):  # fmt: skip
-                    if e.dt not in steps:
-                        steps[e.dt] = models.transition(self.s, th, e.dt, e.hold)[:2]
-                    Ad, Bd = steps[e.dt]
-                    e_k, G = loops.output_error(
-                        Ad, Bd, uT, x0, np.asarray(fr, dtype=np.int64), self._out, yT, pos, m,
-                        models.FREE_RESPONSE_CUT,
-                    )  # fmt: skip
-                    if fr:
-                        at = slice(self.P + k, self.P + k + len(fr))
-                        step = np.linalg.lstsq(G, -e_k, rcond=None)[0]
-                        x0 = np.clip(
-                            v[at] + step, self.x0_lo[k : k + len(fr)], self.x0_hi[k : k + len(fr)]
-                        )
-                        if np.all(np.isfinite(x0)):
-                            e_k = e_k + G @ (x0 - v[at])
-                            v[at] = x0
-                        k += len(fr)
-                    total += float(e_k @ e_k)
-        except (ArithmeticError, np.linalg.LinAlgError, ValueError):
-            return math.inf, v  # parameters so extreme that the model cannot be evaluated
+        for e, yT, (d, xT), rows, fr in zip(
+            self.exps, self.yT, sims, self.rows, self.x0_free, strict=True
+        ):
+            res, cols = [], []
+            F = models.free_response_head(d, len(e.u))[:, self.out_idx][:, :, fr] if fr else None
+            for j, (i, r) in enumerate(zip(self.out_idx, rows, strict=True)):
+                idx = np.arange(xT.shape[1]) if r is None else r
+                res.append(xT[i, idx] - yT[i, idx])
+                if fr:
+                    G = np.zeros((len(idx), len(fr)))
+                    keep = idx < len(F)
+                    G[keep] = F[idx[keep], j]
+                    cols.append(G)
+            e_k = np.concatenate(res)
+            if fr:
+                G = np.concatenate(cols)
+                at = slice(self.P + k, self.P + k + len(fr))
+                with np.errstate(over="ignore", invalid="ignore"):
+                    step = np.linalg.lstsq(G, -e_k, rcond=None)[0]
+                    x0 = np.clip(
+                        v[at] + step, self.x0_lo[k : k + len(fr)], self.x0_hi[k : k + len(fr)]
+                    )
+                if np.all(np.isfinite(x0)):
+                    e_k = e_k + G @ (x0 - v[at])
+                    v[at] = x0
+                k += len(fr)
+            total += float(e_k @ e_k)
         return (total if math.isfinite(total) else math.inf), v
-
-    def _positions(self) -> tuple[list[np.ndarray], list[int]]:
-        """Per experiment, each compared sample's place in its residual vector ((n_out, N),
-        -1: not compared; the order of :meth:`residuals`) and the count of compared samples."""
-        if self._pos is None:
-            pos, counts = [], []
-            for e, rows in zip(self.exps, self.rows, strict=True):
-                p = np.full((len(self.out_idx), len(e.u)), -1, dtype=np.int64)
-                row = 0
-                for j, r in enumerate(rows):
-                    idx = np.arange(len(e.u)) if r is None else r
-                    p[j, idx] = row + np.arange(len(idx))
-                    row += len(idx)
-                pos.append(p)
-                counts.append(row)
-            self._pos = (pos, counts)
-            self._out = np.asarray(self.out_idx, dtype=np.int64)
-        return self._pos
 
     def jacobian(self, v) -> np.ndarray:
         """d(residuals)/dv (m x unknowns): the exact discrete sensitivities, times theta_p
