@@ -1,12 +1,14 @@
-"""The compiled row recursion of the Kalman filter (railtherm.estimation.loops) against the
-numpy filter it replaces in the fits (kalman._filter, run row by row, time-varying): the
-likelihood, its gradient, the Fisher information and the series."""
+"""The compiled row recursions (railtherm.estimation.loops) against the numpy implementations
+they replace in a Kalman fit: the filter's likelihood, gradient, Fisher information and series
+(against the numpy filter run row by row, time-varying, in kalman._filter), and the
+output-error start's cost with its best initial states (against the numpy one and a direct
+solve from models.simulate)."""
 
 import numpy as np
 import pytest
-from test_kalman import likelihood, random_point, sde_experiment
+from test_kalman import SIE, likelihood, random_point, sde_experiment
 
-from railtherm.estimation import kalman, pem
+from railtherm.estimation import kalman, models, pem
 
 
 def _numpy_reference(lik, v, order, monkeypatch):
@@ -73,3 +75,30 @@ def test_compiled_filter_refuses_a_covariance_that_is_not_positive():
     lik.meas_var_free = ()
     lik.Qn = lik.Qg = lik.P + len(lik.sigma_free)
     assert lik.evaluate(v[: lik.Qg].copy(), 1)[0] == np.inf
+
+
+@pytest.mark.parametrize("hold", ["zero_order", "first_order"])
+def test_start_cost_with_best_initial_states_equals_a_direct_solve(hold):
+    """The output-error start's cost at given parameters with the unmeasured initial state at
+    its least-squares best within the measured range (pem._Problem.cost_x0_projected), by the
+    compiled simulation and by numpy, equals the one computed here from two simulations (the
+    output is affine in the initial state), with rows missing."""
+    rng = np.random.default_rng(4)
+    n = 300
+    u = np.column_stack([rng.uniform(-5, 10, n), rng.uniform(0, 2000, n)])
+    theta = {"C": 1.6e6, "K_i": 500.0, "C_e": 1.5e7, "K_o": 57.0}
+    x = models.simulate(SIE, theta, u, 1800.0, [21.0, 18.0], hold)
+    y = np.column_stack([x[:, 0] + 0.05 * rng.standard_normal(n), np.full(n, np.nan)])
+    y[40:60, 0] = np.nan
+    e = pem.Experiment("e", 1800.0, u, y, hold=hold)
+    trial = {"C": 2.0e6, "K_i": 400.0, "C_e": 1.0e7, "K_o": 70.0}
+    v = np.concatenate([np.log([trial[p] for p in SIE.parameters]), [15.0]])
+    ok = np.isfinite(y[:, 0])
+    a = models.simulate(SIE, trial, u, 1800.0, [y[0, 0], 0.0], hold)[ok, 0]
+    b = models.simulate(SIE, trial, u, 1800.0, [y[0, 0], 1.0], hold)[ok, 0] - a
+    best = float(np.clip(np.dot(b, y[ok, 0] - a) / np.dot(b, b), *pem._measured_range(e)))
+    for compiled in (True, False):
+        prob = pem._Problem(SIE, [e], {}, SIE.parameters, (0,), "measured", compiled)
+        cost, w = prob.cost_x0_projected(v)
+        assert w[-1] == pytest.approx(best, rel=1e-9)
+        assert cost == pytest.approx(float(np.sum((a + best * b - y[ok, 0]) ** 2)), rel=1e-9)

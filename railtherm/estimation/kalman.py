@@ -1316,6 +1316,7 @@ def fit(
         x0=x0,
         covariance="iid",
         start=start,
+        compiled=COMPILED,
     )
     free = oe.free
     bnds = dict(structure.bounds)

@@ -1,4 +1,6 @@
-"""The Kalman filter's row recursion with its forward sensitivities, compiled (numba).
+"""Row recursions compiled with numba: the Kalman filter's with its forward sensitivities
+(:func:`kalman_rows`), and the simulation with its free response that ranks the output-error
+start's grid inside a Kalman fit (:func:`output_error`).
 
 One pass of the predictor-form filter of :mod:`railtherm.estimation.kalman` over one
 experiment: per row, the update with the measured outputs o (none: skipped),
@@ -363,3 +365,52 @@ def kalman_rows(
             steady_from[n_steady] = k + 1
             n_steady += 1
     return 0, nll, grad, fisher, n_steady
+
+
+@njit(cache=True)
+def output_error(Ad, Bd, uT, x0, free, out_idx, yT, pos, m, cut):
+    """The simulation x[k+1] = Ad x[k] + Bd u[k] from x0 (uT: m_u x N) and its free response
+    to the initial states ``free`` (Ad^k e_i, entries below ``cut`` taken as 0: never computed
+    into subnormal floats), read at the compared samples: pos (n_out, N) is each sample's
+    place in the residual vector (-1: not compared) for the outputs out_idx.
+
+    Returns e (m,) = x - y and G (m, len(free)) = d e / d x0[free]."""
+    n = Ad.shape[0]
+    mu = Bd.shape[1]
+    N = uT.shape[1]
+    nf = free.shape[0]
+    no = out_idx.shape[0]
+    x = x0.copy()
+    xn = np.empty(n)
+    z = np.zeros((nf, n))
+    zn = np.empty((nf, n))
+    for c in range(nf):
+        z[c, free[c]] = 1.0
+    e = np.empty(m)
+    G = np.empty((m, nf))
+    for k in range(N):
+        for j in range(no):
+            p = pos[j, k]
+            if p >= 0:
+                i = out_idx[j]
+                e[p] = x[i] - yT[i, k]
+                for c in range(nf):
+                    G[p, c] = z[c, i]
+        for i in range(n):
+            s = 0.0
+            for t in range(n):
+                s += Ad[i, t] * x[t]
+            for t in range(mu):
+                s += Bd[i, t] * uT[t, k]
+            xn[i] = s
+        for i in range(n):
+            x[i] = xn[i]
+        for c in range(nf):
+            for i in range(n):
+                s = 0.0
+                for t in range(n):
+                    s += Ad[i, t] * z[c, t]
+                zn[c, i] = s if abs(s) >= cut else 0.0
+            for i in range(n):
+                z[c, i] = zn[c, i]
+    return e, G
