@@ -37,8 +37,8 @@ def estimates(campaign_fits):
 
 def test_vehicles_without_deviations_are_fitted_well_within_their_intervals(table, estimates):
     """At the shipped seed. The coverage of the combined 95 % intervals over 30 seeds is a
-    benchmark (benchmarks/coverage.py); one seed can only show that the intervals are of the
-    right size: every estimate within 3.5 combined standard deviations of the truth (a 1 in
+    benchmark (benchmarks/interval_coverage.py); one seed can only show that the intervals are
+    of the right size: every estimate within 3.5 combined standard deviations of the truth (a 1 in
     2000 event for an honest interval) and at least 85 % of the intervals holding it."""
     clean = table[table["deviations"] == ""]
     assert len(clean) >= 6

@@ -205,7 +205,8 @@ def test_stationary_gain_equals_the_time_varying_filter():
         exact = lik.evaluate(v, 0, steady=False)[0]
         assert fast == pytest.approx(exact, rel=1e-12, abs=1e-8)
         steady_rows = lik.passes(v, 0)[0].steady_from
-        assert steady_rows == ([0, 730] if x0 == "estimated" else [1, 730])
+        # the held gain: once before the gap and once after it
+        assert len(steady_rows) == 2 and steady_rows[0] < 700 and steady_rows[1] > 730
     for n, hold in ((6, "zero_order"), (40, "first_order"), (300, "first_order")):
         short = pem.Experiment("s", e.dt, e.u[:n], e.y[:n], hold=hold)
         short.y[n // 2 : n // 2 + 3, 1] = np.nan
@@ -224,6 +225,7 @@ def test_stationary_switch_leaves_the_estimate_unchanged(monkeypatch):
     fast = kalman.fit(S2, [e], fixed={"kA": TRAM2["kA"]}, x0="measured")
     monkeypatch.setattr(kalman, "STEADY_TOL", -1.0)
     monkeypatch.setattr(kalman, "PRIOR_CORRECTION", False)
+    monkeypatch.setattr(kalman, "FREEZE_TOL", -1.0)
     slow = kalman.fit(S2, [e], fixed={"kA": TRAM2["kA"]}, x0="measured")
     assert fast.cost == pytest.approx(slow.cost, rel=1e-10)
     for p in fast.free:

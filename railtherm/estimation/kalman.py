@@ -18,18 +18,24 @@ R_k = C P_{k|k-1} C^T + S give the exact negative log-likelihood
     NLL = 1/2 sum_k (log det R_k + eps_k^T R_k^-1 eps_k + n_k log 2 pi)
 
 (eq. 17's criterion generalised: eq. 18's prediction errors are the innovations). Rows, or
-single outputs of a row, without a measurement skip the update. Once the predicted covariance
-P_k has reached the solution P of the discrete algebraic Riccati equation of the row's
-measurement pattern (``scipy.linalg.solve_discrete_are``; relative 1e-10), the filter is the
-time-invariant recursion x_{k+1} = F x_k + Bd u_k + L y_k (F = Ad - L C, L = Ad P C^T R^-1),
-run without a Python loop by the modal ``lfilter`` machinery of :mod:`railtherm.estimation.models`.
+single outputs of a row, without a measurement skip the update.
+
+The fits run the filter row by row in compiled code (:mod:`railtherm.estimation.loops`, numba):
+the time-varying recursion with its forward sensitivities, whose gain is held once a prediction
+leaves P and its derivatives unchanged (relative FREEZE_TOL) until the measurement pattern
+changes. ``COMPILED = False`` runs the numpy implementation instead, which the tests check the
+compiled one against: there, once the predicted covariance P_k has reached the solution P of
+the discrete algebraic Riccati equation of the row's measurement pattern
+(``scipy.linalg.solve_discrete_are``; relative STEADY_TOL), the filter is the time-invariant
+recursion x_{k+1} = F x_k + Bd u_k + L y_k (F = Ad - L C, L = Ad P C^T R^-1), run without a
+Python loop by the modal ``lfilter`` machinery of :mod:`railtherm.estimation.models`.
 An estimated initial state starts with the stationary prior covariance P_0 = P (no transient at
-all); a measured one with the measurement variances. A run that starts off the stationary
-covariance (a measured initial state, the first rows after a gap) is filtered with the
-stationary gain too, and its NLL corrected exactly for the difference Delta of its prior by
-de Jong's augmentation of the initial state: the stationary innovations respond to the first
-state's deviation as G_j = C F^j, so with X_N = sum_j G_j^T R^-1 G_j (a Lyapunov equation) and
-s = sum_j G_j^T R^-1 eps_j,
+all); a measured one with the measurement variances. In the numpy implementation, a run that
+starts off the stationary covariance (a measured initial state, the first rows after a gap) is
+filtered with the stationary gain too, and its NLL corrected exactly for the difference Delta
+of its prior by de Jong's augmentation of the initial state: the stationary innovations respond
+to the first state's deviation as G_j = C F^j, so with X_N = sum_j G_j^T R^-1 G_j (a Lyapunov
+equation) and s = sum_j G_j^T R^-1 eps_j,
 
     NLL = NLL_stationary + 1/2 log det(I + X_N Delta) - 1/2 s^T Delta (I + X_N Delta)^-1 s,
 
@@ -78,6 +84,9 @@ LOG_2PI = math.log(2.0 * math.pi)
 SIGMA_BOUNDS = (1e-9, 1.0)  # K / sqrt(s): diffusion of a state (1 K/sqrt(s): 60 K per hour)
 MEAS_VAR_BOUNDS = (1e-10, 1e4)  # K^2: measurement variance of an output
 STEADY_TOL = 1e-10  # |P_k - P| / |P| below which the filter switches to the stationary gain
+# the compiled filter holds its gain once |P_k+1 - P_k| <= FREEZE_TOL |P_k+1| (and so for dP)
+FREEZE_TOL = 1e-13
+COMPILED = True  # False: the numpy filter (module docstring), the reference of the tests
 # a run that starts off the stationary covariance is done by the stationary filter with the
 # exact correction for its prior (:func:`_prior_correction`) instead of row by row when it is
 # the record's last run, or when its transient |F|^rows decays below this before a later run
@@ -533,6 +542,77 @@ def _filter(
     return out
 
 
+def _filter_rows(
+    sysm: _System,
+    d: _Data,
+    x0: np.ndarray,
+    dx0: np.ndarray,
+    P0: np.ndarray,
+    dP0: np.ndarray,
+    order: int,
+    steady: bool = True,
+    series: bool = False,
+) -> _Pass:
+    """:func:`_filter` by the compiled row recursion of :mod:`railtherm.estimation.loops`."""
+    from railtherm.estimation import loops
+
+    y, u = d.y, d.u
+    N, n_out = y.shape
+    n = len(x0)
+    Q = len(dx0)
+    f8 = np.float64
+    if order >= 1:
+        dAd, dBd, dQd, dS = (
+            np.ascontiguousarray(_pad(a, Q), dtype=f8)
+            for a in (sysm.dAd, sysm.dBd, sysm.dQd, sysm.dS)
+        )
+    else:
+        Q = 0
+        dAd, dQd = np.zeros((0, n, n)), np.zeros((0, n, n))
+        dBd, dS = np.zeros((0,) + sysm.Bd.shape), np.zeros((0, n_out))
+    rows = N if series else 0
+    xp, eps, rvar = (
+        np.empty((rows, n)),
+        np.full((rows, n_out), np.nan),
+        np.full((rows, n_out), np.nan),
+    )
+    steady_from = np.zeros(N, dtype=np.int64)
+    status, nll, grad, fisher, count = loops.kalman_rows(
+        np.ascontiguousarray(sysm.Ad, dtype=f8),
+        np.ascontiguousarray(sysm.Bd, dtype=f8),
+        np.ascontiguousarray(sysm.Qd, dtype=f8),
+        np.ascontiguousarray(sysm.C, dtype=f8),
+        np.ascontiguousarray(sysm.S, dtype=f8),
+        dAd,
+        dBd,
+        dQd,
+        dS,
+        np.ascontiguousarray(y, dtype=f8),
+        np.ascontiguousarray(u, dtype=f8),
+        np.ascontiguousarray(x0, dtype=f8),
+        np.ascontiguousarray(dx0[:Q], dtype=f8).reshape(Q, n),
+        np.ascontiguousarray(P0, dtype=f8),
+        np.ascontiguousarray(dP0[:Q], dtype=f8).reshape(Q, n, n),
+        int(order),
+        float(FREEZE_TOL if steady else -1.0),
+        xp,
+        eps,
+        rvar,
+        steady_from,
+    )
+    if status:
+        raise np.linalg.LinAlgError("the innovation covariance is not positive")
+    out = _Pass(
+        nll=float(nll),
+        grad=grad if order >= 1 else np.zeros(len(dx0)),
+        fisher=fisher if order >= 2 else None,
+        steady_from=[int(k) for k in steady_from[:count]],
+    )
+    if series:
+        out.xp, out.eps, out.rvar = xp, eps, rvar
+    return out
+
+
 def _decays(st: _Steady, rows: int) -> bool:
     """Whether the stationary predictor's transient dies out within ``rows``: |F|^rows below
     JUMP_DECAY for the slowest mode (the prior's trace on the run's end state is then
@@ -827,14 +907,16 @@ class _Likelihood:
         sigma, svar = self.sigma(v), self.meas_var(v)
         n, P = self.n, self.P
         A, _ = self.s.matrices(th)
-        disc = models.discretize(self.s, th, dt, self.free if order >= 1 else (), self.hold)
+        Ad, Bd, dAd_p, dBd_p = models.transition(
+            self.s, th, dt, self.hold, self.free if order >= 1 else ()
+        )
         W = np.diag(sigma**2)
         C = np.eye(n)[list(self.out_idx)]
         if order < 1:
             Qd, _ = models.discretize_noise(A, W, dt)
             e = np.zeros((0, n, n))
             return _System(
-                disc.Ad, disc.Bd, Qd, C, svar, e, np.zeros((0,) + disc.Bd.shape), e,
+                Ad, Bd, Qd, C, svar, e, np.zeros((0,) + Bd.shape), e,
                 np.zeros((0, len(svar))), order,
             )  # fmt: skip
         der = self.s.derivatives(th)
@@ -846,18 +928,18 @@ class _Likelihood:
         Qd, dQ = models.discretize_noise(A, W, dt, directions)
         Qg = self.Qg
         dAd = np.zeros((Qg, n, n))
-        dBd = np.zeros((Qg,) + disc.Bd.shape)
+        dBd = np.zeros((Qg,) + Bd.shape)
         dQd = np.zeros((Qg, n, n))
         dS = np.zeros((Qg, len(svar)))
         for i, p in enumerate(self.free):
-            dAd[i] = th[p] * disc.dAd[p]
-            dBd[i] = th[p] * disc.dBd[p]
+            dAd[i] = th[p] * dAd_p[p]
+            dBd[i] = th[p] * dBd_p[p]
         if dQ:
             dQd[: len(dQ)] = np.array(dQ)
         base = P + len(self.sigma_free)
         for t, j in enumerate(self.meas_var_free):
             dS[base + t, j] = svar[j]  # d s_j / d log s_j
-        return _System(disc.Ad, disc.Bd, Qd, C, svar, dAd, dBd, dQd, dS, order)
+        return _System(Ad, Bd, Qd, C, svar, dAd, dBd, dQd, dS, order)
 
     def _prior(self, sysm: _System, d: _Data, x0: np.ndarray, order: int, Q: int):
         """Prior mean and covariance of x_0 with their derivatives along Q directions."""
@@ -916,7 +998,8 @@ class _Likelihood:
             sysm = systems[d.e.dt]
             Q = self.Qg + len(d.x0_free)
             x0, dx0, P0, dP0 = self._prior(sysm, d, x0, order, Q)
-            out.append(_filter(sysm, d, x0, dx0, P0, dP0, order, steady=steady, series=series))
+            run = _filter_rows if COMPILED else _filter
+            out.append(run(sysm, d, x0, dx0, P0, dP0, order, steady=steady, series=series))
         return out
 
     def evaluate(self, v: np.ndarray, order: int, steady: bool = True):
@@ -1266,6 +1349,7 @@ def fit(
         x0=x0,
         covariance="iid",
         start=start,
+        compiled=COMPILED,
     )
     free = oe.free
     bnds = dict(structure.bounds)

@@ -83,6 +83,7 @@ __all__ = [
     "steady_state_kA",
     "structure_for",
     "with_irradiance",
+    "transition",
 ]
 
 HOLDS = ("zero_order", "first_order")  # how an input varies between its samples
@@ -143,7 +144,13 @@ def steady_state_kA(structure: Structure, theta: Mapping[str, float]) -> float:
     state (:meth:`Structure.kA_log_gradient`): eq. 10, Q_H = kA (T - T_o), holds at
     equilibrium. It equals kA itself for eqs. 13-14 and K_i K_o / (K_i + K_o) for the
     interior-envelope structure. NaN when the network has no steady state."""
-    return structure.kA_log_gradient(theta)[0]
+    A, B = structure.matrices(theta)
+    try:
+        AiB = np.linalg.solve(A, B)  # the gain g = dT/dQ_H, as kA_log_gradient has it
+    except np.linalg.LinAlgError:
+        return math.nan
+    g = -float(AiB[0, 1])
+    return 1.0 / g if g > 0 and math.isfinite(g) else math.nan
 
 
 APERTURE_INITIAL = 1.0  # m2: start value of an effective aperture a_i
@@ -484,16 +491,17 @@ def _modal(Ad: np.ndarray):
     return Q, Q.conj().T, T, np.diag(T).copy(), False
 
 
-def discretize(
+def transition(
     structure: Structure,
     theta: Mapping[str, float],
     dt: float,
-    params: tuple[str, ...] = (),
     hold: str = "zero_order",
-) -> Discretisation:
+    params: tuple[str, ...] = (),
+) -> tuple[np.ndarray, np.ndarray, dict, dict]:
     """Ad, Bd (exact for the ``hold``, module docstring) and, for each name in ``params``, the
     exact dAd, dBd (Frechet derivative of the same exponential along [[dA, dB, ..], 0] dt;
-    one block expm for all of them)."""
+    one block expm for all of them): (Ad, Bd, {p: dAd}, {p: dBd}), without the modal form
+    of :func:`discretize`."""
     first = check_hold(hold) == "first_order"
     A, B = structure.matrices(theta)
     n, m = B.shape
@@ -524,6 +532,19 @@ def discretize(
     Ad, Bd = E[:n, :n].copy(), inputs(E[:n, n:k])
     dAd = {p: E[:n, (i + 1) * k : (i + 1) * k + n].copy() for i, p in enumerate(params)}
     dBd = {p: inputs(E[:n, (i + 1) * k + n : (i + 2) * k]) for i, p in enumerate(params)}
+    return Ad, Bd, dAd, dBd
+
+
+def discretize(
+    structure: Structure,
+    theta: Mapping[str, float],
+    dt: float,
+    params: tuple[str, ...] = (),
+    hold: str = "zero_order",
+) -> Discretisation:
+    """:func:`transition` (Ad, Bd and their derivatives along ``params``) with the modal form
+    of Ad that the simulations run in."""
+    Ad, Bd, dAd, dBd = transition(structure, theta, dt, hold, params)
     Q, Qinv, T, lam, diagonal = _modal(Ad)
     return Discretisation(Ad, Bd, dAd, dBd, Q, Qinv, T, lam, diagonal, hold)
 

@@ -199,8 +199,9 @@ class FitResult(Estimate):
 class _Problem:
     """Residuals and Jacobian of eq. 18 in the unknowns v = [log theta_free, x0 unknowns]."""
 
-    def __init__(self, structure, experiments, fixed, free, out_idx, x0_mode):
+    def __init__(self, structure, experiments, fixed, free, out_idx, x0_mode, compiled=False):
         self.s = structure
+        self.compiled = compiled  # cost_x0_projected by the compiled simulation (loops)
         self.exps = list(experiments)
         self.fixed = dict(fixed)
         self.free = tuple(free)
@@ -252,6 +253,7 @@ class _Problem:
         )
         self._key = None
         self._jac_key = None
+        self._pos = None
         self.uT = [np.ascontiguousarray(e.forcing.T) for e in self.exps]
         self.yT = [np.ascontiguousarray(e.y.T) for e in self.exps]
 
@@ -341,6 +343,8 @@ class _Problem:
         parameters the best initial states are one small linear least-squares problem per
         experiment:
         a start's cost is judged with the initial states the data give it, not a guess."""
+        if self.compiled:
+            return self._cost_x0_projected_compiled(v)
         _, sims = self._evaluate(v, derivatives=False)
         if sims is None:
             return math.inf, v
@@ -374,6 +378,66 @@ class _Problem:
                 k += len(fr)
             total += float(e_k @ e_k)
         return (total if math.isfinite(total) else math.inf), v
+
+    def _cost_x0_projected_compiled(self, v) -> tuple[float, np.ndarray]:
+        """:meth:`cost_x0_projected` with the simulation and its free response run by the
+        compiled recursion :func:`railtherm.estimation.loops.output_error` from Ad, Bd alone
+        (no modal form)."""
+        from railtherm.estimation import loops
+
+        with np.errstate(over="ignore", invalid="ignore"):
+            th = self.theta(v)
+        if not all(math.isfinite(x) and x > 0 for x in th.values()):
+            return math.inf, v
+        steps: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        v = v.copy()
+        total, k = 0.0, 0
+        pos, counts = self._positions()
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                for e, uT, yT, x0, fr, p, m in zip(
+                    self.exps, self.uT, self.yT, self.x0s(v), self.x0_free, pos, counts,
+                    strict=True,
+                ):  # fmt: skip
+                    if e.dt not in steps:
+                        steps[e.dt] = models.transition(self.s, th, e.dt, e.hold)[:2]
+                    Ad, Bd = steps[e.dt]
+                    e_k, G = loops.output_error(
+                        Ad, Bd, uT, x0, np.asarray(fr, dtype=np.int64), self._out, yT, p, m,
+                        models.FREE_RESPONSE_CUT,
+                    )  # fmt: skip
+                    if fr:
+                        at = slice(self.P + k, self.P + k + len(fr))
+                        step = np.linalg.lstsq(G, -e_k, rcond=None)[0]
+                        x0 = np.clip(
+                            v[at] + step, self.x0_lo[k : k + len(fr)], self.x0_hi[k : k + len(fr)]
+                        )
+                        if np.all(np.isfinite(x0)):
+                            e_k = e_k + G @ (x0 - v[at])
+                            v[at] = x0
+                        k += len(fr)
+                    total += float(e_k @ e_k)
+        except (ArithmeticError, np.linalg.LinAlgError, ValueError):
+            return math.inf, v  # parameters so extreme that the model cannot be evaluated
+        return (total if math.isfinite(total) else math.inf), v
+
+    def _positions(self) -> tuple[list[np.ndarray], list[int]]:
+        """Per experiment, each compared sample's place in its residual vector ((n_out, N),
+        -1: not compared; the order of :meth:`residuals`) and the count of compared samples."""
+        if self._pos is None:
+            pos, counts = [], []
+            for e, rows in zip(self.exps, self.rows, strict=True):
+                p = np.full((len(self.out_idx), len(e.u)), -1, dtype=np.int64)
+                row = 0
+                for j, r in enumerate(rows):
+                    idx = np.arange(len(e.u)) if r is None else r
+                    p[j, idx] = row + np.arange(len(idx))
+                    row += len(idx)
+                pos.append(p)
+                counts.append(row)
+            self._pos = (pos, counts)
+            self._out = np.asarray(self.out_idx, dtype=np.int64)
+        return self._pos
 
     def jacobian(self, v) -> np.ndarray:
         """d(residuals)/dv (m x unknowns): the exact discrete sensitivities, times theta_p
@@ -693,6 +757,7 @@ def fit(
     start: str = "auto",
     max_nfev: int | None = None,
     input_noise: Mapping[str, float | Sequence[float]] | None = None,
+    compiled: bool = False,
 ) -> FitResult:
     """Simulation-error PEM (eqs. 17-18, K = 0) of ``structure`` to ``experiments`` jointly.
 
@@ -703,7 +768,9 @@ def fit(
     start: "initial" | "auto"; input_noise: {input name (``structure.inputs``): the standard
     deviation of its white measurement noise, one number or one per experiment}, carried
     into the covariance (:func:`_input_noise_meat`) and removed from the estimate's bias
-    (:func:`_input_noise_bias`).
+    (:func:`_input_noise_bias`). compiled: rank the automatic start's grid by the compiled
+    simulation of :mod:`railtherm.estimation.loops` (numba, whose import a fit by output error
+    alone need not pay; the Kalman fit, which loads it anyway, asks for it); the same costs.
     """
     fixed = {p: float(v) for p, v in (fixed or {}).items()}
     unknown = [p for p in fixed if p not in structure.parameters]
@@ -746,7 +813,7 @@ def fit(
     if bad or not outputs:
         raise ValueError(f"outputs {outputs} must be states of {structure.name}")
     out_idx = [structure.states.index(s) for s in outputs]
-    prob = _Problem(structure, experiments, fixed, free, out_idx, x0)
+    prob = _Problem(structure, experiments, fixed, free, out_idx, x0, compiled)
     if prob.m <= len(free) + prob.n_x0:
         raise ValueError(f"{prob.m} compared samples cannot determine the unknowns")
 
@@ -901,7 +968,7 @@ def _coarse_problem(prob: _Problem, samples: int) -> _Problem:
     if factor == 1:
         return prob
     coarse = [_block_average(e, factor) for e in prob.exps]
-    cprob = _Problem(prob.s, coarse, prob.fixed, prob.free, prob.out_idx, "measured")
+    cprob = _Problem(prob.s, coarse, prob.fixed, prob.free, prob.out_idx, "measured", prob.compiled)
     cprob.x0_base, cprob.x0_free, cprob.n_x0 = prob.x0_base, prob.x0_free, prob.n_x0
     cprob.x0_lo, cprob.x0_hi = prob.x0_lo, prob.x0_hi
     return cprob

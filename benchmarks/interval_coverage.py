@@ -1,6 +1,6 @@
 """Coverage of the 95 % intervals of C, K_veh and C_veh over seeds of the virtual campaign.
 
-    python benchmarks/coverage.py [--seeds 30] [--first 1] [--jobs 2] [--out coverage.csv]
+    python benchmarks/interval_coverage.py [--seeds 30] [--first 1] [--jobs 2] [--out coverage.csv]
 
 For each seed, the campaign generator (railtherm.synth) writes the raw files of the vehicles
 that declare no deviation from the paper's assumptions (their truth is what the method should

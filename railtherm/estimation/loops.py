@@ -1,0 +1,416 @@
+"""Row recursions compiled with numba: the Kalman filter's with its forward sensitivities
+(:func:`kalman_rows`), and the simulation with its free response that ranks the output-error
+start's grid inside a Kalman fit (:func:`output_error`).
+
+One pass of the predictor-form filter of :mod:`railtherm.estimation.kalman` over one
+experiment: per row, the update with the measured outputs o (none: skipped),
+
+    eps = y_o - C_o x,  R = C_o P C_o^T + S_o,  K = P C_o^T R^-1,
+    x <- x + K eps,  P <- P - K R K^T,
+
+then the prediction x <- Ad x + Bd u_k, P <- Ad P Ad^T + Qd, each differentiated along Q
+directions (dAd, dBd, dQd, dS; dx0, dP0 for the initial state), which gives the negative
+log-likelihood 1/2 sum_k (log det R_k + eps_k^T R_k^-1 eps_k + n_k log 2 pi) (eq. 17's
+criterion with the innovations as eq. 18's prediction errors), its exact gradient and the
+Fisher information
+
+    dNLL_q = sum_k 1/2 tr(R^-1 dR_q) - 1/2 a^T dR_q a + deps_q^T a,   a = R^-1 eps,
+    I_qr = sum_k deps_q^T R^-1 deps_r + 1/2 tr(R^-1 dR_q R^-1 dR_r).
+
+Once a prediction leaves the predicted P and every dP_q unchanged from the row before
+(relative ``freeze_tol``), the filter
+has reached its stationary gain for the row's measurement pattern: K, R and their
+derivatives are then held, and each further row of the same pattern costs only the state and
+its sensitivities, until the pattern changes.
+
+The loops are written out for the small matrices of a thermal network (a few states): that
+is where a compiled loop beats a library call per 2 x 2 product. ``cache=True`` keeps the
+machine code between processes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+LOG_2PI = math.log(2.0 * math.pi)
+
+
+@njit(cache=True)
+def kalman_rows(
+    Ad, Bd, Qd, C, S, dAd, dBd, dQd, dS, y, u, x0, dx0, P0, dP0,
+    order, freeze_tol, xp, eps_out, rvar_out, steady_from,
+):  # fmt: skip
+    """The filter over the rows of y (N x n_out, NaN: not measured) driven by u (N x m).
+
+    order 0: the NLL only; 1: and its gradient; 2: and the Fisher information. freeze_tol
+    < 0: the time-varying filter on every row. xp (N x n), eps_out and rvar_out (N x n_out):
+    filled with x_{k|k-1}, the innovations and the diagonal of R_k when they have rows (pass
+    (0, .) arrays otherwise). steady_from (N,): the rows where a held gain began.
+
+    Returns (status, nll, grad (Q,), fisher (Q, Q), count of steady_from); status 1: an
+    innovation covariance that is not positive definite."""
+    N, n_out = y.shape
+    n = Ad.shape[0]
+    m = Bd.shape[1]
+    Q = dAd.shape[0]
+    series = xp.shape[0] > 0
+    x = x0.copy()
+    P = P0.copy()
+    dx = dx0.copy()
+    dP = dP0.copy()
+    xn = np.empty(n)
+    Pn = np.empty((n, n))
+    AP = np.empty((n, n))
+    dxn = np.empty((Q, n))
+    dPn = np.empty((Q, n, n))
+    Pp = np.empty((n, n))  # the row's predicted P and dP, before its update
+    dPp = np.empty((Q, n, n))
+    o = np.empty(n_out, np.int64)
+    eps = np.empty(n_out)
+    a = np.empty(n_out)
+    PCt = np.empty((n, n_out))
+    R = np.empty((n_out, n_out))
+    Lc = np.empty((n_out, n_out))
+    Li = np.empty((n_out, n_out))
+    Rinv = np.empty((n_out, n_out))
+    K = np.empty((n, n_out))
+    dPCt = np.empty((Q, n, n_out))
+    dR = np.empty((Q, n_out, n_out))
+    RdR = np.empty((Q, n_out, n_out))
+    dK = np.empty((Q, n, n_out))
+    de = np.empty((Q, n_out))
+    Rde = np.empty((Q, n_out))
+    g_const = np.zeros(Q)
+    f_const = np.zeros((Q, Q))
+    grad = np.zeros(Q)
+    fisher = np.zeros((Q, Q))
+    nll = 0.0
+    logdet = 0.0
+    frozen = False
+    prev_code = -1
+    n_steady = 0
+    for k in range(N):
+        # the row's measurement pattern
+        no = 0
+        code = 0
+        for j in range(n_out):
+            if not math.isnan(y[k, j]):
+                o[no] = j
+                no += 1
+                code += 1 << j
+        if code != prev_code:
+            frozen = False
+        prev_code = code
+        if series:
+            for i in range(n):
+                xp[k, i] = x[i]
+        if not frozen:
+            Pp[:, :] = P
+            dPp[:, :, :] = dP
+        if no > 0:
+            for jj in range(no):
+                j = o[jj]
+                s = y[k, j]
+                for i in range(n):
+                    s -= C[j, i] * x[i]
+                eps[jj] = s
+            if not frozen:
+                # PCt = P C_o^T, R = C_o PCt + S_o, its Cholesky factor, R^-1 and log det R
+                for i in range(n):
+                    for jj in range(no):
+                        s = 0.0
+                        for t in range(n):
+                            s += P[i, t] * C[o[jj], t]
+                        PCt[i, jj] = s
+                for ii in range(no):
+                    for jj in range(no):
+                        s = 0.0
+                        for t in range(n):
+                            s += C[o[ii], t] * PCt[t, jj]
+                        R[ii, jj] = s
+                    R[ii, ii] += S[o[ii]]
+                logdet = 0.0
+                for ii in range(no):
+                    for jj in range(ii + 1):
+                        s = R[ii, jj]
+                        for t in range(jj):
+                            s -= Lc[ii, t] * Lc[jj, t]
+                        if ii == jj:
+                            if not s > 0.0:
+                                return 1, math.inf, grad, fisher, n_steady
+                            Lc[ii, ii] = math.sqrt(s)
+                            logdet += 2.0 * math.log(Lc[ii, ii])
+                        else:
+                            Lc[ii, jj] = s / Lc[jj, jj]
+                for ii in range(no):  # Li = Lc^-1 (lower triangular)
+                    for jj in range(no):
+                        Li[ii, jj] = 0.0
+                    Li[ii, ii] = 1.0 / Lc[ii, ii]
+                    for jj in range(ii):
+                        s = 0.0
+                        for t in range(jj, ii):
+                            s -= Lc[ii, t] * Li[t, jj]
+                        Li[ii, jj] = s / Lc[ii, ii]
+                for ii in range(no):  # R^-1 = Li^T Li
+                    for jj in range(no):
+                        s = 0.0
+                        for t in range(max(ii, jj), no):
+                            s += Li[t, ii] * Li[t, jj]
+                        Rinv[ii, jj] = s
+                for i in range(n):
+                    for jj in range(no):
+                        s = 0.0
+                        for t in range(no):
+                            s += PCt[i, t] * Rinv[t, jj]
+                        K[i, jj] = s
+                if order >= 1:
+                    for q in range(Q):
+                        for i in range(n):
+                            for jj in range(no):
+                                s = 0.0
+                                for t in range(n):
+                                    s += dP[q, i, t] * C[o[jj], t]
+                                dPCt[q, i, jj] = s
+                        for ii in range(no):
+                            for jj in range(no):
+                                s = 0.0
+                                for t in range(n):
+                                    s += C[o[ii], t] * dPCt[q, t, jj]
+                                dR[q, ii, jj] = s
+                            dR[q, ii, ii] += dS[q, o[ii]]
+                        g = 0.0
+                        for ii in range(no):
+                            for jj in range(no):
+                                s = 0.0
+                                for t in range(no):
+                                    s += Rinv[ii, t] * dR[q, t, jj]
+                                RdR[q, ii, jj] = s
+                            g += RdR[q, ii, ii]
+                        g_const[q] = 0.5 * g
+                        # dK = (dPCt - K dR) R^-1
+                        for i in range(n):
+                            for jj in range(no):
+                                s = 0.0
+                                for t in range(no):
+                                    w = dPCt[q, i, t]
+                                    for r in range(no):
+                                        w -= K[i, r] * dR[q, r, t]
+                                    s += w * Rinv[t, jj]
+                                dK[q, i, jj] = s
+                    if order >= 2:
+                        for q in range(Q):
+                            for r in range(q + 1):
+                                s = 0.0
+                                for ii in range(no):
+                                    for jj in range(no):
+                                        s += RdR[q, ii, jj] * RdR[r, jj, ii]
+                                f_const[q, r] = 0.5 * s
+                                f_const[r, q] = 0.5 * s
+            quad = 0.0
+            for ii in range(no):
+                s = 0.0
+                for jj in range(no):
+                    s += Rinv[ii, jj] * eps[jj]
+                a[ii] = s
+                quad += eps[ii] * s
+            nll += 0.5 * (logdet + quad + no * LOG_2PI)
+            if series:
+                for jj in range(no):
+                    eps_out[k, o[jj]] = eps[jj]
+                    rvar_out[k, o[jj]] = R[jj, jj]
+            if order >= 1:
+                for q in range(Q):
+                    g = g_const[q]
+                    for ii in range(no):
+                        s = 0.0
+                        for t in range(n):
+                            s -= C[o[ii], t] * dx[q, t]
+                        de[q, ii] = s
+                        g += s * a[ii]
+                        w = 0.0
+                        for jj in range(no):
+                            w += dR[q, ii, jj] * a[jj]
+                        g -= 0.5 * a[ii] * w
+                    grad[q] += g
+                if order >= 2:
+                    for q in range(Q):
+                        for ii in range(no):
+                            s = 0.0
+                            for jj in range(no):
+                                s += Rinv[ii, jj] * de[q, jj]
+                            Rde[q, ii] = s
+                    for q in range(Q):
+                        for r in range(q + 1):
+                            s = f_const[q, r]
+                            for ii in range(no):
+                                s += de[q, ii] * Rde[r, ii]
+                            fisher[q, r] += s
+                            if r != q:
+                                fisher[r, q] += s
+                for q in range(Q):  # dx += dK eps + K deps
+                    for i in range(n):
+                        s = 0.0
+                        for jj in range(no):
+                            s += dK[q, i, jj] * eps[jj] + K[i, jj] * de[q, jj]
+                        dx[q, i] += s
+                    if not frozen:  # dP -= dK (K R)^T + (K R) dK^T + K dR K^T, K R = PCt
+                        for i in range(n):
+                            for t in range(i + 1):
+                                s = 0.0
+                                for jj in range(no):
+                                    s += dK[q, i, jj] * PCt[t, jj] + PCt[i, jj] * dK[q, t, jj]
+                                    w = 0.0
+                                    for r in range(no):
+                                        w += dR[q, jj, r] * K[t, r]
+                                    s += K[i, jj] * w
+                                dP[q, i, t] -= s
+                                if t != i:
+                                    dP[q, t, i] -= s
+            for i in range(n):
+                s = 0.0
+                for jj in range(no):
+                    s += K[i, jj] * eps[jj]
+                x[i] += s
+            if not frozen:
+                for i in range(n):
+                    for t in range(i + 1):
+                        s = 0.0
+                        for jj in range(no):
+                            s += K[i, jj] * PCt[t, jj]
+                        P[i, t] -= s
+                        if t != i:
+                            P[t, i] -= s
+        # the prediction, differentiated (with x and P of the update)
+        if order >= 1:
+            for q in range(Q):
+                for i in range(n):
+                    s = 0.0
+                    for t in range(n):
+                        s += Ad[i, t] * dx[q, t] + dAd[q, i, t] * x[t]
+                    for t in range(m):
+                        s += dBd[q, i, t] * u[k, t]
+                    dxn[q, i] = s
+            for q in range(Q):
+                for i in range(n):
+                    dx[q, i] = dxn[q, i]
+        for i in range(n):
+            s = 0.0
+            for t in range(n):
+                s += Ad[i, t] * x[t]
+            for t in range(m):
+                s += Bd[i, t] * u[k, t]
+            xn[i] = s
+        for i in range(n):
+            x[i] = xn[i]
+        if frozen:
+            continue
+        for i in range(n):  # Ad P
+            for t in range(n):
+                s = 0.0
+                for r in range(n):
+                    s += Ad[i, r] * P[r, t]
+                AP[i, t] = s
+        change = 0.0
+        size = 0.0
+        if order >= 1:
+            # dP <- (dAd P + Ad dP) Ad^T + Ad P dAd^T + dQd
+            for q in range(Q):
+                for i in range(n):
+                    for t in range(n):
+                        s = 0.0
+                        for r in range(n):
+                            s += dAd[q, i, r] * P[r, t] + Ad[i, r] * dP[q, r, t]
+                        Pn[i, t] = s
+                for i in range(n):
+                    for t in range(i + 1):
+                        s = dQd[q, i, t]
+                        for r in range(n):
+                            s += Pn[i, r] * Ad[t, r] + AP[i, r] * dAd[q, t, r]
+                        dPn[q, i, t] = s
+                for i in range(n):
+                    for t in range(i):
+                        dPn[q, t, i] = dPn[q, i, t]
+            for q in range(Q):
+                for i in range(n):
+                    for t in range(n):
+                        change = max(change, abs(dPn[q, i, t] - dPp[q, i, t]))
+                        size = max(size, abs(dPn[q, i, t]))
+                        dP[q, i, t] = dPn[q, i, t]
+        pchange = 0.0
+        psize = 0.0
+        for i in range(n):
+            for t in range(i + 1):
+                s = Qd[i, t]
+                w = Qd[t, i]
+                for r in range(n):
+                    s += AP[i, r] * Ad[t, r]
+                    w += AP[t, r] * Ad[i, r]
+                Pn[i, t] = 0.5 * (s + w)
+                Pn[t, i] = Pn[i, t]
+        for i in range(n):
+            for t in range(n):
+                pchange = max(pchange, abs(Pn[i, t] - Pp[i, t]))
+                psize = max(psize, abs(Pn[i, t]))
+                P[i, t] = Pn[i, t]
+        if (
+            freeze_tol >= 0.0
+            and k + 1 < N
+            and pchange <= freeze_tol * psize
+            and change <= freeze_tol * size
+        ):
+            frozen = True
+            steady_from[n_steady] = k + 1
+            n_steady += 1
+    return 0, nll, grad, fisher, n_steady
+
+
+@njit(cache=True)
+def output_error(Ad, Bd, uT, x0, free, out_idx, yT, pos, m, cut):
+    """The simulation x[k+1] = Ad x[k] + Bd u[k] from x0 (uT: m_u x N) and its free response
+    to the initial states ``free`` (Ad^k e_i, entries below ``cut`` taken as 0: never computed
+    into subnormal floats), read at the compared samples: pos (n_out, N) is each sample's
+    place in the residual vector (-1: not compared) for the outputs out_idx.
+
+    Returns e (m,) = x - y and G (m, len(free)) = d e / d x0[free]."""
+    n = Ad.shape[0]
+    mu = Bd.shape[1]
+    N = uT.shape[1]
+    nf = free.shape[0]
+    no = out_idx.shape[0]
+    x = x0.copy()
+    xn = np.empty(n)
+    z = np.zeros((nf, n))
+    zn = np.empty((nf, n))
+    for c in range(nf):
+        z[c, free[c]] = 1.0
+    e = np.empty(m)
+    G = np.empty((m, nf))
+    for k in range(N):
+        for j in range(no):
+            p = pos[j, k]
+            if p >= 0:
+                i = out_idx[j]
+                e[p] = x[i] - yT[i, k]
+                for c in range(nf):
+                    G[p, c] = z[c, i]
+        for i in range(n):
+            s = 0.0
+            for t in range(n):
+                s += Ad[i, t] * x[t]
+            for t in range(mu):
+                s += Bd[i, t] * uT[t, k]
+            xn[i] = s
+        for i in range(n):
+            x[i] = xn[i]
+        for c in range(nf):
+            for i in range(n):
+                s = 0.0
+                for t in range(n):
+                    s += Ad[i, t] * z[c, t]
+                zn[c, i] = s if abs(s) >= cut else 0.0
+            for i in range(n):
+                z[c, i] = zn[c, i]
+    return e, G
