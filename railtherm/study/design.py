@@ -778,9 +778,10 @@ def prior_from_fit(fit) -> Prior:
 def _read_with_series(path: str | Path):
     """A fit file with its series where the study wrote it (``identify/<model>_series.csv``
     beside ``fit_<model>.yaml``)."""
-    from railtherm.study.fit import read_fit
+    from railtherm.study.fit import check_fit_file, read_fit
 
     fit = read_fit(path)
+    check_fit_file(path, fit.data)
     series = Path(path).parent / "identify" / f"{fit.model}_series.csv"
     return read_fit(path, series) if series.is_file() else fit
 
