@@ -234,6 +234,14 @@ def check(s: Structure) -> None:
                 s.bounds[p],
                 "must be (low, high), numbers, with a number as initial",
             ) from None
+        if not lo > 0:
+            raise _Problem(
+                f"STRUCTURE.bounds[{p}]",
+                s.bounds[p],
+                f"the lower bound of {p} must be > 0: capacities and conductances are "
+                "positive and are estimated as their logarithms; give a small positive "
+                "low (e.g. 1e-1 W/K, 1e4 J/K)",
+            )
         if not (math.isfinite(value) and lo < hi and lo <= value <= hi):
             raise _Problem(
                 f"STRUCTURE.initial[{p}]",
