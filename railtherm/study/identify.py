@@ -433,7 +433,19 @@ def kA_estimated(options: Mapping[str, Any], kA_start: float) -> dict[str, Any]:
 def _judged_fit(structure, exps, options, vehicle_data, kvalue, storage):
     """One fit of ``structure`` with ``options``: the estimate, its dict with the combined
     (statistical and type-B) intervals judged for identification, and the type-B budget."""
-    result = estimate_parameters(structure, exps, options)
+    from railtherm.estimation.kalman import NotEvaluable
+
+    try:
+        result = estimate_parameters(structure, exps, options)
+    except NotEvaluable as err:
+        raise ConfigError(
+            f"vehicle {vehicle_data.get('id')}",
+            "model.estimator",
+            "kalman",
+            f"{err}: the data do not determine this model by the Kalman filter; fit "
+            f"{structure.key} by output error only (model.estimator: output_error), or "
+            "bound the parameters named in model.bounds",
+        ) from None
     fitted = result.to_dict()
     budget = systematic_budget(structure, exps, options, result, vehicle_data, kvalue, storage)
     combine_uncertainty(fitted["parameters"], budget)
