@@ -33,3 +33,20 @@ def test_a_module_that_exits_at_import_is_refused_not_obeyed(tmp_path, monkeypat
     )
     message = refused_only(tmp_path, monkeypatch, "my_network", source)
     assert "key '(import)' = 'SystemExit: 0'" in message and "fix it" in message
+
+
+@pytest.mark.bad_input
+def test_a_module_named_with_the_kalman_suffix_is_refused(tmp_path, monkeypatch):
+    """Before: env_kalman.py loaded, `railtherm validate` said ok for a vehicle asking for
+    it, and `railtherm fit` stopped with ValueError: unknown model 'env_kalman' (the key read
+    as env by the Kalman filter)."""
+    message = refused_only(tmp_path, monkeypatch, "env_kalman", ENVELOPE)
+    assert "key '(file name)' = 'env_kalman.py'" in message
+    assert "may not end in _kalman" in message and "rename the file, e.g. env.py" in message
+
+
+def test_the_registry_and_the_model_keys_share_the_kalman_suffix():
+    from railtherm.structures import _load
+    from railtherm.study import identify
+
+    assert _load.KALMAN_SUFFIX == identify.KALMAN_SUFFIX
