@@ -677,6 +677,15 @@ def _check_window_size(
             f"{key} would become {duration / float(step):,.0f} rows at this step, more than "
             f"{MAX_ROWS:,}; the logger's step in {layout.path} is {layout.step_s:g} s",
         )
+    if step and duration < MIN_WINDOW_STEPS * float(step):
+        raise ConfigError(
+            file,
+            "cleaning.step_s",
+            step,
+            f"{key} lasts {duration:g} s, fewer than {MIN_WINDOW_STEPS} tidy steps of "
+            f"{float(step):g} s: give a step of at most {duration / MIN_WINDOW_STEPS:.4g} s "
+            f"(the logger's step in {layout.path} is {layout.step_s:g} s)",
+        )
     if not layout.step_s or layout.step_s <= 0:
         return
     if not step and duration / layout.step_s > MAX_ROWS:
