@@ -45,3 +45,18 @@ def test_railtherm_energy_on_such_a_year_is_one_line(tmp_path, capsys):
     assert main(args) == 1
     err = capsys.readouterr().err
     assert "Traceback" not in err and "'T_o' = 'ERR': line 7" in err, err
+
+
+@pytest.mark.bad_input
+def test_a_csv_year_that_does_not_start_on_1_january_is_refused(tmp_path):
+    """Before: a year from 1 July was read as starting on 1 January, its July booked as
+    January's heating without a word (the timestamps only checked the step)."""
+    T = sand_point_in("degC")
+    time = pd.date_range("2021-07-01 00:00", periods=len(T), freq="h")
+    path = tmp_path / "july.csv"
+    pd.DataFrame({"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "T_o": T}).to_csv(path, index=False)
+    with pytest.raises(ConfigError) as err:
+        weather.read_weather(path)
+    text = str(err.value)
+    assert f"{path}: key 'time' = '2021-07-01T00:00:00'" in text
+    assert "not on 1 January" in text and "reorder the rows" in text

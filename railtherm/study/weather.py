@@ -200,6 +200,18 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
         step = float(np.median(gaps))
         if not (0 < step <= HOUR_S and HOUR_S % step == 0 and np.allclose(gaps, step)):
             raise ConfigError(file, "time", step, "a regular step of an hour or a divisor of it")
+        first = index[0]
+        if (first.month, first.day) != (1, 1):
+            # the engine reads record 0 as 1 January: a year from July would book July's
+            # heating as January's
+            raise ConfigError(
+                file,
+                "time",
+                str(table[column].iloc[0]),
+                "the typical year starts here, not on 1 January: the months and the profile's "
+                "weekdays count from the first record; reorder the rows so that the year "
+                "runs from 1 January to 31 December",
+            )
     if round(n * step / HOUR_S) not in (8760, 8784) or not math.isclose(
         n * step / HOUR_S, round(n * step / HOUR_S)
     ):
