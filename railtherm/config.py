@@ -156,8 +156,17 @@ class Study:
 
 
 def vehicle_schema() -> dict[str, Any]:
-    """The vehicle JSON Schema (a fresh copy), read from the package's schemas directory."""
-    return copy.deepcopy(packaged_schema("vehicle"))
+    """The vehicle JSON Schema (a fresh copy), read from the package's schemas directory,
+    with ``model.initial`` and ``model.bounds`` taking every registered structure's
+    parameters (:data:`PARAMETERS`): a structure added as one file is started and bounded
+    like the shipped ones, as docs/structures.md says."""
+    schema = copy.deepcopy(packaged_schema("vehicle"))
+    initial = schema["$defs"]["parameters"]["properties"]
+    bounds = schema["properties"]["model"]["properties"]["bounds"]["properties"]
+    for p in PARAMETERS:
+        initial.setdefault(p, {"type": "number", "exclusiveMinimum": 0})
+        bounds.setdefault(p, {"$ref": "#/$defs/interval"})
+    return schema
 
 
 # Tidy-table names the workflow uses itself: the k window and the whole recording.
