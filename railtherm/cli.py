@@ -87,6 +87,22 @@ def _references(args: argparse.Namespace, study: Study) -> int:
     return len(paths)
 
 
+def _weather_years(args: argparse.Namespace) -> int:
+    """Read the study's typical years (``energy.weather``, when enabled) as the rule energy
+    will, so that a year in degF or K, cut short or of another kind stops here, not after
+    the fits; how many."""
+    config = read_yaml(os.path.join(args.directory, args.config), display=args.config)
+    energy = (config or {}).get("energy") or {}
+    if not energy.get("enabled", False):
+        return 0
+    from railtherm.study.weather import read_weather
+
+    paths = energy.get("weather") or []
+    for path in paths:
+        read_weather(os.path.join(args.directory, path))
+    return len(paths)
+
+
 def _validate(args: argparse.Namespace) -> int:
     workdir = args.directory
     study = _study(args, args.vehicles)
@@ -106,6 +122,9 @@ def _validate(args: argparse.Namespace) -> int:
             for warning in checked.warnings:
                 print(f"warning: {warning}", file=sys.stderr)
         summary += f", values of {windows} window{'' if windows == 1 else 's'} checked"
+        years = 0 if args.vehicles else _weather_years(args)
+        if years:
+            summary += f", {years} weather year{'' if years == 1 else 's'} read"
         if not_written:
             summary += (
                 f" ({len(not_written)} raw file{'' if len(not_written) == 1 else 's'} not "

@@ -156,8 +156,17 @@ class Study:
 
 
 def vehicle_schema() -> dict[str, Any]:
-    """The vehicle JSON Schema (a fresh copy), read from the package's schemas directory."""
-    return copy.deepcopy(packaged_schema("vehicle"))
+    """The vehicle JSON Schema (a fresh copy), read from the package's schemas directory,
+    with ``model.initial`` and ``model.bounds`` taking every registered structure's
+    parameters (:data:`PARAMETERS`): a structure added as one file is started and bounded
+    like the shipped ones, as docs/structures.md says."""
+    schema = copy.deepcopy(packaged_schema("vehicle"))
+    initial = schema["$defs"]["parameters"]["properties"]
+    bounds = schema["properties"]["model"]["properties"]["bounds"]["properties"]
+    for p in PARAMETERS:
+        initial.setdefault(p, {"type": "number", "exclusiveMinimum": 0})
+        bounds.setdefault(p, {"$ref": "#/$defs/interval"})
+    return schema
 
 
 # Tidy-table names the workflow uses itself: the k window and the whole recording.
@@ -676,6 +685,15 @@ def _check_window_size(
             step,
             f"{key} would become {duration / float(step):,.0f} rows at this step, more than "
             f"{MAX_ROWS:,}; the logger's step in {layout.path} is {layout.step_s:g} s",
+        )
+    if step and duration < MIN_WINDOW_STEPS * float(step):
+        raise ConfigError(
+            file,
+            "cleaning.step_s",
+            step,
+            f"{key} lasts {duration:g} s, fewer than {MIN_WINDOW_STEPS} tidy steps of "
+            f"{float(step):g} s: give a step of at most {duration / MIN_WINDOW_STEPS:.4g} s "
+            f"(the logger's step in {layout.path} is {layout.step_s:g} s)",
         )
     if not layout.step_s or layout.step_s <= 0:
         return

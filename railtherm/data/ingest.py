@@ -386,8 +386,16 @@ def _check_temperatures(file, groups, t, region, cleaning, labels) -> None:
                 continue
             i = int(wrong.argmax())
             v = float(values[i])
+            share = wrong.sum() / max(int((used & np.isfinite(values)).sum()), 1)
             if 200.0 <= v <= 400.0:
                 cause = "kelvin declared as degC? (give the channel unit: K)"
+            elif share > 0.5 and lo <= v + 273.15 <= hi:
+                # most of the window below absolute zero's neighbourhood: degC read as K
+                cause = (
+                    f"degC declared as kelvin? {share:.0%} of the window's values lie outside, "
+                    f"and read as degC this one is {v + 273.15:.2f} degC: check the unit "
+                    "(give the channel unit: degC, or leave unit out)"
+                )
             elif v <= -99.0 and float(v).is_integer():
                 cause = "a logger's fault code for a missing value? (empty the cell)"
             else:

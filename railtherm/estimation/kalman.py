@@ -114,6 +114,35 @@ def noise_names(structure: Structure, outputs: Sequence[str]) -> tuple[str, ...]
 # the discrete system and its stationary filters
 
 
+class NotEvaluable(ValueError):
+    """The likelihood cannot be evaluated at the output-error optimum the Kalman fit starts
+    from: the message names the fastest time constant of the model there against the step,
+    the parameters that make it, and what to do."""
+
+    def __init__(self, structure: Structure, theta: Mapping[str, float], dt: float):
+        A, _ = structure.matrices(theta)
+        rates = np.abs(np.linalg.eigvals(A))
+        tau = 1.0 / float(rates.max()) if np.all(np.isfinite(rates)) and rates.max() > 0 else 0.0
+        at_bound = [
+            p
+            for p in structure.parameters
+            if p in theta
+            and any(
+                abs(math.log(float(theta[p]) / b)) < 1e-3
+                for b in structure.bounds[p]
+                if b > 0 and math.isfinite(b)
+            )
+        ]
+        self.tau, self.dt, self.at_bound = tau, dt, at_bound
+        where = f" ({', '.join(at_bound)} at a bound of the search)" if at_bound else ""
+        super().__init__(
+            f"the Kalman filter's likelihood of {structure.name} cannot be evaluated at the "
+            f"output-error optimum it starts from: there the model's fastest time constant is "
+            f"{tau:.3g} s against the {dt:g} s step{where}, where the discretised process "
+            "noise overflows"
+        )
+
+
 class _Modes:
     """The recursion x[l+1] = F x[l] + w[l] in modal coordinates, F = V diag(lam) V^-1, with
     each complex-conjugate pair of modes run once (for a real forcing the pair's coordinates
@@ -1434,7 +1463,7 @@ def fit(
     v0 = clip(v0)
     start_cost = lik.evaluate(v0, 0)[0]
     if not math.isfinite(start_cost):
-        raise ValueError("the likelihood cannot be evaluated at the output-error optimum")
+        raise NotEvaluable(structure, oe.theta, dt)
     sol = _optimise(lik, v0, lo, hi, clip)
     v = sol.x
     H = _hessian(lik, v, _gradient(lik, v))

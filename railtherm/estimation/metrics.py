@@ -69,6 +69,10 @@ def _sums(y: Any, yhat: Any) -> tuple[float, float]:
         return math.nan, math.nan
     e = y - yhat
     d = y - y.mean()
+    if np.ptp(y) <= 1e-12 * max(1.0, float(np.max(np.abs(y)))):
+        # constant y: SS_tot is the rounding of its mean alone, and 1 - SS_res / SS_tot
+        # would print as a huge negative R^2 (a stuck sensor gave -9e29)
+        return float(e @ e), 0.0
     return float(e @ e), float(d @ d)
 
 

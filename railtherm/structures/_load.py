@@ -30,6 +30,10 @@ from railtherm.structures._structure import Structure
 # rounding (a few ulps of the matrix entry over h) and ATOL of the largest entry of that
 # parameter's derivative. A doubled or sign-flipped entry misses by 100 %; an exact one by
 # about STEP**2 (truncation) and 1e-16 / STEP (rounding) relative.
+# The suffix of a model key fitted by the Kalman filter (railtherm.study.identify.KALMAN_SUFFIX):
+# a module named with it could not be asked for by output error.
+KALMAN_SUFFIX = "_kalman"
+
 STEP = 1e-6
 RTOL = 1e-5
 ATOL = 1e-7
@@ -79,6 +83,19 @@ def load(name: str, package: str, file: str) -> Structure | Refused:
     except (OSError, UnicodeDecodeError) as err:
         return Refused(name, file, "(file)", None, f"cannot be read ({err}): fix the file")
     order = declared_order(source)
+    if name.endswith(KALMAN_SUFFIX):
+        return Refused(
+            name,
+            file,
+            "(file name)",
+            Path(file).name,
+            f"a structure's name may not end in {KALMAN_SUFFIX}, the suffix of a model key "
+            f"that asks for the Kalman-filter estimator (the key {name} reads as "
+            f"{name[: -len(KALMAN_SUFFIX)]} fitted by the filter): rename the file, e.g. "
+            f"{name[: -len(KALMAN_SUFFIX)]}.py, and ask for the filter with "
+            "model.estimator: kalman",
+            order,
+        )
     try:
         tree = _parse(source, file)
         _duplicate_keys(tree)
@@ -234,6 +251,14 @@ def check(s: Structure) -> None:
                 s.bounds[p],
                 "must be (low, high), numbers, with a number as initial",
             ) from None
+        if not lo > 0:
+            raise _Problem(
+                f"STRUCTURE.bounds[{p}]",
+                s.bounds[p],
+                f"the lower bound of {p} must be > 0: capacities and conductances are "
+                "positive and are estimated as their logarithms; give a small positive "
+                "low (e.g. 1e-1 W/K, 1e4 J/K)",
+            )
         if not (math.isfinite(value) and lo < hi and lo <= value <= hi):
             raise _Problem(
                 f"STRUCTURE.initial[{p}]",

@@ -148,7 +148,26 @@ def load_programme(path: str | Path) -> Programme:
             prbs = ph["prbs"]
             if prbs["low_W"] >= prbs["high_W"]:
                 raise ConfigError(file, f"{key}.prbs.low_W", prbs["low_W"], "below high_W")
+            if 2 * prbs["hold_h"] > ph["hours"]:
+                # one bit fills the phase: a held power, not a sequence that excites
+                raise ConfigError(
+                    file,
+                    f"{key}.prbs.hold_h",
+                    prbs["hold_h"],
+                    f"a bit held this long leaves the {ph['hours']:g} h phase at most one "
+                    f"switch, no pseudo-random sequence: give hold_h of at most "
+                    f"{ph['hours'] / 2:g} h (e.g. 1), or power_W / steps for a held power",
+                )
             ph = {**ph, "steps": prbs_steps(ph["hours"], **prbs)}
+        identify = ph.get("identify", True)
+        if not isinstance(identify, bool) and identify > ph["hours"]:
+            raise ConfigError(
+                file,
+                f"{key}.identify",
+                identify,
+                f"more hours than the phase's {ph['hours']:g}: the fit compares at most the "
+                f"whole phase; give identify of at most {ph['hours']:g}, or true",
+            )
         steps = (
             [(0.0, ph["power_W"])]
             if "power_W" in ph
@@ -778,9 +797,10 @@ def prior_from_fit(fit) -> Prior:
 def _read_with_series(path: str | Path):
     """A fit file with its series where the study wrote it (``identify/<model>_series.csv``
     beside ``fit_<model>.yaml``)."""
-    from railtherm.study.fit import read_fit
+    from railtherm.study.fit import check_fit_file, read_fit
 
     fit = read_fit(path)
+    check_fit_file(path, fit.data)
     series = Path(path).parent / "identify" / f"{fit.model}_series.csv"
     return read_fit(path, series) if series.is_file() else fit
 

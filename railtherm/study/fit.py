@@ -230,3 +230,84 @@ def read_fit(path: str | os.PathLike[str], series: str | os.PathLike[str] | None
     """A :class:`Fit` from ``fit_<model>.yaml`` (read by :func:`railtherm.io.read_result`)
     and its series CSV, if given."""
     return Fit(results_io.read_result(path), None if series is None else pd.read_csv(series))
+
+
+def check_fit_file(file: str | os.PathLike[str], data: Mapping[str, Any]) -> None:
+    """A ``fit_<model>.yaml`` given to a command (energy, simulate, design) as it must be for
+    its model to run: a structure of the registry, a value for exactly its parameters, each
+    a finite number > 0 (capacities and conductances, drawn in log), and ``free`` and
+    ``correlation`` that agree. A file edited by hand, cut short or written for another
+    structure is a :class:`~railtherm.errors.ConfigError` naming the file, the key, the value
+    and the fix, not an error deep in the simulation."""
+    from railtherm.errors import ConfigError
+
+    file = str(file)
+    again = "write it again with railtherm fit --out (or the workflow's rule check)"
+    name = data.get("structure")
+    base, *irradiance = str(name).split("+")
+    try:
+        s = models.structure_for(base, irradiance)
+    except KeyError:
+        from railtherm import structures
+
+        raise ConfigError(
+            file,
+            "structure",
+            name,
+            f"not a structure of the registry ({', '.join(structures.STRUCTURES)}): {again}",
+        ) from None
+    params = data.get("parameters")
+    if not isinstance(params, Mapping):
+        raise ConfigError(
+            file, "parameters", params, f"must map each parameter to its entry: {again}"
+        )
+    missing = [p for p in s.parameters if p not in params]
+    extra = [
+        p
+        for p, e in params.items()
+        if p not in s.parameters
+        and not (isinstance(e, Mapping) and e.get("estimated") == "derived")
+    ]
+    if missing or extra:
+        raise ConfigError(
+            file,
+            "parameters",
+            sorted(params),
+            f"{s.name} has the parameters {', '.join(s.parameters)}"
+            + (f"; missing {', '.join(missing)}" if missing else "")
+            + (f"; not of it {', '.join(map(str, extra))}" if extra else "")
+            + f": {again}",
+        )
+    for p in s.parameters:
+        entry = params[p]
+        value = entry.get("value") if isinstance(entry, Mapping) else None
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            number = math.nan
+        if isinstance(value, bool) or not (math.isfinite(number) and number > 0):
+            raise ConfigError(
+                file,
+                f"parameters.{p}.value",
+                value,
+                f"must be a finite number > 0 (a capacity, conductance or aperture, drawn in "
+                f"log): {again}",
+            )
+    free = data.get("free", [])
+    if not isinstance(free, list) or any(p not in s.parameters for p in free):
+        raise ConfigError(file, "free", free, f"must list parameters of {s.name}: {again}")
+    corr = data.get("correlation")
+    if corr is not None:
+        try:
+            shape = np.asarray(corr, dtype=float).shape
+        except (TypeError, ValueError):
+            shape = None
+        n = len([p for p in free if p in params])
+        if shape != (n, n):
+            raise ConfigError(
+                file,
+                "correlation",
+                f"shape {shape}",
+                f"must be the {n} x {n} correlation of the free parameters "
+                f"({', '.join(free)}): {again}",
+            )

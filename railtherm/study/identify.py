@@ -634,9 +634,21 @@ def identify(
     exps = experiments(structure, tables, input_hold(vehicle_data))
     options["input_noise"] = input_noise(structure, vehicle_data, exps)
     storage_used = storage if applied else None
-    result, fitted, budget = _judged_fit(
-        structure, exps, options, vehicle_data, kvalue, storage_used
-    )
+    from railtherm.estimation.kalman import NotEvaluable
+
+    try:
+        result, fitted, budget = _judged_fit(
+            structure, exps, options, vehicle_data, kvalue, storage_used
+        )
+    except NotEvaluable as err:  # the fit itself; a joint check's failure is only recorded
+        raise ConfigError(
+            f"vehicle {vehicle_data.get('id')}",
+            "model.estimator",
+            "kalman",
+            f"{err}: the data do not determine this model by the Kalman filter; fit "
+            f"{structure.key} by output error only (model.estimator: output_error), or "
+            "bound the parameters named in model.bounds",
+        ) from None
     checked = bool(vehicle_data["model"].get("two_stage_check", True))
     if checked and "kA" in fixed and kvalue is not None and structure.coupled:
         check, joint = _static_kA_check(

@@ -20,6 +20,7 @@ import pandas as pd
 from railtherm import structures
 from railtherm.config import Vehicle
 from railtherm.data import ingest
+from railtherm.errors import ConfigError
 from railtherm.estimation import kvalue
 from railtherm.study import identify
 from railtherm.study.fit import Fit, write_yaml
@@ -84,7 +85,12 @@ def fit_vehicle(
     storage = identify.storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k_stage)
     for key in keys:
         model = identify.model_key(key)
-        estimate, series = identify.identify(windows, vehicle.data, k_stage, model, storage)
+        try:
+            estimate, series = identify.identify(windows, vehicle.data, k_stage, model, storage)
+        except ConfigError as err:
+            if err.file != f"vehicle {vehicle.id}":
+                raise
+            raise ConfigError(vehicle.path, err.key, err.value, err.reason) from None
         checked = identify.check(estimate, series, vehicle.data["check"])
         fit = Fit(checked, series)
         if base is not None:

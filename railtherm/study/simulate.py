@@ -461,8 +461,9 @@ def load_parameters(path: str | os.PathLike[str]) -> ParameterSet:
 
         return parameter_set(classmodel.read_reference_model(path))
     if isinstance(data, dict) and {"vehicle", "parameters", "structure"} <= set(data):
-        from railtherm.study.fit import Fit
+        from railtherm.study.fit import Fit, check_fit_file
 
+        check_fit_file(name, data)
         return parameter_set(Fit(data))
     keys = sorted(data) if isinstance(data, dict) else type(data).__name__
     raise ConfigError(

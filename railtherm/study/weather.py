@@ -110,6 +110,24 @@ def _pvlib(file: str):
     return iotools
 
 
+def _numbers(file: str, table: pd.DataFrame, column: str) -> np.ndarray:
+    """A plain CSV's column as floats, empty cells NaN; text that is no number (a logger's
+    "ERR") is a :class:`ConfigError` naming the file, the column, the value and its line."""
+    text = table[column]
+    values = pd.to_numeric(text, errors="coerce").to_numpy(dtype=float, na_value=np.nan)
+    bad = np.isnan(values) & text.notna().to_numpy()
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ConfigError(
+            file,
+            column,
+            str(text.iloc[i]),
+            f"line {i + 2}: not a number: give "
+            + ("the dry-bulb temperature in degC" if column == "T_o" else "the irradiance in W/m2"),
+        )
+    return values
+
+
 def read_weather(path: str | Path, kind: str | None = None, time: dict | None = None) -> Weather:
     """The typical year in ``path`` (``kind``: one of :data:`KINDS`, default recognised from
     the file). ``time``: a plain CSV's time column as a vehicle config's ``format.time``
@@ -142,9 +160,9 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
         tf = timeaxis.declared(file, spec)
         stamps = timeaxis.parse(file, table[column].astype(str), column, tf)
         index = pd.DatetimeIndex(stamps)
-        T_o = table["T_o"].to_numpy(float)
+        T_o = _numbers(file, table, "T_o")
         if "ghi" in table.columns:
-            ghi = table["ghi"].to_numpy(float)
+            ghi = _numbers(file, table, "ghi")
         name, source = path.stem, f"CSV {path.name}"
     else:
         iotools = _pvlib(file)
@@ -182,6 +200,18 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
         step = float(np.median(gaps))
         if not (0 < step <= HOUR_S and HOUR_S % step == 0 and np.allclose(gaps, step)):
             raise ConfigError(file, "time", step, "a regular step of an hour or a divisor of it")
+        first = index[0]
+        if (first.month, first.day) != (1, 1):
+            # the engine reads record 0 as 1 January: a year from July would book July's
+            # heating as January's
+            raise ConfigError(
+                file,
+                "time",
+                str(table[column].iloc[0]),
+                "the typical year starts here, not on 1 January: the months and the profile's "
+                "weekdays count from the first record; reorder the rows so that the year "
+                "runs from 1 January to 31 December",
+            )
     if round(n * step / HOUR_S) not in (8760, 8784) or not math.isclose(
         n * step / HOUR_S, round(n * step / HOUR_S)
     ):
@@ -191,7 +221,9 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
     missing = ~np.isfinite(T_o)
     if missing.any():
         i = int(np.flatnonzero(missing)[0])
-        raise ConfigError(file, f"{COLUMNS[kind]}[{i}]", T_o[i], "missing: a typical year has none")
+        raise ConfigError(
+            file, f"{COLUMNS[kind]}[{i}]", float(T_o[i]), "missing: a typical year has none"
+        )
     _check_climate(file, kind, T_o)
     if ghi is not None:
         ghi = np.clip(np.nan_to_num(ghi, nan=0.0), 0.0, None)
