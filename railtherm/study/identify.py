@@ -530,25 +530,30 @@ def _static_kA_check(
             "or a k window that does not measure the loss; the two-stage fit is kept"
         )
         return record, None
+    agreement = _kA_agreement(kA_joint, kA_static, d_kA, u_static_rel, z["kA"])
     if undetermined:
         record["reason"] = STATIC_UNDETERMINED
         note = (
             f"the static kA ({kA_static:.4g} W/K), held fixed, left "
-            f"{', '.join(undetermined)} not identified; the joint fit (kA {kA_joint:.4g} W/K, "
-            "within the static test's uncertainty, estimated with the capacities) determines "
-            "every parameter and is reported"
+            f"{', '.join(undetermined)} not identified; the joint fit ({agreement}, kA "
+            "estimated with the capacities) determines every parameter and is reported"
         )
     else:
         record["reason"] = STATIC_CONTRADICTED
         static_value = kA_static if worst == "kA" else fitted["parameters"][worst]["value"]
         joint_value = joint[1]["parameters"][worst]["value"]
+        if worst == "kA":
+            what = f"with kA free (the joint fit) {agreement}"
+        else:
+            what = (
+                f"with kA free (the joint fit: {agreement}) {worst} is {joint_value:.4g} "
+                f"against {static_value:.4g}, z = {z[worst]:+.1f}, more than "
+                f"{CONTRADICTION_Z:g} standard uncertainties of the difference"
+            )
         note = (
-            f"the records contradict the two-stage fit: with kA free (the joint fit, kA "
-            f"{kA_joint:.4g} W/K against the static {kA_static:.4g} W/K, within the static "
-            f"test's uncertainty) {worst} is {joint_value:.4g} against {static_value:.4g}, "
-            f"z = {z[worst]:+.1f}, more than {CONTRADICTION_Z:g} standard uncertainties of "
-            "the difference; the fit with the static kA held fixed does not hold against "
-            "kA's own uncertainty, so the joint fit is reported"
+            f"the records contradict the two-stage fit: {what}; the fit with the static kA "
+            "held fixed does not hold against kA's own uncertainty, so the joint fit is "
+            "reported"
         )
     own = [f["message"] for f in fitted["flags"]]
     if own:  # what the two-stage fit showed stays in view (a misfit shows in it first)
@@ -558,6 +563,29 @@ def _static_kA_check(
     }
     record.update(use_joint=True, note=note)
     return record, (*joint, joint_options)
+
+
+def _kA_agreement(kA_joint, kA_static, d_kA, u_static_rel, z_kA) -> str:
+    """How the joint kA stands to the static one, in words that hold for both yardsticks at
+    once: the static test's own relative uncertainty (``within`` of :func:`_static_kA_check`)
+    and z of their difference (:func:`_differences`), whose standard uncertainty leaves out
+    the errors both estimates share and so can be the smaller."""
+    text = (
+        f"kA {kA_joint:.4g} W/K, {100 * math.expm1(d_kA):+.2f} % from the static "
+        f"{kA_static:.4g} W/K, within {CONTRADICTION_Z:g} times the static test's own "
+        f"uncertainty ({100 * u_static_rel:.2g} %)"
+    )
+    if not math.isfinite(z_kA):
+        return text
+    if abs(z_kA) <= CONTRADICTION_Z:
+        return f"{text}, z = {z_kA:+.1f} of their difference"
+    sd = abs(d_kA / z_kA)
+    return (
+        f"{text}, but z = {z_kA:+.1f} of their difference, more than {CONTRADICTION_Z:g}: "
+        f"the difference's standard uncertainty ({100 * sd:.2g} %) leaves out the errors both "
+        "estimates share (the power meters' scale, the sensors' offsets), so the records "
+        "determine kA more closely than the static test does"
+    )
 
 
 def _differences(structure, static, joint, kA_static: float) -> dict[str, float]:
@@ -636,6 +664,7 @@ def identify(
     result, fitted, budget = _judged_fit(
         structure, exps, options, vehicle_data, kvalue, storage_used
     )
+    method_notes: list[str] = []
     checked = bool(vehicle_data["model"].get("two_stage_check", True))
     if checked and "kA" in fixed and kvalue is not None and structure.coupled:
         check, joint = _static_kA_check(
@@ -646,7 +675,10 @@ def identify(
             fixed = options["fixed"]
             k_source = f"{JOINT[estimator]}: {check['reason']}"
         if check.get("note"):
-            notes.append(check["note"])
+            # a conflict of the two kA measurements is a reason of the verdict; the joint
+            # fit's replacing a two-stage fit whose kA agrees with it is a note: nothing in
+            # the reported fit's assumptions is in doubt (the joint fit is judged itself)
+            (method_notes if check["use_joint"] else notes).append(check["note"])
         fitted["static_kA_check"] = check
     estimate = {
         "vehicle": vehicle_data["id"],
@@ -665,6 +697,7 @@ def identify(
         "windows": list(tables),
         "rows": rows,
         "notes": notes,
+        "method_notes": method_notes,
         "fit": fitted,
         "systematic": budget,
         "cross_validation": _cross_validate(structure, exps, options) if len(exps) > 1 else [],
@@ -1010,15 +1043,30 @@ def innovation_tests(
 
 def innovation_reasons(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
     """The verdict's reasons of a kalman fit: an output whose one-step innovations are not
-    white (:func:`innovation_tests`) - the stochastic model misses a dynamic or an input."""
+    white (:func:`innovation_tests`) - the stochastic model misses a dynamic or an input.
+
+    The Ljung-Box and cumulated-periodogram tests of every compared output are one family,
+    judged by Holm's procedure (:func:`railtherm.estimation.diagnostics.holm`) at
+    ``whiteness_alpha``: with white innovations the fit is put in doubt with probability at
+    most that level, however many outputs and tests there are (each test alone at that level
+    would do so up to 2 x outputs times as often)."""
+    from railtherm.estimation import diagnostics
+
+    tests = estimate.get("innovations", {})
+    alpha = float(thresholds["whiteness_alpha"])
+    names = [(state, key) for state in tests for key in ("ljung_box_p", "cpg_p")]
+    adjusted = diagnostics.holm([float(tests[state][key]) for state, key in names])
+    held = dict(zip(names, adjusted, strict=True))
+    family = f"Holm over {len(names)} tests" if len(names) > 1 else "one test"
     reasons = []
-    for state, t in estimate.get("innovations", {}).items():
-        if not t["white"]:
+    for state, t in tests.items():
+        lb, cpg = held[(state, "ljung_box_p")], held[(state, "cpg_p")]
+        if min(lb, cpg) < alpha:
             reasons.append(
                 f"The one-step innovations of {state} are not white (Ljung-Box p = "
-                f"{t['ljung_box_p']:.3g}, cumulated periodogram p = {t['cpg_p']:.3g}, level "
-                f"{thresholds['whiteness_alpha']:g}): the stochastic model misses a dynamic "
-                "or an input."
+                f"{t['ljung_box_p']:.3g}, cumulated periodogram p = {t['cpg_p']:.3g}; "
+                f"adjusted {lb:.3g} and {cpg:.3g} by {family}, below the family's level "
+                f"{alpha:g}): the stochastic model misses a dynamic or an input."
             )
     return reasons
 
@@ -1648,6 +1696,7 @@ def check(
     judge("plausibility", plausibility(estimate, thresholds))
     judge("k_stage", list(estimate["notes"]))
     notes = [f["message"] for f in fit["flags"] if f["code"] in NOTE_ONLY_FLAGS]
+    notes += estimate.get("method_notes", [])
     notes += skipped_checks(estimate)
     return {
         "vehicle": estimate["vehicle"],
