@@ -140,6 +140,57 @@ def envelope_tables(
     }
 
 
+# a first-order hold is flagged where the straight lines between the rows miss an input's
+# logged signal by more than this share of the input's rms (:func:`hold_flags`): a meter's
+# noise (0.3-1 %) and a few steps per record stay well below it, a heater that switches within
+# the steps lies far above it (30-70 %)
+HOLD_ERROR_MAX = 0.05
+
+
+def hold_flags(
+    structure: models.Structure,
+    vehicle_data: Mapping[str, Any],
+    tables: Mapping[str, pd.DataFrame],
+) -> list[dict[str, Any]]:
+    """The flag ``first_order_hold_on_switching_input`` per input that ``model.input_hold:
+    first_order`` misrepresents: an input resampled from a finer logger step
+    (``cleaning.step_s``) whose logged signal departs from the straight lines between the
+    rows by more than :data:`HOLD_ERROR_MAX` of its rms (the cleaning's
+    ``<input>_hold_error``, :func:`railtherm.data.ingest._hold_error`). A heater switching
+    within the steps is piecewise constant with jumps inside them: the hold draws a ramp
+    through each jump and the fit moves the capacities to follow it. The zero-order hold
+    takes each step's exact mean (eq. 15), which is right for such an input."""
+    if input_hold(vehicle_data) != "first_order":
+        return []
+    step = (vehicle_data.get("cleaning") or {}).get("step_s")
+    step = f"cleaning.step_s {float(step):g} s" if step else "a step coarser than the logger's"
+    flags = []
+    for name in structure.inputs:
+        column = f"{name}{ingest.HOLD_ERROR_SUFFIX}"
+        parts = [t for t in tables.values() if column in t.columns]
+        if not parts:
+            continue
+        error = np.concatenate([t[column].to_numpy(float) for t in parts])
+        level = np.concatenate([t[name].to_numpy(float) for t in parts])
+        rms = float(np.sqrt(np.nanmean(level**2)))
+        share = float(np.sqrt(np.nanmean(error**2))) / rms if rms > 0 else 0.0
+        if share > HOLD_ERROR_MAX:
+            flags.append(
+                pem.Flag(
+                    "first_order_hold_on_switching_input",
+                    (),
+                    f"model.input_hold: first_order on {name} resampled to {step}: the "
+                    f"logged {name} departs from the straight lines between the "
+                    f"rows by {100 * share:.0f} % of its rms (more than "
+                    f"{100 * HOLD_ERROR_MAX:g} %) - it switches within the steps, and a "
+                    "first-order hold draws a ramp through each switch, which moves the "
+                    "capacities; set model.input_hold: zero_order (the exact mean of each "
+                    "step), or cleaning.step_s to the logger's step",
+                ).to_dict()
+            )
+    return flags
+
+
 def _outputs(structure: models.Structure, vehicle_data: Mapping[str, Any], tables) -> tuple:
     """The measured states compared in eq. 17: the config's choice, else every state measured."""
     chosen = vehicle_data["model"].get("outputs")
@@ -680,6 +731,7 @@ def identify(
             # the reported fit's assumptions is in doubt (the joint fit is judged itself)
             (method_notes if check["use_joint"] else notes).append(check["note"])
         fitted["static_kA_check"] = check
+    fitted["flags"] = [*fitted["flags"], *hold_flags(structure, vehicle_data, tables)]
     estimate = {
         "vehicle": vehicle_data["id"],
         "synthetic": bool(vehicle_data.get("synthetic", False)),
