@@ -37,6 +37,7 @@ values, stable key order, for YAML).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -150,6 +151,18 @@ class CpgTest:
         }
 
 
+@functools.lru_cache(maxsize=256)
+def _half_width(alpha: float, q: int, method: str) -> float:
+    """The band's half-width of :func:`cumulated_periodogram`: the KS quantile of q - 1
+    observations (``scipy.stats.kstwo``, a root search of a tenth of a second, so kept per
+    (alpha, q)) or Madsen's asymptotic one."""
+    from scipy import stats
+
+    if method == "exact":
+        return float(stats.kstwo.isf(alpha, q - 1))
+    return float(stats.kstwobign.isf(alpha) / math.sqrt(q))
+
+
 def cumulated_periodogram(
     residuals: Any,
     alpha: float = 0.05,
@@ -215,10 +228,7 @@ def cumulated_periodogram(
     total = float(power.sum())
     from scipy import stats  # ~2 s to import: only where a test is asked for
 
-    if method == "exact":
-        half_width = float(stats.kstwo.isf(alpha, q - 1))
-    else:
-        half_width = float(stats.kstwobign.isf(alpha) / math.sqrt(q))
+    half_width = _half_width(alpha, q, method)
     if not total > 0.0:  # constant residuals
         return CpgTest(
             frequencies=frequencies,
