@@ -21,7 +21,9 @@ those it put in doubt, the share with its exact (Clopper-Pearson) binomial 95 % 
 and the same for the verdict as a whole (any criterion); then every reason given, for
 reading. A criterion family that runs several tests (whiteness over outputs and tests) is
 judged at its stated level as a family (Holm), so its share should lie at or below that
-level (0.05).
+level (0.05); beside it, the share the same fits would have had with each test judged
+alone at that level (from the p-values kept per fit), and the share the k method would have
+had with the joint fit's replacing a two-stage fit a reason (from the fit's k_source).
 """
 
 from __future__ import annotations
@@ -116,7 +118,7 @@ def interval(k: int, n: int) -> tuple[float, float]:
 def table(df: pd.DataFrame) -> pd.DataFrame:
     """Per setting and criterion family (and the verdict as a whole): fits judged, fits in
     doubt, their share and its 95 % interval."""
-    from railtherm.study.identify import CRITERIA
+    from railtherm.study.identify import CRITERIA, STATIC_CONTRADICTED, STATIC_UNDETERMINED
 
     rows = []
     for setting, part in df.groupby("setting", sort=False):
@@ -130,19 +132,38 @@ def table(df: pd.DataFrame) -> pd.DataFrame:
                 applies = judged[f"applies_{criterion}"].astype(bool)
                 n = int(applies.sum())
                 k = int(judged.loc[applies, f"failed_{criterion}"].astype(bool).sum())
-            lo, hi = interval(k, n)
-            rows.append(
-                {
-                    "setting": setting,
-                    "criterion": label,
-                    "fits": n,
-                    "in_doubt": k,
-                    "share": k / n if n else math.nan,
-                    "ci95_lo": lo,
-                    "ci95_hi": hi,
-                }
-            )
+            rows.append(row(setting, label, k, n))
+            if criterion == "k_stage" and n:
+                # the same fits with the joint fit's replacing the two-stage one a reason
+                replaced = (
+                    judged["k_source"]
+                    .astype(str)
+                    .str.contains(f"{STATIC_UNDETERMINED}|{STATIC_CONTRADICTED}")
+                )
+                k_old = int((replaced | judged["failed_k_stage"].astype(bool)).sum())
+                rows.append(
+                    row(setting, f"({label}: a replacement by the joint fit too)", k_old, n)
+                )
+            tests = [c for c in judged if c.startswith(("ljung_box_p_", "cpg_p_"))]
+            if criterion == "innovations_white" and n and tests:
+                # the same fits judged test by test at the level, as before the family
+                p = judged.loc[judged[f"applies_{criterion}"].astype(bool), tests]
+                single = int((p.astype(float) < LEVEL).any(axis=1).sum())
+                rows.append(row(setting, f"({label}: each test alone at {LEVEL:g})", single, n))
     return pd.DataFrame(rows)
+
+
+def row(setting: str, criterion: str, k: int, n: int) -> dict:
+    lo, hi = interval(k, n)
+    return {
+        "setting": setting,
+        "criterion": criterion,
+        "fits": n,
+        "in_doubt": k,
+        "share": k / n if n else math.nan,
+        "ci95_lo": lo,
+        "ci95_hi": hi,
+    }
 
 
 def report(df: pd.DataFrame) -> None:
