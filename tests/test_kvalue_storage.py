@@ -227,7 +227,9 @@ def test_records_that_contradict_the_static_kA_get_the_joint_fit():
     assert estimate["k_source"] == f"joint estimation (PEM): {identify.STATIC_CONTRADICTED}"
     assert estimate["kA_fixed"] is None
     assert estimate["k_eq10"] == pytest.approx(k["k"])  # the static test is still reported
-    assert "contradict the two-stage fit" in estimate["notes"][-1]
+    # the reported joint fit's kA agrees with the static test: a note, not a verdict reason
+    assert "contradict the two-stage fit" in estimate["method_notes"][-1]
+    assert not any("contradict the two-stage fit" in n for n in estimate["notes"])
     parameters = estimate["fit"]["parameters"]
     for p in ("kA", "C", "K_veh", "C_veh"):
         lo, hi = parameters[p]["ci95"]
@@ -259,7 +261,7 @@ def test_static_kA_leaving_parameters_undetermined_gets_the_joint_fit(monkeypatc
     monkeypatch.setattr(identify, "_not_identified", first_call_undetermined)
     _, estimate = static_stage(1.0)
     assert estimate["k_source"] == f"joint estimation (PEM): {identify.STATIC_UNDETERMINED}"
-    assert "left C_veh not identified" in estimate["notes"][-1]
+    assert "left C_veh not identified" in estimate["method_notes"][-1]
 
 
 def test_a_runaway_alternation_is_solved_by_the_secant_method(monkeypatch):

@@ -56,7 +56,11 @@ integral of the power signal the samples describe, by ``format.power_timing``:
 
 With ``model.input_hold: first_order`` (inputs linear between samples, which needs
 ``power_timing: instant``) every power and irradiance column is instead the value at ``t_n``,
-binned like a temperature (the sample itself when step = ``dt_log``).
+binned like a temperature (the sample itself when step = ``dt_log``). On a step coarser than
+the logger's, a column ``<input>_hold_error`` per input (Q_H, each irradiance) gives, per row,
+the rms of the logged signal's departure from the straight line between the rows over
+``[t_n, t_n+1)``: large where the input switches within a step (a heater's on/off), which
+the fit flags (``railtherm.study.identify.hold_flags``).
 
 Data after the window end are used when the file has them. Where the power signal ends before
 ``t_N + step`` (the last row of a window that reaches the end of the data), the last row's
@@ -124,6 +128,10 @@ TIDY_COLUMNS = (
 )
 TEMPERATURE_GROUPS = ("indoor_air", "surface", "outdoor_air")
 POWER_GROUPS = ("heater_power", "fan_power")
+#: with ``model.input_hold: first_order`` on a step coarser than the logger's: per input (Q_H,
+#: each irradiance), the column ``<input>_hold_error``, the rms per row of the logged signal's
+#: departure from the straight line between the rows (:func:`_hold_error`)
+HOLD_ERROR_SUFFIX = "_hold_error"
 KNOWN_HEAT = "heat_flows"  # eq. 1's known heat flows (W), summed into Q_H
 IRRADIANCE = "irradiance"  # W/m2, one model input per channel
 
@@ -593,6 +601,20 @@ def _power_means(
     return means, used_filled
 
 
+def _hold_error(t: np.ndarray, fine: np.ndarray, grid: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Per row n, the rms over the logged samples in [t_n, t_n+1) of the logged signal
+    ``fine`` (at ``t``) minus the straight line between the rows' values ``rows`` (at
+    ``grid``): what a first-order hold misses of an input resampled to a coarser step. Near 0
+    for a signal that is smooth over a step; of the order of the jump where it switches
+    within a step. The last row (no step follows it) is 0."""
+    inside = (t >= grid[0]) & (t < grid[-1])
+    tt, e = t[inside], fine[inside] - np.interp(t[inside], grid, rows)
+    row = np.searchsorted(grid, tt, side="right") - 1
+    count = np.bincount(row, minlength=grid.size).astype(float)
+    total = np.bincount(row, weights=e * e, minlength=grid.size)
+    return np.sqrt(np.divide(total, count, out=np.zeros(grid.size), where=count > 0))
+
+
 def tidy(
     raw: pd.DataFrame,
     vehicle_data: dict[str, Any],
@@ -756,6 +778,14 @@ def tidy(
     Q_H = q[:, 0] + q[:, 1]
     if "Q_known" in extra:
         Q_H = Q_H + q[:, extra["Q_known"]]
+    hold_errors: dict[str, np.ndarray] = {}
+    if hold == "first_order" and step > dt_log + tol:
+        # resampled: how far the straight lines between the rows miss the logged signal
+        fine_Q_H = sums[0] + sums[1] + (sums[extra["Q_known"]] if "Q_known" in extra else 0.0)
+        hold_errors["Q_H"] = _hold_error(t_full, fine_Q_H, grid, Q_H)
+        for name in irradiance_names(vehicle_data):
+            if name in extra:
+                hold_errors[name] = _hold_error(t_full, sums[extra[name]], grid, q[:, extra[name]])
 
     out = pd.DataFrame(
         {
@@ -770,8 +800,13 @@ def tidy(
             "T_spread": spread,
             "filled": (t_filled | q_filled).astype(np.int64),
             **{name: q[:, i] for name, i in extra.items()},
+            **{f"{name}{HOLD_ERROR_SUFFIX}": e for name, e in hold_errors.items()},
         },
-        columns=list(TIDY_COLUMNS) + list(extra),
+        columns=[
+            *TIDY_COLUMNS,
+            *extra,
+            *(f"{name}{HOLD_ERROR_SUFFIX}" for name in hold_errors),
+        ],
     )
     out.attrs = {
         "file": file,

@@ -9,7 +9,13 @@ CTSM-R and pySIP report them, computed from plain arrays and numbers:
   whiteness test: it sees a slow periodic error that the autocorrelation spreads thinly over
   many lags.
 * :func:`residual_tests`: that test beside the Ljung-Box portmanteau test (Ljung & Box 1978),
-  which is :func:`railtherm.estimation.metrics.ljung_box` itself (not a second implementation).
+  which is :func:`railtherm.estimation.metrics.ljung_box` itself (not a second implementation),
+  the two combined by Holm's procedure so that the pair rejects white noise at level alpha.
+* :func:`holm`: Holm's step-down adjustment of several p-values (Holm 1979, *A simple
+  sequentially rejective multiple test procedure*, Scand. J. Statist. 6): a family of tests
+  judged by it rejects a true null hypothesis with probability at most alpha, whatever the
+  tests' dependence; judged test by test at alpha, a family of m tests would reject up to
+  m alpha.
 * :func:`likelihood_ratio`: the likelihood-ratio test of two nested models (Wilks 1938), with
   the chi-bar-squared null distribution when parameters of the larger model lie on the
   boundary of the smaller (Self & Liang 1987).
@@ -31,6 +37,7 @@ values, stable key order, for YAML).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -50,11 +57,39 @@ __all__ = [
     "Step",
     "cumulated_periodogram",
     "forward_selection",
+    "holm",
     "information_criteria",
     "likelihood_ratio",
     "residual_tests",
     "selection_markdown",
 ]
+
+
+# --- several tests as one family ----------------------------------------------------------
+
+
+def holm(p_values: Any) -> np.ndarray:
+    """Holm's adjusted p-values of a family of tests (Holm 1979): the i-th smallest p times
+    (m - i + 1), made non-decreasing in that order and capped at 1. A test is rejected at
+    family-wise level alpha where its adjusted p is below alpha; the family rejects (any test
+    does) exactly where the smallest p is below alpha / m (Bonferroni's decision, which Holm's
+    refines only in which further tests it names). The family-wise error rate is at most
+    alpha for any dependence between the tests. NaN p-values are not tests: they stay NaN
+    and do not count in m."""
+    p = np.asarray(p_values, dtype=float)
+    if p.ndim != 1:
+        raise ValueError(f"p_values must be 1-D, got shape {p.shape}")
+    if np.any((p < 0.0) | (p > 1.0)):
+        raise ValueError(f"p-values must lie in [0, 1], got {p.tolist()}")
+    out = np.full(p.shape, np.nan)
+    finite = np.flatnonzero(~np.isnan(p))
+    m = finite.size
+    if m == 0:
+        return out
+    order = finite[np.argsort(p[finite], kind="stable")]
+    scaled = p[order] * (m - np.arange(m))
+    out[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
+    return out
 
 
 # --- the cumulated periodogram ------------------------------------------------------------
@@ -114,6 +149,18 @@ class CpgTest:
             "cpg_missing": int(self.n_missing),
             "cpg_note": self.note,
         }
+
+
+@functools.lru_cache(maxsize=256)
+def _half_width(alpha: float, q: int, method: str) -> float:
+    """The band's half-width of :func:`cumulated_periodogram`: the KS quantile of q - 1
+    observations (``scipy.stats.kstwo``, a root search of a tenth of a second, so kept per
+    (alpha, q)) or Madsen's asymptotic one."""
+    from scipy import stats
+
+    if method == "exact":
+        return float(stats.kstwo.isf(alpha, q - 1))
+    return float(stats.kstwobign.isf(alpha) / math.sqrt(q))
 
 
 def cumulated_periodogram(
@@ -181,10 +228,7 @@ def cumulated_periodogram(
     total = float(power.sum())
     from scipy import stats  # ~2 s to import: only where a test is asked for
 
-    if method == "exact":
-        half_width = float(stats.kstwo.isf(alpha, q - 1))
-    else:
-        half_width = float(stats.kstwobign.isf(alpha) / math.sqrt(q))
+    half_width = _half_width(alpha, q, method)
     if not total > 0.0:  # constant residuals
         return CpgTest(
             frequencies=frequencies,
@@ -227,16 +271,24 @@ def cumulated_periodogram(
 class ResidualTests:
     """The two whiteness tests of one residual series: Ljung-Box (time domain,
     :class:`railtherm.estimation.metrics.Whiteness`) and the cumulated periodogram (frequency
-    domain)."""
+    domain), judged as one family at :attr:`alpha` (:func:`holm`)."""
 
     ljung_box: Whiteness
     periodogram: CpgTest
     alpha: float
 
     @property
+    def holm_p(self) -> tuple[float, float]:
+        """Holm's adjusted p-values (Ljung-Box, cumulated periodogram) of the pair."""
+        lb, cpg = holm([self.ljung_box.p_value, self.periodogram.p_value])
+        return float(lb), float(cpg)
+
+    @property
     def white(self) -> bool:
-        """Neither test rejects whiteness at :attr:`alpha`."""
-        return self.ljung_box.white(self.alpha) and self.periodogram.white
+        """Whiteness is not rejected by the pair at family level :attr:`alpha`: neither
+        Holm-adjusted p is below it (the smaller raw p not below alpha / 2). Either test alone
+        at alpha would reject white noise up to twice as often."""
+        return min(self.holm_p) >= self.alpha
 
     def to_dict(self) -> dict[str, Any]:
         """Both tests' numbers in one flat mapping, in a stable order."""
@@ -257,9 +309,9 @@ def residual_tests(
 ) -> ResidualTests:
     """Ljung-Box (Ljung & Box 1978, :func:`railtherm.estimation.metrics.ljung_box`: ``lags``,
     default min(20, m // 5), and ``fitted`` parameters subtracted from its degrees of freedom) and
-    the
-    cumulated periodogram test (:func:`cumulated_periodogram`, ``method``) of one residual
-    series, both at level ``alpha``.
+    the cumulated periodogram test (:func:`cumulated_periodogram`, ``method``) of one residual
+    series, judged together at family level ``alpha`` by Holm's procedure
+    (:attr:`ResidualTests.white`).
 
     Missing rows: Ljung-Box counts them as zero deviations, so its lags stay lags in time; the
     periodogram drops them (see :func:`cumulated_periodogram`). Both are exact under the null

@@ -22,7 +22,8 @@ IN_DOUBT = "assumptions in doubt"
 #: doubt. ``min_effective_samples``: residuals whose autocorrelation time leaves fewer than this
 #: many independent samples (m / tau) are *strongly coloured*: the error is a few slow
 #: excursions, i.e. dynamics the model does not have. ``require_white``: also count a rejected
-#: Ljung-Box test (p < ``whiteness_alpha``) as a reason; off by default, since
+#: Ljung-Box test (Holm-adjusted p < ``whiteness_alpha`` over the series judged) as a reason;
+#: off by default, since
 #: simulation-error residuals of thermal data are practically never white.
 DEFAULT_THRESHOLDS: dict[str, Any] = {
     "r2_min": 0.9,
@@ -94,7 +95,10 @@ def verdict(
     r2: R^2 (eq. 21), or a mapping {name: R^2} (e.g. per experiment or per cross-validation
     fold); a NaN R^2 is a reason. flags: the fit's identifiability flags (sentences, or objects
     / mappings carrying a ``message``); each one is a reason. whiteness: a :class:`Whiteness`
-    (or its ``to_dict()``), or a mapping {name: Whiteness}. thresholds: overrides of
+    (or its ``to_dict()``), or a mapping {name: Whiteness}; with ``require_white`` their
+    Ljung-Box tests are one family, judged by Holm's procedure at ``whiteness_alpha``
+    (:func:`railtherm.estimation.diagnostics.holm`: white residuals put the fit in doubt with
+    probability at most that level, however many series). thresholds: overrides of
     :data:`DEFAULT_THRESHOLDS` (an unknown name is a ValueError naming the known ones).
     Reasons are plain sentences with the numbers; the label is "fit acceptable" exactly when
     there are none."""
@@ -113,7 +117,13 @@ def verdict(
         elif value < t["r2_min"]:
             reasons.append(f"R^2{where} = {value:.4f} is below {t['r2_min']:g}.")
     reasons.extend(_message(f) for f in flags)
-    for name, w in _named(whiteness):
+    named = _named(whiteness)
+    if t["require_white"] and named:
+        from railtherm.estimation.diagnostics import holm
+
+        adjusted = holm([_get(w, "p_value", "ljung_box_p") for _, w in named])
+    family = f"Holm over {len(named)} series, " if len(named) > 1 else ""
+    for i, (name, w) in enumerate(named):
         where = f" ({name})" if name else ""
         n_eff = _get(w, "effective_samples", "effective_samples")
         tau = _get(w, "tau", "autocorrelation_time")
@@ -124,9 +134,10 @@ def verdict(
                 f"{t['min_effective_samples']:g}); the model misses a slow dynamic."
             )
         p = _get(w, "p_value", "ljung_box_p")
-        if t["require_white"] and p < t["whiteness_alpha"]:
+        if t["require_white"] and adjusted[i] < t["whiteness_alpha"]:
+            shown = f"p = {p:.3g}, {family}adjusted {adjusted[i]:.3g}" if family else f"p = {p:.3g}"
             reasons.append(
-                f"The residuals{where} are not white (Ljung-Box p = {p:.3g} < "
+                f"The residuals{where} are not white (Ljung-Box {shown} < "
                 f"{t['whiteness_alpha']:g})."
             )
     return (IN_DOUBT if reasons else ACCEPTABLE), reasons
