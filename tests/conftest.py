@@ -1,5 +1,6 @@
 """Shared fixtures: the virtual campaign synthesised once per test session."""
 
+import os
 import shutil
 from pathlib import Path
 
@@ -59,3 +60,47 @@ def fit_files(campaign_study, tmp_path_factory):
         return cache[vehicle, model]
 
     return fit
+
+
+# ---------------------------------------------------------------------------------------------
+# Running the suite on every core (pytest-xdist: `pytest -n auto`, as the README runs it)
+
+
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: one worker per CPU this process may run on (its affinity), where xdist would
+    count physical cores only (one on a 2-vCPU machine with hyperthreads)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _uses_module_fixture(item: pytest.Item) -> bool:
+    info = getattr(item, "_fixtureinfo", None)
+    if info is None:
+        return False
+    return any(defs[-1].scope == "module" for name, defs in info.name2fixturedefs.items() if defs)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Order and group the tests for ``--dist loadgroup`` (pyproject's addopts), whatever the
+    file: the tests of a module that share a module-scoped fixture (a finished study run, a
+    fit) run on one worker, so the fixture is made once, not once per worker; and the long
+    tests (marked ``slow`` or ``workflow``: statistical checks, whole studies) and their groups
+    are handed out first, so that no worker starts one when the others have finished. Without
+    -n, only the order changes; each test stays independent of the order."""
+    scope_of = {}
+    for item in items:
+        if _uses_module_fixture(item) and not item.get_closest_marker("xdist_group"):
+            item.add_marker(pytest.mark.xdist_group(item.module.__name__))
+        group = item.get_closest_marker("xdist_group")
+        scope_of[item] = group.kwargs.get("name", group.args[0]) if group else item.nodeid
+    long_scopes = {
+        scope_of[item]
+        for item in items
+        if item.get_closest_marker("slow") or item.get_closest_marker("workflow")
+    }
+    first_index = {}
+    for i, item in enumerate(items):
+        first_index.setdefault(scope_of[item], i)
+    items.sort(key=lambda item: (scope_of[item] not in long_scopes, first_index[scope_of[item]]))
