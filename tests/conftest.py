@@ -75,32 +75,20 @@ def pytest_xdist_auto_num_workers(config):
         return os.cpu_count() or 1
 
 
-def _uses_module_fixture(item: pytest.Item) -> bool:
-    info = getattr(item, "_fixtureinfo", None)
-    if info is None:
-        return False
-    return any(defs[-1].scope == "module" for name, defs in info.name2fixturedefs.items() if defs)
-
-
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """Order and group the tests for ``--dist loadgroup`` (pyproject's addopts), whatever the
-    file: the tests of a module that share a module-scoped fixture (a finished study run, a
-    fit) run on one worker, so the fixture is made once, not once per worker; and the long
-    tests (marked ``slow`` or ``workflow``: statistical checks, whole studies) and their groups
-    are handed out first, so that no worker starts one when the others have finished. Without
-    -n, only the order changes; each test stays independent of the order."""
-    scope_of = {}
-    for item in items:
-        if _uses_module_fixture(item) and not item.get_closest_marker("xdist_group"):
-            item.add_marker(pytest.mark.xdist_group(item.module.__name__))
-        group = item.get_closest_marker("xdist_group")
-        scope_of[item] = group.kwargs.get("name", group.args[0]) if group else item.nodeid
-    long_scopes = {
-        scope_of[item]
+    """Order the test files for ``--dist loadfile`` (pyproject's addopts: each file's tests on
+    one worker, so a module-scoped fixture - a finished study run, a fit - is made once, not
+    once per worker), whatever the file: files with long tests (marked ``slow`` or
+    ``workflow``: statistical checks, whole studies) are handed out first, so that no worker
+    starts one when the others have finished. Without -n only the order of the files changes;
+    each test stays independent of the order."""
+    long_files = {
+        item.path
         for item in items
         if item.get_closest_marker("slow") or item.get_closest_marker("workflow")
     }
     first_index = {}
     for i, item in enumerate(items):
-        first_index.setdefault(scope_of[item], i)
-    items.sort(key=lambda item: (scope_of[item] not in long_scopes, first_index[scope_of[item]]))
+        first_index.setdefault(item.path, i)
+    items.sort(key=lambda item: (item.path not in long_files, first_index[item.path]))
