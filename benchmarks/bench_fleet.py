@@ -2,10 +2,17 @@
 copies of a measured vehicle, side by side with bare Snakefiles planning the same jobs.
 
 The fleet is N copies of the validation study's Armadillo Box (validation/config/vehicles/
-Armadillo.yaml: measured data, three structures by two estimators, six fits a vehicle), each
-reading its own copy of the real raw file (data/armadillo/armadillo_data_H2.csv), so that the
-parse-time checks read N files as they would a real fleet's. Per vehicle the workflow plans
-one clean job, one identify and one check job (each over the six fits) and one figure job.
+Armadillo.yaml: measured data, three structures by two estimators, six fits a vehicle), of two
+kinds (``--fleets``):
+
+- ``own``: each copy reads its own copy of the real raw file (data/armadillo/
+  armadillo_data_H2.csv), so that the parse-time checks read N files as they would a real
+  fleet's;
+- ``shared``: every copy reads the one raw file, as copies of a vehicle config made to try a
+  fleet do.
+
+Per vehicle the workflow plans one clean job, one identify and one check job (each over the six
+fits) and one figure job.
 
 Each study is dry-run twice: first with no ``.snakemake/`` (cold: railtherm's parse caches
 empty, every vehicle validated and its raw file read), then again (warm: the caches under
@@ -21,10 +28,11 @@ two runs each:
   spends on a DAG of this shape (railtherm's jobs have several input files each, the one-rule
   jobs one).
 
-Wall time and peak memory (max RSS of the process and its children) come from ``os.wait4``;
-the table is printed in Markdown.
+Wall time, CPU time (user + sys) and peak memory (max RSS of the process and its children)
+come from ``os.wait4``; the table is printed in Markdown. On a machine other work loads, the
+ratio of CPU times (of the runs with the best wall time) is the steadier comparison.
 
-    python benchmarks/bench_fleet.py [--sizes 10 100 1000] [--keep DIR]
+    python benchmarks/bench_fleet.py [--sizes 10 100 1000] [--fleets own shared] [--keep DIR]
     python benchmarks/bench_fleet.py --full 100      # run a 100-vehicle study on 2 cores
 
 ``--full N`` runs the whole study of N vehicles from clean (``--cores 2``, or ``--cores``) and
@@ -80,7 +88,7 @@ FITS += expand("results/vehicles/{{{{vehicle}}}}/identify/{{k}}_series.csv", k=K
 
 rule all:
     input:
-        expand("data/{{v}}/armadillo_data_H2.csv", v=V),
+        {raw_all}
         expand("results/vehicles/{{v}}/clean/h2.csv", v=V),
         expand("results/vehicles/{{v}}/fit_{{k}}.yaml", v=V, k=KEYS),
         "results/tables/identification.csv",
@@ -90,7 +98,7 @@ rule all:
 
 rule clean:
     input:
-        "data/{{vehicle}}/armadillo_data_H2.csv",
+        {raw},
     output:
         "results/vehicles/{{vehicle}}/clean/h2.csv",
     script:
@@ -178,20 +186,27 @@ def vehicle_ids(n: int) -> list[str]:
     return [f"Armadillo{i:04d}" for i in range(1, n + 1)]
 
 
-def make_fleet(root: Path, n: int, figures: bool = True) -> Path:
+def raw_path(fleet: str, vid: str) -> str:
+    """A vehicle's raw file in the study directory: its own copy, or the one file all share."""
+    return f"data/{vid}/{RAW.name}" if fleet == "own" else f"data/armadillo/{RAW.name}"
+
+
+def make_fleet(root: Path, n: int, figures: bool = True, fleet: str = "own") -> Path:
     """A study directory of ``n`` copies of the Armadillo Box, each reading its own copy of the
-    measured raw file; returns the study directory (the working directory of snakemake)."""
+    measured raw file (``fleet`` "own") or all reading the one file (``fleet`` "shared");
+    returns the study directory (the working directory of snakemake)."""
     study = root / "study"
     vehicles_dir = study / "config" / "vehicles"
     vehicles_dir.mkdir(parents=True)
     template = yaml.safe_load(VEHICLE.read_text(encoding="utf-8"))
     paths = []
     for vid in vehicle_ids(n):
-        data_dir = study / "data" / vid
-        data_dir.mkdir(parents=True)
-        shutil.copyfile(RAW, data_dir / RAW.name)
+        raw = study / raw_path(fleet, vid)
+        if not raw.exists():
+            raw.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(RAW, raw)
         vehicle = dict(template, id=vid)
-        vehicle["raw_files"] = {"h2": f"../../data/{vid}/{RAW.name}"}
+        vehicle["raw_files"] = {"h2": f"../../{raw_path(fleet, vid)}"}
         (vehicles_dir / f"{vid}.yaml").write_text(
             yaml.safe_dump(vehicle, sort_keys=False), encoding="utf-8"
         )
@@ -253,11 +268,11 @@ def job_total(output: str) -> int:
     return int(found.group(1))
 
 
-def dry_runs(root: Path, n: int, figures: bool) -> dict[str, Run | int]:
+def dry_runs(root: Path, n: int, figures: bool, fleet: str = "own") -> dict[str, Run | int]:
     """Cold and warm dry runs of a fleet of ``n``, and of the bare workflows of as many jobs:
     ``snakemake --dry-run --quiet``, planning without listing the jobs or summing up their
     reasons (the job counts come from one more, untimed run with the job stats)."""
-    study = make_fleet(root / "fleet", n, figures)
+    study = make_fleet(root / "fleet", n, figures, fleet)
     env = railtherm_env()
     quiet = ("--dry-run", "--quiet")
     out: dict[str, Run | int] = {}
@@ -278,14 +293,19 @@ def dry_runs(root: Path, n: int, figures: bool) -> dict[str, Run | int]:
     same = root / "bare_same_dag"
     same.mkdir()
     fig = 'expand("results/vehicles/{v}/{f}.{e}", v=V, f=FIGURES, e=("png", "svg")),'
-    text = BARE_SAME_DAG.format(figures=fig if figures else "")
+    if fleet == "own":
+        raw, raw_all = f'"data/{{vehicle}}/{RAW.name}"', f'expand("data/{{v}}/{RAW.name}", v=V),'
+    else:
+        raw = f'"{raw_path(fleet, "")}"'
+        raw_all = f"{raw},"
+    text = BARE_SAME_DAG.format(figures=fig if figures else "", raw=raw, raw_all=raw_all)
     if not figures:
         text = text[: text.index("rule figures:")] + text[text.index("rule fit_table:") :]
     (same / "Snakefile").write_text(text, encoding="utf-8")
     (same / "job.py").write_text("pass\n")
     for vid in vehicle_ids(n):
-        (same / "data" / vid).mkdir(parents=True)
-        (same / "data" / vid / RAW.name).touch()
+        (same / raw_path(fleet, vid)).parent.mkdir(parents=True, exist_ok=True)
+        (same / raw_path(fleet, vid)).touch()
     (same / "config.yaml").write_text(
         yaml.safe_dump({"vehicles": vehicle_ids(n), "keys": model_keys()}), encoding="utf-8"
     )
@@ -296,9 +316,9 @@ def dry_runs(root: Path, n: int, figures: bool) -> dict[str, Run | int]:
     return out
 
 
-def full_run(root: Path, n: int, figures: bool, cores: int) -> None:
+def full_run(root: Path, n: int, figures: bool, cores: int, fleet: str = "own") -> None:
     """The whole study of ``n`` vehicles from clean; CPU seconds per vehicle."""
-    study = make_fleet(root / "fleet", n, figures)
+    study = make_fleet(root / "fleet", n, figures, fleet)
     env = railtherm_env()
     dry = measured(
         railtherm_snakemake(study, "--dry-run", "--quiet", "rules", cores=cores), study, env
@@ -322,29 +342,38 @@ def main() -> None:
     parser.add_argument("--cores", type=int, default=2)
     parser.add_argument("--figures", choices=["on", "off"], default="on")
     parser.add_argument("--keep", type=Path, help="build the studies here and keep them")
+    parser.add_argument(
+        "--fleets",
+        nargs="+",
+        choices=["own", "shared"],
+        default=["own", "shared"],
+        help="own: each copy reads its own copy of the raw file; shared: all read the one file",
+    )
     args = parser.parse_args()
     figures = args.figures == "on"
     with tempfile.TemporaryDirectory() as tmp:
         base = args.keep or Path(tmp)
         if args.full:
-            full_run(base / f"full{args.full}", args.full, figures, args.cores)
+            full_run(base / f"full{args.full}", args.full, figures, args.cores, args.fleets[0])
             return
         print(
-            "| vehicles | jobs | railtherm cold | railtherm warm | bare one-rule, script "
+            "| fleet | vehicles | jobs | railtherm cold | railtherm warm | bare one-rule, script "
             "| warm / bare | bare one-rule, shell | bare same DAG | warm / same DAG "
-            "| peak RSS warm | peak RSS bare script |"
+            "| CPU warm / same DAG | peak RSS warm | peak RSS bare script |"
         )
-        print("|---|---|---|---|---|---|---|---|---|---|---|")
-        for n in args.sizes:
-            r = dry_runs(base / f"n{n}", n, figures)
-            warm, script, shell, same = r["warm"], r["script"], r["shell"], r["same"]
-            print(
-                f"| {n} | {r['jobs']} | {r['cold'].wall:.1f} s | {warm.wall:.1f} s "
-                f"| {script.wall:.1f} s | {warm.wall / script.wall:.2f} | {shell.wall:.1f} s "
-                f"| {same.wall:.1f} s | {warm.wall / same.wall:.2f} "
-                f"| {warm.rss_mb:.0f} MB | {script.rss_mb:.0f} MB |",
-                flush=True,
-            )
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+        for fleet in args.fleets:
+            for n in args.sizes:
+                r = dry_runs(base / f"{fleet}{n}", n, figures, fleet)
+                warm, script, shell, same = r["warm"], r["script"], r["shell"], r["same"]
+                print(
+                    f"| {fleet} | {n} | {r['jobs']} | {r['cold'].wall:.1f} s | {warm.wall:.1f} s "
+                    f"| {script.wall:.1f} s | {warm.wall / script.wall:.2f} | {shell.wall:.1f} s "
+                    f"| {same.wall:.1f} s | {warm.wall / same.wall:.2f} "
+                    f"| {warm.cpu / same.cpu:.2f} | {warm.rss_mb:.0f} MB "
+                    f"| {script.rss_mb:.0f} MB |",
+                    flush=True,
+                )
 
 
 if __name__ == "__main__":

@@ -1,5 +1,6 @@
 """Shared fixtures: the virtual campaign synthesised once per test session."""
 
+import os
 import shutil
 from pathlib import Path
 
@@ -59,3 +60,35 @@ def fit_files(campaign_study, tmp_path_factory):
         return cache[vehicle, model]
 
     return fit
+
+
+# ---------------------------------------------------------------------------------------------
+# Running the suite on every core (pytest-xdist: `pytest -n auto`, as the README runs it)
+
+
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: one worker per CPU this process may run on (its affinity), where xdist would
+    count physical cores only (one on a 2-vCPU machine with hyperthreads)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Order the test files for ``--dist loadfile`` (pyproject's addopts: each file's tests on
+    one worker, so a module-scoped fixture - a finished study run, a fit - is made once, not
+    once per worker), whatever the file: files with long tests (marked ``slow`` or
+    ``workflow``: statistical checks, whole studies) are handed out first, so that no worker
+    starts one when the others have finished. Without -n only the order of the files changes;
+    each test stays independent of the order."""
+    long_files = {
+        item.path
+        for item in items
+        if item.get_closest_marker("slow") or item.get_closest_marker("workflow")
+    }
+    first_index = {}
+    for i, item in enumerate(items):
+        first_index.setdefault(item.path, i)
+    items.sort(key=lambda item: (item.path not in long_files, first_index[item.path]))

@@ -2,8 +2,9 @@
 # A single-node Slurm cluster on this machine, from Debian's packages, to exercise
 # profiles/slurm (docs/cluster.md). Needs root; not part of the tests.
 #
-#     sudo bash benchmarks/slurm/setup_local_slurm.sh          # install, configure, start
-#     sudo bash benchmarks/slurm/setup_local_slurm.sh stop     # stop the daemons it started
+#     SUDO=$([ "$(id -u)" = 0 ] || echo sudo)        # empty for root, `sudo` for a user
+#     $SUDO bash benchmarks/slurm/setup_local_slurm.sh          # install, configure, start
+#     $SUDO bash benchmarks/slurm/setup_local_slurm.sh stop     # stop what it started
 #
 # It installs slurmctld, slurmd, slurmdbd, munge and mariadb-server with apt-get, writes
 # /etc/slurm/slurm.conf (one node, this host, all its CPUs, its memory less a margin; one
@@ -15,8 +16,12 @@
 # cluster, an account (`railtherm`, or $SLURM_ACCOUNT_NAME) and root (and $SUDO_USER) as its
 # users. Processes are tracked without cgroups (proctrack/linuxproc, task/none).
 #
+# Each service it starts (one that was not running) is written to the state file
+# /var/lib/railtherm-slurm/started; `stop` stops those and no other (a MariaDB or munged that
+# was running before is left running), then empties the file.
+#
 # Run it again to rewrite the configuration and start whatever is not running (a daemon that
-# is running is told to reread its configuration). Logs: /var/log/slurm/.
+# is running is restarted if its configuration changed). Logs: /var/log/slurm/.
 set -euo pipefail
 
 ACCOUNT=${SLURM_ACCOUNT_NAME:-railtherm}
@@ -24,21 +29,36 @@ PARTITION=debug
 CLUSTER=railtherm
 CONF_DIR=/etc/slurm
 LOG_DIR=/var/log/slurm
-PIDS=(/run/slurmd.pid /run/slurmctld.pid /run/slurmdbd.pid)
+STATE=/var/lib/railtherm-slurm/started  # the services this script started, one a line
 
 [ "$(id -u)" = 0 ] || { echo "setup_local_slurm: run as root" >&2; exit 1; }
 
 running() { [ -f "$1" ] && kill -0 "$(cat "$1")" 2>/dev/null; }
+pidfile() { echo "/run/$1.pid"; }  # of a Slurm daemon
+started() {  # started NAME: record that this script started NAME (once)
+    mkdir -p "$(dirname "$STATE")"
+    grep -qx "$1" "$STATE" 2>/dev/null || echo "$1" >>"$STATE"
+}
 
 if [ "${1:-}" = stop ]; then
-    for pidfile in "${PIDS[@]}"; do
-        if running "$pidfile"; then
-            echo "stopping $(basename "$pidfile" .pid) (pid $(cat "$pidfile"))"
-            kill "$(cat "$pidfile")"
-        fi
+    [ -s "$STATE" ] || { echo "setup_local_slurm: nothing started by this script"; exit 0; }
+    # the reverse order of starting: Slurm's daemons before the database and munged
+    for name in slurmd slurmctld slurmdbd mariadb munge; do
+        grep -qx "$name" "$STATE" || continue
+        case "$name" in
+            mariadb | munge)
+                echo "stopping $name"
+                [ -x "/etc/init.d/$name" ] && "/etc/init.d/$name" stop || true
+                ;;
+            *)
+                if running "$(pidfile "$name")"; then
+                    echo "stopping $name (pid $(cat "$(pidfile "$name")"))"
+                    kill "$(cat "$(pidfile "$name")")"
+                fi
+                ;;
+        esac
     done
-    [ -x /etc/init.d/mariadb ] && /etc/init.d/mariadb stop || true
-    [ -x /etc/init.d/munge ] && /etc/init.d/munge stop || true
+    rm -f "$STATE"
     exit 0
 fi
 
@@ -147,10 +167,13 @@ wait_for() {  # wait_for SECONDS DESCRIPTION COMMAND...: until COMMAND succeeds
     exit 1
 }
 
-/etc/init.d/munge status >/dev/null 2>&1 || /etc/init.d/munge start
+for name in munge mariadb; do
+    if ! "/etc/init.d/$name" status >/dev/null 2>&1; then
+        "/etc/init.d/$name" start
+        started "$name"
+    fi
+done
 wait_for 10 munged bash -c 'munge -n | unmunge'
-
-/etc/init.d/mariadb status >/dev/null 2>&1 || /etc/init.d/mariadb start
 wait_for 30 mariadb mysqladmin ping
 mysql <<EOF
 CREATE DATABASE IF NOT EXISTS slurm_acct_db;
@@ -159,22 +182,26 @@ ALTER USER 'slurm'@'localhost' IDENTIFIED BY '$password';
 GRANT ALL ON slurm_acct_db.* TO 'slurm'@'localhost';
 EOF
 
-restart_or_start() {  # restart_or_start NAME PIDFILE: start, or restart on a changed config
-    local name=$1 pidfile=$2
-    if running "$pidfile" && [ "$changed" = 1 ]; then
-        kill "$(cat "$pidfile")"
-        for _ in $(seq 20); do running "$pidfile" || break; sleep 0.5; done
+restart_or_start() {  # restart_or_start NAME: start, or restart on a changed config
+    local name=$1 pid
+    pid=$(pidfile "$name")
+    if running "$pid" && [ "$changed" = 1 ]; then
+        kill "$(cat "$pid")"
+        for _ in $(seq 20); do running "$pid" || break; sleep 0.5; done
+        "/usr/sbin/$name"  # restarted: started by this script only if it was before
+    elif ! running "$pid"; then
+        "/usr/sbin/$name"  # each daemon forks into the background
+        started "$name"
     fi
-    running "$pidfile" || "/usr/sbin/$name"  # each daemon forks into the background
 }
 
-restart_or_start slurmdbd /run/slurmdbd.pid
+restart_or_start slurmdbd
 wait_for 30 slurmdbd sacctmgr -n list cluster
 sacctmgr -i -Q add cluster "$CLUSTER" >/dev/null 2>&1 || true
 
-restart_or_start slurmctld /run/slurmctld.pid
+restart_or_start slurmctld
 wait_for 30 slurmctld scontrol ping
-restart_or_start slurmd /run/slurmd.pid
+restart_or_start slurmd
 
 # the account and its users (sacctmgr -i: no confirmation; an existing one is left as is)
 sacctmgr -i -Q add account "$ACCOUNT" Cluster="$CLUSTER" \

@@ -32,12 +32,15 @@ from __future__ import annotations
 import codecs
 import datetime as dt
 import gzip
+import hashlib
 import importlib
+import json
 import math
 import os
 import warnings
 import zlib
-from collections.abc import Iterable, Mapping, Sequence
+from collections import OrderedDict
+from collections.abc import Hashable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -129,12 +132,53 @@ def reader_kind(path: str | os.PathLike[str], fmt: Mapping[str, Any] | None = No
     return SUFFIXES.get(os.path.splitext(str(path))[1].lower(), "csv")
 
 
+# The last few files read: a fleet whose vehicles share a raw file (copies of one test, one
+# record cut into several vehicles) has it parsed once per process, not once per vehicle and
+# check. Kept by the file's content, so a file rewritten in place is parsed again whatever its
+# times; files larger than _MEMO_BYTES are not kept (the memory is not worth it).
+_MEMO: OrderedDict[Hashable, Any] = OrderedDict()
+_MEMO_SIZE = 4
+_MEMO_BYTES = 32 << 20
+
+
+def _memo_key(what: str, path: str, fmt: Mapping[str, Any], extra: Any = None) -> Hashable | None:
+    """What tells that a read would give the same result: the file (its path and the sha256 of
+    its bytes), the format read with and the columns asked for; None for a file that cannot be
+    read or is too large to keep (read it, and let any failure be reported as usual)."""
+    try:
+        if os.path.getsize(path) > _MEMO_BYTES:
+            return None
+        with open(path, "rb") as stream:
+            digest = hashlib.file_digest(stream, "sha256").hexdigest()
+    except OSError:
+        return None
+    options = json.dumps(fmt, sort_keys=True, default=repr)
+    return (what, path, os.path.abspath(path), digest, options, extra)
+
+
+def _memo(key: Hashable | None, read: Any) -> Any:
+    """``read()``, or its result kept under ``key`` (the last :data:`_MEMO_SIZE` kept)."""
+    if key is None:
+        return read()
+    if key in _MEMO:
+        _MEMO.move_to_end(key)
+        return _MEMO[key]
+    value = _MEMO[key] = read()
+    while len(_MEMO) > _MEMO_SIZE:
+        _MEMO.popitem(last=False)
+    return value
+
+
 def read_header(
     path: str | os.PathLike[str], fmt: Mapping[str, Any] | None = None
 ) -> tuple[str, ...]:
     """The column names of a raw file, in file order (an empty name for an unnamed CSV column)."""
     path = str(path)
     fmt = fmt or {}
+    return _memo(_memo_key("header", path, fmt), lambda: _read_header(path, fmt))
+
+
+def _read_header(path: str, fmt: Mapping[str, Any]) -> tuple[str, ...]:
     kind = _kind(path, fmt)
     if kind == "csv":
         return _csv_header(path, fmt)
@@ -152,11 +196,18 @@ def read_table(
     columns: Iterable[str] | None = None,
 ) -> pd.DataFrame:
     """The cells of a raw file as text (NaN where empty), one column per column of the file in
-    file order; ``columns`` reads only those (a CSV file parses no other column)."""
+    file order; ``columns`` reads only those (a CSV file parses no other column). A file read
+    before in this process with the same format and columns, and unchanged since, is not read
+    again: the caller gets a copy of the table read then."""
     path = str(path)
     fmt = fmt or {}
-    kind = _kind(path, fmt)
     wanted = None if columns is None else list(columns)
+    key = _memo_key("table", path, fmt, None if wanted is None else tuple(wanted))
+    return _memo(key, lambda: _read_table(path, fmt, wanted)).copy()
+
+
+def _read_table(path: str, fmt: Mapping[str, Any], wanted: list[str] | None) -> pd.DataFrame:
+    kind = _kind(path, fmt)
     if kind == "csv":
         return _csv_table(path, fmt, wanted)
     where: dict[str, Any] = {}
