@@ -1798,9 +1798,11 @@ def check(
         if rmse > thresholds["max_rmse_K"]:
             limit = thresholds["max_rmse_K"]
             why = "twice a sensor's accuracy" if limit == RMSE_DEFAULT_K else "check.max_rmse_K"
+            # as many digits as show the RMSE above its limit (0.2002, not "0.2 ... more than 0.2")
+            digits = next((d for d in range(3, 9) if float(f"{rmse:.{d}g}") > limit), 9)
             missed.append(
-                f"The simulated {state} misses the measurement by RMSE {rmse:.3g} K (more than "
-                f"{limit:g} K, {why}): the model lacks a dynamic or a heat path."
+                f"The simulated {state} misses the measurement by RMSE {rmse:.{digits}g} K "
+                f"(more than {limit:g} K, {why}): the model lacks a dynamic or a heat path."
             )
             missed += quality.verdict(
                 1.0,
