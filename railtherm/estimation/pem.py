@@ -365,19 +365,23 @@ class _Problem:
                     cols.append(G)
             e_k = np.concatenate(res)
             if fr:
-                G = np.concatenate(cols)
-                at = slice(self.P + k, self.P + k + len(fr))
                 with np.errstate(over="ignore", invalid="ignore"):
-                    step = np.linalg.lstsq(G, -e_k, rcond=None)[0]
-                    x0 = np.clip(
-                        v[at] + step, self.x0_lo[k : k + len(fr)], self.x0_hi[k : k + len(fr)]
-                    )
-                if np.all(np.isfinite(x0)):
-                    e_k = e_k + G @ (x0 - v[at])
-                    v[at] = x0
+                    e_k = self._best_x0(v, k, len(fr), np.concatenate(cols), e_k)
                 k += len(fr)
             total += float(e_k @ e_k)
         return (total if math.isfinite(total) else math.inf), v
+
+    def _best_x0(self, v: np.ndarray, k: int, n: int, G: np.ndarray, e_k: np.ndarray):
+        """One experiment's n estimated initial states (from the k-th) set in v to their
+        least-squares best within their bounds, the outputs being linear in them (G = de/dx0);
+        the residuals e_k at them. Non-finite states leave v and e_k as they were."""
+        at = slice(self.P + k, self.P + k + n)
+        step = np.linalg.lstsq(G, -e_k, rcond=None)[0]
+        x0 = np.clip(v[at] + step, self.x0_lo[k : k + n], self.x0_hi[k : k + n])
+        if np.all(np.isfinite(x0)):
+            e_k = e_k + G @ (x0 - v[at])
+            v[at] = x0
+        return e_k
 
     def _cost_x0_projected_compiled(self, v) -> tuple[float, np.ndarray]:
         """:meth:`cost_x0_projected` with the simulation and its free response run by the
@@ -407,14 +411,7 @@ class _Problem:
                         models.FREE_RESPONSE_CUT,
                     )  # fmt: skip
                     if fr:
-                        at = slice(self.P + k, self.P + k + len(fr))
-                        step = np.linalg.lstsq(G, -e_k, rcond=None)[0]
-                        x0 = np.clip(
-                            v[at] + step, self.x0_lo[k : k + len(fr)], self.x0_hi[k : k + len(fr)]
-                        )
-                        if np.all(np.isfinite(x0)):
-                            e_k = e_k + G @ (x0 - v[at])
-                            v[at] = x0
+                        e_k = self._best_x0(v, k, len(fr), G, e_k)
                         k += len(fr)
                     total += float(e_k @ e_k)
         except (ArithmeticError, np.linalg.LinAlgError, ValueError):
