@@ -75,6 +75,17 @@ def pytest_xdist_auto_num_workers(config):
         return os.cpu_count() or 1
 
 
+# the files that take longest (`pytest --durations=30`: whole-study runs), handed out first and
+# so to different workers; an order only, every test runs whatever it says
+LONGEST_FILES = (
+    "test_workflow_full_study.py",
+    "test_workflow.py",
+    "test_optional_metadata.py",
+    "test_kalman.py",
+    "test_validation.py",
+)
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Order the test files for ``--dist loadfile`` (pyproject's addopts: each file's tests on
@@ -91,4 +102,12 @@ def pytest_collection_modifyitems(config, items):
     first_index = {}
     for i, item in enumerate(items):
         first_index.setdefault(item.path, i)
-    items.sort(key=lambda item: (item.path not in long_files, first_index[item.path]))
+    # the longest files (whole studies, measured by --durations) before the other long ones
+    rank = {name: i for i, name in enumerate(LONGEST_FILES)}
+    items.sort(
+        key=lambda item: (
+            rank.get(item.path.name, len(rank)),
+            item.path not in long_files,
+            first_index[item.path],
+        )
+    )
