@@ -542,14 +542,20 @@ def failed_rows(truth: Truth, setting: str, error: str) -> list[dict]:
     ]
 
 
-def wilson(k: int, n: int) -> tuple[float, float]:
-    """95 % Wilson score interval of a proportion k / n (scipy's binomtest)."""
+def proportion_ci(k: int, n: int, method: str = "wilson") -> tuple[float, float]:
+    """95 % interval of a proportion k / n by scipy's binomtest ("wilson": Wilson score;
+    "exact": Clopper-Pearson); NaN for no trials."""
     if n == 0:
         return math.nan, math.nan
     from scipy.stats import binomtest
 
-    ci = binomtest(k, n).proportion_ci(0.95, method="wilson")
+    ci = binomtest(k, n).proportion_ci(0.95, method=method)
     return float(ci.low), float(ci.high)
+
+
+def wilson(k: int, n: int) -> tuple[float, float]:
+    """95 % Wilson score interval of a proportion k / n."""
+    return proportion_ci(k, n, "wilson")
 
 
 def summary(df: pd.DataFrame) -> pd.DataFrame:

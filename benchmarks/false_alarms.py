@@ -106,13 +106,8 @@ def one_record(job: tuple) -> list[dict]:
 
 
 def interval(k: int, n: int) -> tuple[float, float]:
-    """Exact (Clopper-Pearson) binomial 95 % interval of k / n (scipy's binomtest)."""
-    if n == 0:
-        return math.nan, math.nan
-    from scipy.stats import binomtest
-
-    ci = binomtest(k, n).proportion_ci(0.95, method="exact")
-    return float(ci.low), float(ci.high)
+    """Exact (Clopper-Pearson) binomial 95 % interval of k / n."""
+    return calibration.proportion_ci(k, n, "exact")
 
 
 def table(df: pd.DataFrame) -> pd.DataFrame:
