@@ -1851,7 +1851,10 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         Hk, bad = _finite_information(H[np.ix_(keep, keep)])
         ck, unresolved = _pinv_sym(Hk)
         if meat is not None:
-            ck = ck + ck @ np.nan_to_num(meat[np.ix_(keep, keep)]) @ ck
+            # an unknown whose input-noise term cannot be evaluated is not resolved either
+            Mk = meat[np.ix_(keep, keep)]
+            bad = bad | ~np.isfinite(Mk).all(axis=0)
+            ck = ck + ck @ np.nan_to_num(Mk) @ ck
         unresolved = unresolved | bad
         vk = np.diag(ck).copy()
         vk[unresolved] = np.inf
