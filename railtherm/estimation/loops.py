@@ -39,6 +39,21 @@ LOG_2PI = math.log(2.0 * math.pi)
 
 
 @njit(cache=True)
+def _predict(Ad, Bd, x, u, xn):
+    """The state's one-step prediction in place, x <- Ad x + Bd u (xn a scratch vector)."""
+    n = x.shape[0]
+    for i in range(n):
+        s = 0.0
+        for t in range(n):
+            s += Ad[i, t] * x[t]
+        for t in range(Bd.shape[1]):
+            s += Bd[i, t] * u[t]
+        xn[i] = s
+    for i in range(n):
+        x[i] = xn[i]
+
+
+@njit(cache=True)
 def kalman_rows(
     Ad, Bd, Qd, C, S, dAd, dBd, dQd, dS, y, u, x0, dx0, P0, dP0,
     order, freeze_tol, xp, eps_out, rvar_out, steady_from,
@@ -296,15 +311,7 @@ def kalman_rows(
             for q in range(Q):
                 for i in range(n):
                     dx[q, i] = dxn[q, i]
-        for i in range(n):
-            s = 0.0
-            for t in range(n):
-                s += Ad[i, t] * x[t]
-            for t in range(m):
-                s += Bd[i, t] * u[k, t]
-            xn[i] = s
-        for i in range(n):
-            x[i] = xn[i]
+        _predict(Ad, Bd, x, u[k], xn)
         if frozen:
             continue
         for i in range(n):  # Ad P
@@ -376,7 +383,6 @@ def output_error(Ad, Bd, uT, x0, free, out_idx, yT, pos, m, cut):
 
     Returns e (m,) = x - y and G (m, len(free)) = d e / d x0[free]."""
     n = Ad.shape[0]
-    mu = Bd.shape[1]
     N = uT.shape[1]
     nf = free.shape[0]
     no = out_idx.shape[0]
@@ -396,15 +402,7 @@ def output_error(Ad, Bd, uT, x0, free, out_idx, yT, pos, m, cut):
                 e[p] = x[i] - yT[i, k]
                 for c in range(nf):
                     G[p, c] = z[c, i]
-        for i in range(n):
-            s = 0.0
-            for t in range(n):
-                s += Ad[i, t] * x[t]
-            for t in range(mu):
-                s += Bd[i, t] * uT[t, k]
-            xn[i] = s
-        for i in range(n):
-            x[i] = xn[i]
+        _predict(Ad, Bd, x, uT[:, k], xn)
         for c in range(nf):
             for i in range(n):
                 s = 0.0
