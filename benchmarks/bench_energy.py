@@ -5,9 +5,10 @@ step with 200 parameter draws and the ideal HVAC controller, beside the scenario
     python benchmarks/bench_energy.py [--draws 200] [--step-s 60]
     python benchmarks/bench_energy.py --degree-hours   # the check against degree-hours
 
-Both advance every draw together, one vectorised step at a time (numpy arrays over the draws;
-the per-step work is a (draws x n x n) matrix-vector product and a few element-wise
-operations), so the cost per step and draw is the figure to compare. The vehicle is Metro2's
+The year's engine is one compiled loop (numba) over steps and draws, the scenario engine
+advances every draw together one vectorised numpy step at a time (a (draws x n x n)
+matrix-vector product and a few element-wise operations); the cost per step and draw is the
+figure to compare. The vehicle is Metro2's
 second-order fit (results/vehicles/Metro2/fit_order2.yaml, written by ``snakemake``), the
 weather Sand Point's TMY3 year, the profile config/profiles/metro_service.yaml. Each is timed
 as the best of three runs of CPU time of this process (one core).

@@ -234,6 +234,25 @@ def test_ready_by_preheating_starts_late_enough_and_no_later(tmp_path):
     assert energy.annual_energy(vehicle(), year, weak, dt_s=300.0, draws=0).unmet_h[0, 0] > 0
 
 
+@pytest.mark.parametrize("change", ["set_back=12", "set_back=off", "preheat_h=2"])
+def test_a_what_if_is_the_year_of_the_profile_it_describes(tmp_path, change):
+    """A what-if on the operating profile (set-back, pre-heating) gives, on the same draws,
+    the very year of a base profile written with that change - also while a 'ready by' run
+    waits set back for its start."""
+    year = weather.read_weather(SAND_POINT)
+    common = {"service": {"weekdays": [[6, 22]]}, "preheat_h": 4, "preheat_mode": "ready_by"}
+    base = profile(tmp_path, **common, set_back_C=8, heating_limit_W=30000)
+    what_if = energy.parse_what_if(change)
+    as_written = profile(tmp_path, **{**common, "set_back_C": 8, "heating_limit_W": 30000,
+                                      **what_if.profile})  # fmt: skip
+    kw = {"dt_s": 600.0, "draws": 3, "seed": 2}
+    paired = energy.annual_energy(vehicle(), year, base, what_ifs=[what_if], **kw)
+    alone = energy.annual_energy(vehicle(), year, as_written, **kw)
+    for name in ("energy_kWh", "preheat_kWh", "peak_W", "unmet_h"):
+        np.testing.assert_allclose(getattr(paired, name)[1], getattr(alone, name)[0], rtol=1e-12)
+    assert not np.allclose(paired.preheat_kWh[1], paired.preheat_kWh[0])
+
+
 def test_a_csv_year_at_ten_minutes_is_read_and_one_off_the_year_refused(tmp_path):
     """A plain CSV at a 10-minute step over a year is read (hourly or finer); the same
     missing its last record is refused naming the records."""

@@ -412,3 +412,84 @@ def output_error(Ad, Bd, uT, x0, free, out_idx, yT, pos, m, cut):
             for i in range(n):
                 z[c, i] = zn[c, i]
     return e, G
+
+
+@njit(cache=True)
+def heated_steps(
+    k_from, k_to, x, Ad, BdT, BdQ, BdI, gain_Q, door, T_o, gains, ghi, noise, Qchol,
+    variant, draw, set_point, pre, service, until, waiting, started, back, Am,
+    x_per_T_o, x_per_W, limit, month, unmet_K, energy, pre_J, peak, unmet, accumulate,
+):  # fmt: skip
+    """Steps k_from..k_to-1 of runs heated to a set point, every run r (its variant
+    variant[r], its parameter draw draw[r]) advanced in place in x (R x n): per step k the
+    free response free = Ad[g] x + BdT[g] T_o[k] + BdQ[g] gains[k] + BdI[g] ghi[k] (+ the
+    draw's process noise Qchol[g] w, w = noise[k - k_from, draw - 1]; the central run, draw
+    0, none) with g = door[k], then the heating q = clip((sp - free_air) / gain_Q[g], 0,
+    limit) that brings the air (state 0) to the set point sp over the step (0 W where sp is
+    NaN: heating off), and x = free + BdQ[g] q.
+
+    "Ready by" (Am with more than one power, waiting[r]): in a run's pre-heating window it
+    holds its set-back back[variant] until heating at the limit from the present state
+    would just reach the set point at the service start (Am[m] = Ad^m of the closed step
+    over the m steps left, T_o held: x_per_T_o, x_per_W the full-power equilibrium per
+    kelvin and per watt), then heats (started[r]); a service step resets every run.
+
+    With ``accumulate``: the heat per month (energy, summed q), in the pre-heating window
+    (pre_J), its peak (NaN once a q is NaN, as numpy.maximum) and the service steps more
+    than unmet_K below the set point (unmet)."""
+    R, n = x.shape
+    with_noise = noise.shape[0] > 0
+    horizon = Am.shape[0] > 1
+    free = np.empty(n)
+    xd = np.empty(n)
+    for k in range(k_from, k_to):
+        g = door[k]
+        if horizon and service[k]:
+            for r in range(R):
+                started[r] = False
+        for r in range(R):
+            v = variant[r]
+            for i in range(n):
+                s = 0.0
+                for j in range(n):
+                    s += Ad[g, r, i, j] * x[r, j]
+                s += BdT[g, r, i] * T_o[k]
+                s += BdQ[g, r, i] * gains[k]
+                s += BdI[g, r, i] * ghi[k]
+                if with_noise and draw[r] > 0:
+                    w = 0.0
+                    for j in range(n):
+                        w += Qchol[g, r, i, j] * noise[k - k_from, draw[r] - 1, j]
+                    s += w
+                free[i] = s
+            sp = set_point[v, k]
+            if horizon and not service[k] and pre[v, k] and waiting[r]:
+                m = max(until[v, k] - 1, 0)  # heating from the next step on
+                for i in range(n):
+                    xd[i] = x[r, i] - (x_per_T_o[r, i] * T_o[k] + x_per_W[r, i] * limit)
+                end = x_per_T_o[r, 0] * T_o[k] + x_per_W[r, 0] * limit
+                for j in range(n):
+                    end += Am[m, r, 0, j] * xd[j]
+                if end < sp:
+                    started[r] = True
+                if not started[r]:
+                    sp = back[v]
+            q = (sp - free[0]) / gain_Q[g, r]
+            if q < 0.0:
+                q = 0.0
+            elif q > limit:
+                q = limit
+            if math.isnan(sp):
+                q = 0.0
+            for i in range(n):
+                x[r, i] = free[i] + BdQ[g, r, i] * q
+            if accumulate:
+                energy[r, month[k]] += q
+                if pre[v, k]:
+                    pre_J[r] += q
+                if math.isnan(q) or math.isnan(peak[r]):
+                    peak[r] = math.nan
+                elif q > peak[r]:
+                    peak[r] = q
+                if service[k] and x[r, 0] < sp - unmet_K:
+                    unmet[r] += 1.0

@@ -67,6 +67,7 @@ __all__ = [
 
 UNMET_K = 0.5  # a service hour more than this below the set point is unmet demand
 WARMUP_DAYS = 14
+NOISE_BLOCK = 4096  # steps of process noise drawn at once (draws x states each)
 RHO_CP_AIR = 1.2 * 1005.0  # J/(m3 K), as the scenario engine's air exchange
 DAYS_PER_MONTH = (31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31)
 WEEKDAYS = ("monday", "tuesday", "wednesday", "thursday", "friday", "saturday", "sunday")
@@ -361,8 +362,10 @@ def annual_energy(
     :class:`railtherm.study.simulate.ParameterSet`) in ``weather`` under ``profile``, with
     ``draws`` parameter draws (0: the central run only) and the ``what_ifs`` on the same
     draws; the hourly weather on the grid by ``hold``
-    (:func:`railtherm.study.weather.on_grid`). Every run and variant advances together, one
-    vectorised step at a time."""
+    (:func:`railtherm.study.weather.on_grid`). Every run and variant advances together
+    through one compiled loop (:func:`railtherm.estimation.loops.heated_steps`)."""
+    from railtherm.estimation import loops  # numba: imported only to simulate
+
     for w in what_ifs:
         reason = contradiction(profile, w)
         if reason is not None:
@@ -388,7 +391,8 @@ def annual_energy(
             "weather has none)"
         )
     variants = [WhatIf("base"), *what_ifs]
-    grids = [profile_on_grid(replace(profile, **w.profile), t) for w in variants]
+    variant_profiles = [replace(profile, **w.profile) for w in variants]
+    grids = [profile_on_grid(p, t) for p in variant_profiles]
     S = len(thetas)
     runs = [_loss_scaled(ps, th, w.k_rel) for w in variants for th in thetas]
     n = len(structure.states)
@@ -396,13 +400,14 @@ def annual_energy(
     G_open = float(grids[0].door_W_K.max())
     sigma = ps.sigma if (ps.sigma is not None and S > 1 and np.any(ps.sigma > 0)) else None
     steps = sim.prepare_steps(structure, runs, np.array([0.0, G_open]), dt_s, sigma)
-    Ad = list(steps.Ad)
-    BdT = [b[:, :, 0] for b in steps.Bd]
-    BdQ = [b[:, :, 1] for b in steps.Bd]
+    Ad = steps.Ad  # (door state, run, n, n)
+    BdT = steps.Bd[:, :, :, 0]
+    BdQ = steps.Bd[:, :, :, 1]
     # an aperture's irradiance: the weather's global horizontal irradiance for each channel
-    BdI = [b[:, :, 2:].sum(axis=2) for b in steps.Bd]
-    ghi = np.zeros_like(T_o) if ghi_grid is None else ghi_grid
-    gain_Q = [b[:, 0] for b in BdQ]  # the air's response to a held watt over a step
+    BdI = steps.Bd[:, :, :, 2:].sum(axis=3)
+    irradiated = len(structure.inputs) > 2
+    ghi = ghi_grid if irradiated and ghi_grid is not None else np.zeros_like(T_o)
+    gain_Q = BdQ[:, :, 0]  # the air's response to a held watt over a step
     V = len(variants)
     variant = np.repeat(np.arange(V), S)
     set_point = np.stack([g.set_point for g in grids])  # (V, N)
@@ -414,18 +419,18 @@ def annual_energy(
     month = np.searchsorted(np.cumsum(DAYS_PER_MONTH) * 86400.0, t, side="right")
     month = np.minimum(month, 11)
 
-    irradiated = len(structure.inputs) > 2
     noise_rng = np.random.default_rng([seed, 1])
-    draws_n = S - 1
     # "ready by": in the pre-heating window each run waits, set back, until heating at full
     # power from its state would just reach the set point at the service start (T_o held at
     # its present value over the horizon: A^m of the stabled step and the full-power
     # equilibrium), then heats
-    ready_by = np.array([profile.preheat_mode == "ready_by"] * V)
     until = np.stack([g.until_service for g in grids])
-    horizon = int(until.max()) if ready_by.any() else 0
+    horizon = int(until.max()) if any(p.preheat_mode == "ready_by" for p in variant_profiles) else 0
+    R = V * S
+    Am = np.zeros((1, R, n, n))
+    x_per_T_o = x_per_W = np.zeros((R, n))
     if horizon:
-        powers = [np.broadcast_to(np.eye(n), (V * S, n, n))]
+        powers = [np.broadcast_to(np.eye(n), (R, n, n))]
         for _ in range(horizon):
             powers.append(np.einsum("sij,sjk->sik", Ad[0], powers[-1]))
         Am = np.array(powers)  # (horizon + 1, runs, n, n)
@@ -433,53 +438,43 @@ def annual_energy(
         B_cont = steps.B[0]
         x_per_T_o = -np.linalg.solve(A_cont, B_cont[:, :, 0:1])[:, :, 0]
         x_per_W = -np.linalg.solve(A_cont, B_cont[:, :, 1:2])[:, :, 0]
-    started = np.zeros(V * S, dtype=bool)
-    waiting_rows = ready_by[variant]
+    # a what-if's own set-back while waiting (none: heating off)
+    back = np.array([math.nan if p.set_back_C is None else p.set_back_C for p in variant_profiles])
+    energy = np.zeros((R, 12))
+    pre_J = np.zeros(R)
+    peak = np.zeros(R)
+    unmet = np.zeros(R)
+    started = np.zeros(R, dtype=bool)
+    fixed = tuple(
+        np.ascontiguousarray(a) for a in (Ad, BdT, BdQ, BdI, gain_Q, door, T_o, gains, ghi)
+    )
+    per_run = (variant, np.tile(np.arange(S), V), set_point, pre, service, until)
+    waiting = np.array([p.preheat_mode == "ready_by" for p in variant_profiles])[variant]
+    ready = (waiting, started, back, Am, x_per_T_o, x_per_W, float(limit))
+    Qchol = steps.Qchol if sigma is not None else np.zeros((2, R, n, n))
 
-    def step(x, k):
-        g = door[k]
-        free = np.einsum("sij,sj->si", Ad[g], x) + BdT[g] * T_o[k] + BdQ[g] * gains[k]
-        if irradiated:
-            free += BdI[g] * ghi[k]
-        if sigma is not None:  # the process noise of each draw, the same for every variant
-            w = np.zeros((S, n))
-            w[1:] = noise_rng.standard_normal((draws_n, n))
-            free += np.einsum("sij,sj->si", steps.Qchol[g], np.tile(w, (V, 1)))
-        sp = set_point[variant, k]
-        if horizon:
-            window = pre[variant, k] & waiting_rows
-            if service[k]:
-                started[:] = False
-            elif window.any():
-                m = np.maximum(until[variant, k] - 1, 0)  # heating from the next step on
-                x_full = x_per_T_o * T_o[k] + x_per_W * limit
-                x_end = x_full + np.einsum("sij,sj->si", Am[m, np.arange(len(m))], x - x_full)
-                np.logical_or(started, window & (x_end[:, 0] < sp), out=started)
-                back = math.nan if profile.set_back_C is None else profile.set_back_C
-                sp = np.where(window & ~started, back, sp)
-        q = np.clip((sp - free[:, 0]) / gain_Q[g], 0.0, limit)
-        q = np.where(np.isnan(sp), 0.0, q)
-        return free + BdQ[g] * q[:, None], q, sp
+    def advance(k_from: int, k_to: int, accumulate: bool) -> None:
+        """Steps k_from..k_to-1 (loops.heated_steps), the process noise drawn in blocks in
+        the order the steps use it."""
+        for a in range(k_from, k_to, NOISE_BLOCK):
+            b = min(a + NOISE_BLOCK, k_to)
+            noise = (
+                noise_rng.standard_normal((b - a, S - 1, n))
+                if sigma is not None
+                else np.zeros((0, 0, n))
+            )
+            loops.heated_steps(
+                a, b, x, *fixed, noise, Qchol, *per_run, *ready, month, UNMET_K,
+                energy, pre_J, peak, unmet, accumulate,
+            )  # fmt: skip
 
     # warm-up over the year's last days, every state starting at the first set point (at T_o
     # where the heating is off)
     sp0 = set_point[variant, 0]
     x = np.repeat(np.where(np.isnan(sp0), T_o[0], sp0)[:, None], n, axis=1)
     N = len(t)
-    for k in range(N - int(WARMUP_DAYS * 86400 / dt_s), N):
-        x, _, _ = step(x, k)
-    energy = np.zeros((V * S, 12))
-    pre_J = np.zeros(V * S)
-    peak = np.zeros(V * S)
-    unmet = np.zeros(V * S)
-    for k in range(N):
-        x, q, sp = step(x, k)
-        energy[:, month[k]] += q
-        if pre[:, k].any():
-            pre_J += np.where(pre[variant, k], q, 0.0)
-        np.maximum(peak, q, out=peak)
-        if service[k]:
-            unmet += x[:, 0] < sp - UNMET_K
+    advance(N - int(WARMUP_DAYS * 86400 / dt_s), N, False)
+    advance(0, N, True)
     scale = dt_s / 3.6e6
     monthly = (energy * scale).reshape(V, S, 12)
     return AnnualResult(
