@@ -276,6 +276,16 @@ class _Steady:
         return self._modes_T
 
 
+def _lyapunov_stack(F: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """X_q = F X_q F^T + rhs_q for every q of the stack rhs (Q, n, n): with vec (row-major)
+    one linear system (I - F kron F) vec X = vec rhs for all q at once, the direct method of
+    ``scipy.linalg.solve_discrete_lyapunov`` factored once instead of once per q (a thermal
+    network's few states: n^2 unknowns)."""
+    n = F.shape[0]
+    lhs = np.eye(n * n) - np.kron(F, F)
+    return np.linalg.solve(lhs, rhs.reshape(len(rhs), n * n).T).T.reshape(rhs.shape)
+
+
 class _System:
     """Ad, Bd, Qd, C, S of one step length and their derivatives along the global directions
     (log theta_free, log sigma_free, log s_free), with the stationary filters per pattern."""
@@ -317,11 +327,10 @@ class _System:
         Qg = len(self.dAd)
         dP = np.zeros((Qg,) + P.shape)
         if self.order >= 1 and Qg:
-            dS = self.dS[:, o]
-            for q in range(Qg):
-                rhs = self.dAd[q] @ M @ Ad.T
-                rhs = rhs + rhs.T + self.dQd[q] + (L * dS[q]) @ L.T
-                dP[q] = solve_discrete_lyapunov(F, rhs)
+            rhs = self.dAd @ M @ Ad.T
+            rhs = rhs + rhs.transpose(0, 2, 1) + self.dQd
+            rhs = rhs + (L * self.dS[:, None, o]) @ L.T
+            dP = _lyapunov_stack(F, rhs)
             dP = (dP + dP.transpose(0, 2, 1)) / 2.0
         dR = C @ dP @ C.T + _diag_stack(self.dS[:, o])
         dK = (dP @ C.T - K @ dR) @ Rinv
