@@ -494,22 +494,3 @@ def heated_steps(
                 if service[k] and x[r, 0] < sp - unmet_K:
                     unmet[r] += 1.0
 
-
-@njit(cache=True)
-def first_order_filter(b0, b1, a1, x, z):
-    """y = ``scipy.signal.lfilter([b0, b1], [1, a1], x, axis=-1, zi=z)`` along the rows of x
-    (C x N; float or complex), the transposed direct form as scipy runs it,
-
-        y[k] = b0 x[k] + z,  z <- b1 x[k] - a1 y[k];
-
-    z (C,) is overwritten by the final states. Returns y."""
-    C, N = x.shape
-    y = np.empty_like(x)
-    for c in range(C):
-        s = z[c]
-        for k in range(N):
-            yk = s + b0 * x[c, k]
-            s = x[c, k] * b1 - yk * a1
-            y[c, k] = yk
-        z[c] = s
-    return y

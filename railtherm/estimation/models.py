@@ -106,34 +106,13 @@ def schur(a: np.ndarray, output: str = "real") -> tuple[np.ndarray, np.ndarray]:
     return schur_(a, output=output)
 
 
-def lfilter(b, a, x, axis=-1, zi=None):
-    """``scipy.signal.lfilter(b, a, x, axis, zi)``. A first-order filter (b of one or two
-    taps, a = [1, a1]: every recursion of this package) along the last axis runs as the
-    compiled loop :func:`railtherm.estimation.loops.first_order_filter`, the same arithmetic
-    without scipy.signal's import (which pulls in scipy.stats: a second of each job's
-    start-up); any other filter goes to scipy.signal."""
-    b = np.atleast_1d(np.asarray(b))
-    a = np.atleast_1d(np.asarray(a))
-    x = np.asarray(x)
-    if len(b) <= 2 and len(a) == 2 and a[0] == 1 and axis in (-1, x.ndim - 1) and x.ndim <= 2:
-        from railtherm.estimation import loops  # numba: imported on first use
-
-        dtype = np.result_type(b, a, x, float if zi is None else np.asarray(zi))
-        rows = np.ascontiguousarray(np.atleast_2d(x), dtype=dtype)
-        z = np.zeros(len(rows), dtype=dtype)
-        if zi is not None:
-            z[:] = np.reshape(np.asarray(zi, dtype=dtype), (len(rows),))
-        b0 = dtype.type(b[0])
-        b1 = dtype.type(b[1] if len(b) == 2 else 0.0)
-        y = loops.first_order_filter(b0, b1, dtype.type(a[1]), rows, z)
-        if x.ndim < 2:
-            y, z = y[0], z
-        if zi is None:
-            return y
-        return y, np.reshape(z, np.shape(zi))
+def lfilter(b, a, x, **kwargs):
+    """``scipy.signal.lfilter``, imported on first use: scipy.signal's import (which pulls in
+    scipy.stats) is the largest share of a job's start-up, and the jobs that only read results
+    (checks, tables) never simulate."""
     from scipy.signal import lfilter as filter_
 
-    return filter_(b, a, x, axis=axis, zi=zi)
+    return filter_(b, a, x, **kwargs)
 
 
 # (A, B) of the paper's models by their usual names (eqs. 13, 14) and of the interior-envelope
