@@ -493,4 +493,3 @@ def heated_steps(
                     peak[r] = q
                 if service[k] and x[r, 0] < sp - unmet_K:
                     unmet[r] += 1.0
-
