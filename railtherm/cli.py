@@ -192,6 +192,8 @@ def _fit(args: argparse.Namespace) -> int:
             f"{vehicle.id}: {value}, "
             f"{'steady' if k.steady else 'not steady'}{', forced' if k.forced else ''}"
         )
+        for reason in k.reasons:  # why the window failed the steady-state test
+            print(f"  - {reason}")
     for fit in result.fits.values():
         print(fit.summary())
     if out:

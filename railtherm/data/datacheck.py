@@ -68,6 +68,21 @@ def step_warnings(vehicle: Vehicle) -> list[str]:
     return out
 
 
+def k_window_warning(vehicle: Vehicle, display: str, k: kvalue.KValue) -> str:
+    """The sentence for a k window that fails the standardized steady-state test (eq. 10):
+    each failed criterion with its numbers, what the fit then does and the keys to change."""
+    then = (
+        "the fit uses it anyway (kvalue.force), flagged"
+        if k.forced
+        else "the fit will not fix kA from it but estimate kA jointly with the capacities"
+    )
+    return (
+        f"{vehicle.path}: the k window (windows.kvalue, {display}) is not steady by the "
+        f"standardized test (eq. 10): {'; '.join(k.reasons)}; {then}. Extend or move the "
+        "window, or change the criterion under kvalue (e.g. kvalue.min_duration_h)"
+    )
+
+
 def check_values(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> DataCheck:
     """Clean every window of ``vehicle`` in memory (rule ``clean``) and compute its static k
     (rule ``kvalue``); the first error propagates, naming file, column or key, line and
@@ -86,7 +101,9 @@ def check_values(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> Dat
             raws[display] = ingest.read_raw(local, vehicle.format, label=display)
         table = ingest.tidy(raws[display], vehicle.data, window, display, window_key=key)
         if name == "kvalue":
-            kvalue.for_vehicle(table, vehicle.data, source=f"{display} ({key})")
+            k = kvalue.for_vehicle(table, vehicle.data, source=f"{display} ({key})")
+            if not k.steady:
+                out.warnings.append(k_window_warning(vehicle, display, k))
         out.windows.append(f"{vehicle.id}/{name}")
     return out
 

@@ -14,3 +14,5 @@ if result.k is None:  # no surface_m2: kA only
     log.info("kA = %.4g +- %.2g W/K, steady: %s", result.kA, result.u_kA, result.steady)
 else:
     log.info("k = %.4g +- %.2g W/(m2 K), steady: %s", result.k, result.u_k, result.steady)
+for reason in result.reasons:  # why the window failed the steady-state test
+    log.warning("k window not steady: %s", reason)
