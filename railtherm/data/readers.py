@@ -9,7 +9,8 @@ suffix:
 ============  ====================================  ===========================================
 reader        suffixes                              keys of ``format`` it reads
 ============  ====================================  ===========================================
-``csv``       ``.csv``, ``.txt``, ``.gz``, others   ``separator``, ``encoding`` (utf-8)
+``csv``       ``.csv``, ``.txt``, ``.gz``, others   ``separator``, ``encoding`` (utf-8),
+                                                    ``comment`` (none), ``header_row`` (0)
 ``excel``     ``.xlsx``, ``.xlsm``, ``.xls``,       ``sheet`` (the first), ``header_row`` (0)
               ``.xlsb``, ``.ods``
 ``matlab``    ``.mat`` (v4 to v7; not v7.3)         ``variable`` (the only one), ``columns``
@@ -79,7 +80,8 @@ SUFFIXES = {
 READER_KEYS = {
     "encoding": ("csv", "r"),
     "sheet": ("excel",),
-    "header_row": ("excel",),
+    "header_row": ("excel", "csv"),
+    "comment": ("csv",),
     "variable": ("matlab", "r"),
     "columns": ("matlab",),
 }
@@ -236,6 +238,8 @@ def line_of(table: pd.DataFrame | pd.Series, position: int) -> str:
     :func:`read_table`; blank rows left out of the table are counted)."""
     lines = table.attrs.get("lines")
     if lines is not None and 0 <= position < len(lines):
+        if table.attrs.get("sheet") is None:  # a text file with comments or skipped lines
+            return f"line {lines[position]}"
         return f"row {lines[position]} of sheet '{table.attrs.get('sheet')}'"
     return f"line {position + 2}"
 
@@ -396,12 +400,36 @@ def _decode_error(path: str, encoding: str, exc: UnicodeDecodeError) -> DataErro
 _CSV_ERRORS = (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError)
 
 
+def _csv_layout(fmt: Mapping[str, Any]) -> dict[str, Any]:
+    """read_csv's arguments for ``format.comment`` (a line starting with it is skipped, text
+    after it ignored) and ``format.header_row`` (the line of the column names, counted from
+    0 over every line of the file: the lines above it are skipped, comment or not)."""
+    kwargs: dict[str, Any] = {}
+    if fmt.get("comment") is not None:
+        kwargs["comment"] = fmt["comment"]
+    if fmt.get("header_row"):
+        kwargs["skiprows"] = int(fmt["header_row"])
+    return kwargs
+
+
 def _csv_header(path: str, fmt: Mapping[str, Any]) -> tuple[str, ...]:
     encoding = _encoding(path, fmt)
     sep = fmt.get("separator", ",")
     try:
-        header = pd.read_csv(path, sep=sep, header=None, nrows=1, dtype=str, encoding=encoding)
+        header = pd.read_csv(
+            path, sep=sep, header=None, nrows=1, dtype=str, encoding=encoding, **_csv_layout(fmt)
+        )
     except pd.errors.EmptyDataError:
+        if fmt.get("header_row") or fmt.get("comment"):
+            row = int(fmt.get("header_row") or 0)
+            raise DataError(
+                path,
+                "format.header_row",
+                row,
+                f"no header at or after line {row + 1} (counted from 0: {row}) that is not "
+                f"blank or a comment (format.comment {fmt.get('comment')!r}): set "
+                "format.header_row to the line of the column names",
+            ) from None
         raise DataError(path, "", None, "the file is empty (no header line)") from None
     except UnicodeDecodeError as exc:
         raise _decode_error(path, encoding, exc) from None
@@ -410,17 +438,46 @@ def _csv_header(path: str, fmt: Mapping[str, Any]) -> tuple[str, ...]:
     return tuple("" if pd.isna(c) else str(c) for c in header.iloc[0])
 
 
+def _csv_lines(path: str, fmt: Mapping[str, Any], encoding: str, rows: int) -> list[int]:
+    """The line number (from 1) of each data row of a CSV file read with ``format.comment``
+    or ``format.header_row``: the lines after the header that are neither blank nor a
+    comment, as read_csv keeps them."""
+    comment = fmt.get("comment")
+    header = int(fmt.get("header_row") or 0)
+    opener = gzip.open if path.endswith(".gz") else open
+    numbers: list[int] = []
+    seen_header = False
+    with opener(path, "rt", encoding=encoding, newline="") as stream:
+        for number, line in enumerate(stream, start=1):
+            if number <= header:
+                continue
+            text = line.split(comment, 1)[0] if comment else line
+            if not text.strip():
+                continue
+            if not seen_header:
+                seen_header = True
+                continue
+            numbers.append(number)
+            if len(numbers) == rows:
+                break
+    return numbers
+
+
 def _csv_table(path: str, fmt: Mapping[str, Any], columns: list[str] | None) -> pd.DataFrame:
     encoding = _encoding(path, fmt)
     sep = fmt.get("separator", ",")
     # index_col=False: a separator at the end of every row must not shift the columns
     kwargs: dict[str, Any] = {"sep": sep, "dtype": str, "index_col": False, "encoding": encoding}
+    kwargs.update(_csv_layout(fmt))
     if columns is not None:
         kwargs["usecols"] = columns
     try:
         with warnings.catch_warnings():  # a row longer than the header: values lost, refused
             warnings.simplefilter("error", pd.errors.ParserWarning)
-            return pd.read_csv(path, **kwargs)
+            table = pd.read_csv(path, **kwargs)
+        if _csv_layout(fmt):  # data rows below comments or skipped lines: their own numbers
+            table.attrs["lines"] = _csv_lines(path, fmt, encoding, len(table))
+        return table
     except pd.errors.ParserWarning:
         raise DataError(
             path, "", None, f"a data row has more fields than the header{_SHIFT_HINT}"
@@ -524,10 +581,40 @@ def sheets_with(path: str | os.PathLike[str], column: str, rows: int = 30) -> li
     return header_rows(path, lambda names: column in names, rows)
 
 
-def header_rows(path: str | os.PathLike[str], test: Any, rows: int = 30) -> list[tuple[str, int]]:
-    """Per worksheet of a workbook, the first of its first ``rows`` rows whose cells, read as
-    column names, pass ``test`` (a callable on the list of names): (sheet, row counted from
-    0). Empty for any other file, or a workbook that cannot be read."""
+def _is_value(cell: Any) -> bool:
+    """A cell a data row holds: a number, a date or a duration (not text, not empty)."""
+    return isinstance(cell, int | float | dt.date | dt.time | dt.timedelta) and not isinstance(
+        cell, bool
+    )
+
+
+def _table_below(head: list[list[Any]], row: int, below: int) -> bool:
+    """Whether the ``below`` non-empty rows under ``row`` each hold two values or more (a
+    table's data rows, not a sheet of run information with a value per line)."""
+    found = 0
+    for cells in head[row + 1 :]:
+        if all(_empty(v) for v in cells):
+            continue
+        if sum(_is_value(v) for v in cells) < 2:
+            return False
+        found += 1
+        if found == below:
+            return True
+    return False
+
+
+def header_rows(
+    path: str | os.PathLike[str],
+    test: Any,
+    rows: int = 30,
+    sheet: str | int | None = None,
+    below: int = 0,
+) -> list[tuple[str, int]]:
+    """Per worksheet of a workbook (only ``sheet``, a name or position, when given), the first
+    of its first ``rows`` rows whose cells, read as column names, pass ``test`` (a callable on
+    the list of names) and, with ``below``, stand above that many data rows of two values or
+    more: (sheet, row counted from 0). Empty for any other file, or a workbook that cannot be
+    read."""
     path = str(path)
     if reader_kind(path) != "excel":
         return []
@@ -538,13 +625,22 @@ def header_rows(path: str | os.PathLike[str], test: Any, rows: int = 30) -> list
         return []
     found = []
     try:
-        for meta in book.sheets_metadata:
-            if meta.typ != calamine.SheetTypeEnum.WorkSheet:
-                continue
-            head = book.get_sheet_by_name(meta.name).to_python(skip_empty_area=False, nrows=rows)
-            for r, row in enumerate(head):
-                if test([_header_name(v) for v in row]):
-                    found.append((meta.name, r))
+        sheets = [m.name for m in book.sheets_metadata if m.typ == calamine.SheetTypeEnum.WorkSheet]
+        if sheet is not None:
+            sheets = [
+                name
+                for i, name in enumerate(sheets)
+                if sheet == name or (isinstance(sheet, int) and sheet == i)
+            ]
+        for name in sheets:
+            head = book.get_sheet_by_name(name).to_python(
+                skip_empty_area=False, nrows=rows + (below + 5 if below else 0)
+            )
+            for r, row in enumerate(head[:rows]):
+                if test([_header_name(v) for v in row]) and (
+                    not below or _table_below(head, r, below)
+                ):
+                    found.append((name, r))
                     break
     except Exception:
         return found

@@ -1,13 +1,17 @@
 """A starter vehicle YAML for a raw logger file: ``railtherm new-vehicle RAW``.
 
 Any file railtherm reads is read whole (:mod:`railtherm.data.readers`: CSV, plain or gzip; a
-workbook, whose table - sheet and header row - is the first with a time-named column unless
-``--sheet``/``--header-row`` say; MATLAB and R data), so ranges, gaps and a repeated hour
-anywhere in the record are seen. The file format is detected, the rest is guessed or left as
-an explicit TODO:
+workbook, whose table - sheet and header row - is the first row naming a time column above
+rows of two values or more, on any sheet or on ``--sheet``, unless ``--header-row`` says;
+MATLAB and R data), so ranges, gaps and a repeated hour anywhere in the record are seen. The
+file format is detected, the rest is guessed or left as an explicit TODO:
 
-- **separator** among ``,`` ``;`` and tab by :class:`csv.Sniffer` on the first lines (if it
-  cannot decide: the candidate that splits the header into the most columns);
+- **preamble** of a CSV file: ``comment`` when it opens with lines starting with ``#`` or
+  ``%`` (a data-acquisition system's channel list), ``header_row`` when a title or other
+  lines stand above the header - the first line as wide as the table's rows;
+- **separator** among ``,`` ``;`` and tab: the one that splits the table's rows alike (of
+  several, the one whose header comes first), else :class:`csv.Sniffer` on the first lines
+  (if it cannot decide: the candidate that splits the header into the most columns);
 - **decimal mark** ``.`` or ``,``: the one with which pandas reads more columns as numbers
   (``.`` when both read alike, and always with the separator ``,``);
 - **gzip** by the extension ``.gz`` (pandas reads it as :mod:`railtherm.data.rawfile` does);
@@ -23,9 +27,9 @@ an explicit TODO:
   ``dst: infer`` with the zone the column's name states (``Europe/Berlin``, ``CST/CDT``,
   ``MEZ``) or a TODO;
 - **channel groups** from the column names (English and German, case-insensitive), each guess
-  marked ``# guessed from the column name: check``; temperatures named in °F (``[°F]``, degF,
-  Fahrenheit) get ``unit: degF``, those named in K or with values above 200 ``unit: K``, power
-  columns named with ``kW`` get ``unit: kW`` (else ``W``);
+  marked ``# guessed from the column name: check``; temperatures named in °F (``[°F]``,
+  ``(F)``, degF, Fahrenheit) get ``unit: degF``, those named in K or with values above 200
+  ``unit: K``, power columns named with ``kW`` get ``unit: kW`` (else ``W``);
 - **windows**: one identification window over the whole file, in the file's own notation (its
   first and last time as written); the static k window stays a commented-out TODO, as only
   the engineer can choose the steady part.
@@ -70,6 +74,8 @@ TODO = "TODO"
 READER_WORDS = {"excel": "a workbook", "matlab": "a MATLAB file", "r": "R data"}
 GUESSED = "# guessed from the column name: check"
 SEPARATORS = (",", ";", "\t")
+TABLE_ROWS = 3  # data rows below a workbook's header that show it heads a table
+COMMENT_CHARS = ("#", "%")  # a logger preamble's comment lines (pandas: one character)
 SNIFF_CHARS = 64 * 1024  # the text csv.Sniffer looks at
 DECIMAL_ROWS = 5000  # rows that decide the decimal mark (the record is then read whole once)
 # the zones of common abbreviations of standard and summer time in a time column's name
@@ -106,7 +112,7 @@ CHANNEL_WORDS: tuple[tuple[str, re.Pattern[str]], ...] = (
         "outdoor_air",
         re.compile(
             rf"{_ALONE_BEFORE}t_?(ext|out|amb|o){_ALONE_AFTER}|aussen|outdoor|outside|ambient"
-            r"|umgebung|kanal|tunnel"
+            r"|umgebung|kanal|tunnel|chamber|kammer"
         ),
     ),
     (
@@ -187,12 +193,65 @@ def _header_width(text: str, separator: str) -> int:
     return len(next(csv.reader([first], delimiter=separator), []))
 
 
-def detect_separator(path: str) -> str:
-    """``,``, ``;`` or tab, by :class:`csv.Sniffer`; if it cannot decide, or its choice leaves
+def _content(text: str, comment: str | None) -> list[tuple[int, str]]:
+    """(line index from 0, line) of the lines that are neither blank nor a comment."""
+    return [
+        (i, line)
+        for i, line in enumerate(text.splitlines())
+        if line.strip() and not (comment and line.lstrip().startswith(comment))
+    ]
+
+
+def csv_preamble(path: str) -> dict[str, Any]:
+    """What stands above a CSV file's table, as ``format`` keys: ``comment`` when the file
+    opens with lines starting with one of :data:`COMMENT_CHARS` (a logger's preamble), and
+    ``header_row`` when title or other lines (fewer fields than the table) stand above the
+    header (its line, counted from 0 over every line), and the ``separator`` that splits the
+    table's rows alike (none found: left to :func:`detect_separator`). The header is the
+    first line as wide as the rows."""
+    text = _head_text(path)
+    lines = text.splitlines()
+    comment = None
+    for line in lines:
+        if not line.strip():
+            continue
+        head = line.lstrip()[:1]
+        comment = head if head in COMMENT_CHARS else None
+        break
+    content = _content(text, comment)
+    found: dict[str, Any] = {} if comment is None else {"comment": comment}
+    if len(content) < 3:
+        return found
+    rows = [line for _, line in content[-min(len(content) - 1, 20) :]]
+    # the separator that splits the rows alike into 2 or more fields; of several, the one
+    # whose header (the first line as wide) comes first: under a wrong one it is a data row
+    best = None
+    for separator in SEPARATORS:
+        widths = {_header_width(line, separator) for line in rows}
+        if len(widths) != 1 or min(widths) < 2:
+            continue
+        width = widths.pop()
+        index = next(i for i, line in content if _header_width(line, separator) == width)
+        if best is None or index < best[1]:
+            best = (separator, index)
+    if best is not None:
+        found["separator"] = best[0]
+        if best[1] != content[0][0]:
+            found["header_row"] = best[1]
+    return found
+
+
+def detect_separator(path: str, preamble: Mapping[str, Any] | None = None) -> str:
+    """``,``, ``;`` or tab, by :class:`csv.Sniffer` on the lines from the header on (the
+    ``preamble`` of :func:`csv_preamble` left out); if it cannot decide, or its choice leaves
     the header one column wide, the candidate that splits the header into the most columns."""
+    preamble = preamble or {}
     text = _head_text(path)
     if not text.strip():
         raise DataError(path, "", None, "the file is empty (no header line)")
+    content = _content(text, preamble.get("comment"))
+    skip = int(preamble.get("header_row") or 0)
+    text = "\n".join(line for i, line in content if i >= skip) + "\n"
     try:
         separator = csv.Sniffer().sniff(text, delimiters="".join(SEPARATORS)).delimiter
     except csv.Error:
@@ -203,13 +262,30 @@ def detect_separator(path: str) -> str:
 
 
 def _read_sample(
-    path: str, separator: str, decimal: str, encoding: str = "utf-8", rows: int | None = None
+    path: str,
+    separator: str,
+    decimal: str,
+    encoding: str = "utf-8",
+    rows: int | None = None,
+    preamble: Mapping[str, Any] | None = None,
 ) -> pd.DataFrame:
     """The first ``rows`` rows, or the whole record (every row: ranges, gaps and a repeated
-    hour anywhere are seen)."""
+    hour anywhere are seen), below the ``preamble`` (:func:`csv_preamble`)."""
+    preamble = preamble or {}
+    layout: dict[str, Any] = {}
+    if preamble.get("comment"):
+        layout["comment"] = preamble["comment"]
+    if preamble.get("header_row"):
+        layout["skiprows"] = int(preamble["header_row"])
     try:
         return pd.read_csv(
-            path, sep=separator, decimal=decimal, index_col=False, encoding=encoding, nrows=rows
+            path,
+            sep=separator,
+            decimal=decimal,
+            index_col=False,
+            encoding=encoding,
+            nrows=rows,
+            **layout,
         )
     except (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError) as exc:
         raise csv_error(path, exc) from None
@@ -219,32 +295,42 @@ def _numeric_columns(sample: pd.DataFrame) -> int:
     return sum(pd.api.types.is_numeric_dtype(sample[c]) for c in sample.columns)
 
 
-def detect_decimal(path: str, separator: str, encoding: str = "utf-8") -> tuple[str, pd.DataFrame]:
+def detect_decimal(
+    path: str,
+    separator: str,
+    encoding: str = "utf-8",
+    preamble: Mapping[str, Any] | None = None,
+) -> tuple[str, pd.DataFrame]:
     """The decimal mark with which pandas reads more columns as numbers in the first
     DECIMAL_ROWS rows (``,`` only when it reads more, ``21,5``, and the separator is not
     ``,``), and the whole record read once with it."""
     decimal = "."
     if separator != ",":
-        dot, comma = (_read_sample(path, separator, d, encoding, DECIMAL_ROWS) for d in ".,")
+        dot, comma = (
+            _read_sample(path, separator, d, encoding, DECIMAL_ROWS, preamble) for d in ".,"
+        )
         decimal = "," if _numeric_columns(comma) > _numeric_columns(dot) else "."
-    return decimal, _read_sample(path, separator, decimal, encoding)
+    return decimal, _read_sample(path, separator, decimal, encoding, preamble=preamble)
 
 
-def _table_sheet(path: str) -> dict[str, Any]:
-    """For a workbook: the sheet and header row of its first table whose header names a time
-    column (a workbook often opens with a sheet of run information, a table with a title
-    row); empty when none is found (the first sheet's first row, the defaults)."""
+def _table_sheet(path: str, sheet: str | int | None = None) -> dict[str, Any]:
+    """For a workbook: the sheet (``sheet`` when given) and header row of its first table: a
+    row naming a time column and another, above rows of two values or more (a workbook often
+    opens with a sheet of run information, a table under a title and a blank row); empty
+    when none is found (the first sheet's first row, the defaults)."""
     found = header_rows(
         path,
         lambda names: (
             sum(bool(n) for n in names) >= 2
             and any(_TIME_NAME.search(str(n).lower()) for n in names)
         ),
+        sheet=sheet,
+        below=TABLE_ROWS,
     )
     if not found:
         return {}
-    sheet, row = found[0]
-    return {"sheet": sheet, "header_row": row}
+    name, row = found[0]
+    return {"sheet": name if sheet is None else sheet, "header_row": row}
 
 
 def _zone_from_name(column: str) -> str | None:
@@ -299,10 +385,13 @@ def detect(raw_path: str | os.PathLike[str], given: Mapping[str, Any] | None = N
     path = str(raw_path)
     given = {k: v for k, v in (given or {}).items() if v is not None}
     kind = reader_kind(path, given)
-    if kind == "excel" and "sheet" not in given and "header_row" not in given:
-        given = {**_table_sheet(path), **given}
+    if kind == "excel" and "header_row" not in given:
+        given = {**_table_sheet(path, given.get("sheet")), **given}
     if kind == "csv":
-        separator = detect_separator(path)
+        preamble = csv_preamble(path)
+        separator = preamble.pop("separator", None)
+        given = {**preamble, **given}
+        separator = separator or detect_separator(path, given)
         columns = read_columns(path, fmt={"separator": separator, **given})
     else:
         separator = ","
@@ -317,7 +406,7 @@ def detect(raw_path: str | os.PathLike[str], given: Mapping[str, Any] | None = N
             reason += ": a raw file needs a time column and at least one channel"
         raise DataError(path, "(header)", columns[0] if columns else "", reason)
     if kind == "csv":
-        decimal, sample = detect_decimal(path, separator, given.get("encoding", "utf-8"))
+        decimal, sample = detect_decimal(path, separator, given.get("encoding", "utf-8"), given)
     else:
         decimal, sample = ".", read_table(path, given)
     named = [c for c in columns if _TIME_NAME.search(c.lower())]
@@ -558,9 +647,11 @@ def _format(found: Detected, todos: _Todos) -> list[str]:
             _comment_line(f"  separator: {json.dumps(found.separator)}", "# detected"),
             _comment_line(f'  decimal: "{found.decimal}"', "# detected"),
         ]
-    for key in ("encoding", "sheet", "header_row"):
+    for key in ("encoding", "comment", "sheet", "header_row"):
         if key in found.given:
-            why = "# given" if key == "encoding" else "# the table found (or given)"
+            why = {"encoding": "# given", "comment": "# the preamble's comment lines"}.get(
+                key, "# the table found (or given)"
+            )
             lines.append(_comment_line(f"  {key}: {_scalar(found.given[key])}", why))
     lines += [
         "  # power_timing: instant      # optional: what a logged power value stands for:",

@@ -35,8 +35,8 @@ _B = r"(?<![A-Za-z])"  # not inside a word
 _A = r"(?![A-Za-z])"
 _STATED = {
     "temperature": (
-        ("degF", re.compile(rf"°\s*F{_A}|{_B}deg\s*F{_A}|fahrenheit|\[\s*F\s*\]", re.I)),
-        ("degC", re.compile(rf"°\s*C{_A}|{_B}deg\s*C{_A}|celsius|\[\s*C\s*\]", re.I)),
+        ("degF", re.compile(rf"°\s*F{_A}|{_B}deg\s*F{_A}|fahrenheit|[\[(]\s*F\s*[\])]", re.I)),
+        ("degC", re.compile(rf"°\s*C{_A}|{_B}deg\s*C{_A}|celsius|[\[(]\s*C\s*[\])]", re.I)),
         ("K", re.compile(r"kelvin|\[\s*K\s*\]|\(\s*K\s*\)", re.I)),
     ),
     "power": (
