@@ -85,6 +85,60 @@ def pytest_configure(config):
     import compileall
 
     compileall.compile_dir(str(REPO / "railtherm"), quiet=1)
+    _compile_loops()
+
+
+def _compile_loops() -> None:
+    """The compiled loops' machine code cached once, before the workers start: a small Kalman
+    fit (the filter, its gradient and Fisher information, the output-error start) and a
+    short annual-energy run with process noise. In a fresh clone every worker and Snakemake
+    job would otherwise compile them itself (about 12 s each) until one had written the
+    cache. An optimisation only: any failure here leaves the tests to compile as they go."""
+    try:
+        from dataclasses import replace
+
+        import numpy as np
+        import pandas as pd
+
+        from railtherm.estimation import kalman, models, pem
+        from railtherm.study import energy, simulate, weather
+
+        second = models.STRUCTURES["second_order"]
+        theta = {"kA": 700.0, "C": 9.0e6, "K_veh": 450.0, "C_veh": 1.8e7}
+        rng = np.random.default_rng(0)
+        n, dt = 300, 60.0
+        u = np.column_stack([np.full(n, -10.0), np.where(np.arange(n) % 100 < 50, 2e4, 5e3)])
+        A, B = second.matrices(theta)
+        Ad, Bd = models.discretize_zoh(A, B, dt)
+        x = np.empty((n, 2))
+        x[0] = models.steady_state(A, B, u[0])
+        for k in range(n - 1):
+            x[k + 1] = Ad @ x[k] + Bd @ u[k] + rng.normal(0.0, 0.01, 2)
+        y = x + rng.normal(0.0, 0.05, x.shape)
+        kalman.fit(second, [pem.Experiment(name="warm", dt=dt, u=u, y=y)])
+        hours = 8760
+        year = weather.Weather(
+            "flat",
+            "constant",
+            pd.date_range("2001-01-01 01:00", periods=hours, freq="h"),
+            np.arange(hours) * 3600.0,
+            np.full(hours, 0.0),
+            None,
+        )
+        profile = replace(
+            energy.load_profile(REPO / "config" / "profiles" / "metro_service.yaml"),
+            preheat_mode="ready_by",
+        )
+
+        def draw(count, generator):
+            return {p: v * np.exp(generator.normal(0.0, 0.01, count)) for p, v in theta.items()}
+
+        vehicle = simulate.ParameterSet(
+            "warm", "declared", second, dict(theta), draw=draw, sigma=np.array([1e-3, 1e-3])
+        )
+        energy.annual_energy(vehicle, year, profile, dt_s=3600.0, draws=2)
+    except Exception:  # noqa: BLE001 - a warm-up only
+        pass
 
 
 # the files that take longest (`pytest --durations=30`: whole-study runs), handed out first and
