@@ -78,7 +78,8 @@ def k_window_warning(vehicle: Vehicle, display: str, k: kvalue.KValue) -> str:
     )
     return (
         f"{vehicle.path}: the k window (windows.kvalue, {display}) is not steady by the "
-        f"standardized test (eq. 10): {'; '.join(k.reasons)}; {then}. Extend or move the "
+        f"standardized test (eq. 10): {'; '.join(k.reasons) or 'a criterion failed'}; "
+        f"{then}. Extend or move the "
         "window, or change the criterion under kvalue (e.g. kvalue.min_duration_h)"
     )
 

@@ -52,6 +52,7 @@ from railtherm.errors import DataError, first_line
 __all__ = [
     "READERS",
     "csv_error",
+    "csv_layout",
     "elsewhere_hint",
     "header_rows",
     "line_of",
@@ -400,7 +401,7 @@ def _decode_error(path: str, encoding: str, exc: UnicodeDecodeError) -> DataErro
 _CSV_ERRORS = (OSError, ValueError, EOFError, zlib.error, pd.errors.ParserError)
 
 
-def _csv_layout(fmt: Mapping[str, Any]) -> dict[str, Any]:
+def csv_layout(fmt: Mapping[str, Any]) -> dict[str, Any]:
     """read_csv's arguments for ``format.comment`` (a line starting with it is skipped, text
     after it ignored) and ``format.header_row`` (the line of the column names, counted from
     0 over every line of the file: the lines above it are skipped, comment or not)."""
@@ -417,18 +418,19 @@ def _csv_header(path: str, fmt: Mapping[str, Any]) -> tuple[str, ...]:
     sep = fmt.get("separator", ",")
     try:
         header = pd.read_csv(
-            path, sep=sep, header=None, nrows=1, dtype=str, encoding=encoding, **_csv_layout(fmt)
+            path, sep=sep, header=None, nrows=1, dtype=str, encoding=encoding, **csv_layout(fmt)
         )
     except pd.errors.EmptyDataError:
         if fmt.get("header_row") or fmt.get("comment"):
             row = int(fmt.get("header_row") or 0)
+            comment = fmt.get("comment")
+            what = "blank" if comment is None else f"blank or a comment ('{comment}')"
             raise DataError(
                 path,
                 "format.header_row",
                 row,
-                f"no header at or after line {row + 1} (counted from 0: {row}) that is not "
-                f"blank or a comment (format.comment {fmt.get('comment')!r}): set "
-                "format.header_row to the line of the column names",
+                f"no line at or after line {row + 1} (counted from 0: {row}) that is not "
+                f"{what}: set format.header_row to the line of the column names",
             ) from None
         raise DataError(path, "", None, "the file is empty (no header line)") from None
     except UnicodeDecodeError as exc:
@@ -468,14 +470,15 @@ def _csv_table(path: str, fmt: Mapping[str, Any], columns: list[str] | None) -> 
     sep = fmt.get("separator", ",")
     # index_col=False: a separator at the end of every row must not shift the columns
     kwargs: dict[str, Any] = {"sep": sep, "dtype": str, "index_col": False, "encoding": encoding}
-    kwargs.update(_csv_layout(fmt))
+    layout = csv_layout(fmt)
+    kwargs.update(layout)
     if columns is not None:
         kwargs["usecols"] = columns
     try:
         with warnings.catch_warnings():  # a row longer than the header: values lost, refused
             warnings.simplefilter("error", pd.errors.ParserWarning)
             table = pd.read_csv(path, **kwargs)
-        if _csv_layout(fmt):  # data rows below comments or skipped lines: their own numbers
+        if layout:  # data rows below comments or skipped lines: their own numbers
             table.attrs["lines"] = _csv_lines(path, fmt, encoding, len(table))
         return table
     except pd.errors.ParserWarning:

@@ -66,7 +66,7 @@ from railtherm.data.rawfile import (
     read_layout,
     separator_hint,
 )
-from railtherm.data.readers import header_rows, read_table, reader_kind
+from railtherm.data.readers import csv_layout, header_rows, read_table, reader_kind
 from railtherm.errors import ConfigError, DataError
 from railtherm.yamlio import packaged_schema
 
@@ -271,12 +271,7 @@ def _read_sample(
 ) -> pd.DataFrame:
     """The first ``rows`` rows, or the whole record (every row: ranges, gaps and a repeated
     hour anywhere are seen), below the ``preamble`` (:func:`csv_preamble`)."""
-    preamble = preamble or {}
-    layout: dict[str, Any] = {}
-    if preamble.get("comment"):
-        layout["comment"] = preamble["comment"]
-    if preamble.get("header_row"):
-        layout["skiprows"] = int(preamble["header_row"])
+    layout = csv_layout(preamble or {})
     try:
         return pd.read_csv(
             path,
