@@ -40,7 +40,7 @@ from typing import Any
 import pandas as pd
 
 from railtherm import codedigest, structures
-from railtherm.data import timeaxis, units
+from railtherm.data import sources, timeaxis, units
 from railtherm.data.ingest import irradiance_names
 from railtherm.data.rawfile import (
     MAX_RAW_ROWS,
@@ -98,8 +98,10 @@ class Vehicle:
     """One validated vehicle config.
 
     ``raw_files`` maps each raw-file name to its path normalised relative to the working
-    directory; ``layouts`` maps the same names to the :class:`RawLayout` the checks used (read
-    from the file, or planned by the campaign when the file does not exist yet). ``data`` is
+    directory (with ``sources``: to its files joined by ' + ', a label; ``source_files``
+    then maps each name to {source: path}); ``layouts`` maps the same names to the
+    :class:`RawLayout` the checks used (read from the file, or planned by the campaign when
+    the file does not exist yet). ``data`` is
     the whole validated YAML with schema defaults filled in and the study's defaults merged
     under its sections (``data["model"]`` is ``defaults.model`` deep-merged under the vehicle's
     own ``model``); ``format``, ``channels``, ``windows`` and ``model`` read from it.
@@ -117,6 +119,19 @@ class Vehicle:
     raw_files: dict[str, str]
     data: dict[str, Any]
     layouts: dict[str, RawLayout] = field(default_factory=dict)
+    source_files: dict[str, dict[str, str]] = field(default_factory=dict)
+
+    def record(self, name: str) -> str | dict[str, str]:
+        """The file of one part of the record (a key of ``raw_files``), or with sources the
+        file of each source ({source: path}), relative to the working directory: what
+        :func:`railtherm.data.ingest.clean_windows` reads."""
+        return self.source_files.get(name) or self.raw_files[name]
+
+    def files(self) -> list[str]:
+        """Every raw file of the vehicle (each source's), relative to the working directory."""
+        if self.source_files:
+            return [p for part in self.source_files.values() for p in part.values()]
+        return list(self.raw_files.values())
 
     @property
     def format(self) -> dict[str, Any]:
@@ -298,24 +313,31 @@ def load_vehicle(
             f"{check['min_capacity_per_kg_J_kgK']:g}",
         )
 
-    fmt = data["format"]
-    if fmt["separator"] == fmt["decimal"]:
-        raise ConfigError(
-            file, "format.decimal", fmt["decimal"], "must differ from format.separator"
-        )
-    timeaxis.declared(file, fmt["time"])  # format, timezone and dst rule of the time column
-
     yaml_dir = os.path.dirname(path)
     raw_files: dict[str, str] = {}
-    locals_: dict[str, str] = {}  # the raw files as this process finds them
-    found: dict[str, RawLayout] = {}
-    for name, raw in data["raw_files"].items():
-        local = os.path.normpath(os.path.join(yaml_dir, raw))
-        raw_files[name] = _normalise(local, workdir)
-        locals_[name] = local
-        found[name] = _layout(file, name, raw, local, raw_files[name], fmt, layouts or {})
-
-    _check_channels(file, data, found, locals_)
+    source_files: dict[str, dict[str, str]] = {}
+    if sources.declared(data):
+        raw_files, source_files, found = _check_sources(file, data, yaml_dir, workdir, layouts)
+    else:
+        for key in ("raw_files", "format"):
+            if key not in data:
+                raise ConfigError(
+                    file,
+                    key,
+                    None,
+                    "missing required key (or declare the record's data-acquisition systems "
+                    "under sources, each with its files and format)",
+                )
+        fmt = data["format"]
+        _check_format(file, fmt, "format")
+        locals_: dict[str, str] = {}  # the raw files as this process finds them
+        found = {}
+        for name, raw in data["raw_files"].items():
+            local = os.path.normpath(os.path.join(yaml_dir, raw))
+            raw_files[name] = _normalise(local, workdir)
+            locals_[name] = local
+            found[name] = _layout(file, name, raw, local, raw_files[name], fmt, layouts or {})
+        _check_channels(file, data, found, locals_)
     _check_windows(file, data, found)
     model = deep_merge((defaults or {}).get("model") or {}, data.get("model") or {})
     model.setdefault("orders", list(DEFAULT_ORDERS))
@@ -342,6 +364,7 @@ def load_vehicle(
         raw_files=raw_files,
         data=data,
         layouts=found,
+        source_files=source_files,
     )
 
 
@@ -469,6 +492,199 @@ def _check_stated_unit(file: str, key: str, group: str, channel: Mapping[str, An
     )
 
 
+def _check_format(file: str, fmt: dict[str, Any], prefix: str) -> None:
+    """A ``format`` section (``prefix``: its key, e.g. ``sources.power.format``): separator and
+    decimal mark differ; the time column's notation, zone, dst rule and start are valid."""
+    if fmt["separator"] == fmt["decimal"]:
+        raise ConfigError(
+            file, f"{prefix}.decimal", fmt["decimal"], f"must differ from {prefix}.separator"
+        )
+    try:
+        timeaxis.declared(file, fmt["time"])  # format, timezone and dst rule of the time column
+    except ConfigError as exc:
+        raise _prefixed(exc, "format", prefix) from None
+
+
+def _prefixed(exc: ConfigError, old: str, new: str) -> ConfigError:
+    """``exc`` with a key that starts with ``old`` moved under ``new``."""
+    key = exc.key
+    if key == old or key.startswith(f"{old}."):
+        key = new + key[len(old) :]
+    return ConfigError(exc.file, key, exc.value, exc.reason)
+
+
+def _check_sources(
+    file: str,
+    data: dict[str, Any],
+    yaml_dir: str,
+    workdir: str,
+    layouts: Mapping[str, RawLayout] | None,
+) -> tuple[dict[str, str], dict[str, dict[str, str]], dict[str, RawLayout]]:
+    """The record's sources (:mod:`railtherm.data.sources`) against their files: each
+    source's format and files, the same parts in every source, every source placed on UTC
+    (a zone for instants, a start for elapsed time), their spans overlapping, every channel
+    naming a source whose files hold its column. Returns ``(raw_files, source_files,
+    layouts)``: each part's label, its files by source, and the part's span on UTC as one
+    layout (ISO 8601, from the latest first time to the earliest last) for the windows'
+    checks."""
+    declared_sources = data[sources.SOURCES]
+    for key in ("raw_files", "format"):
+        if key in data:
+            raise ConfigError(
+                file,
+                key,
+                data[key] if key == "raw_files" else None,
+                "a record declared as sources gives its files and format per source "
+                f"(sources.<name>.files, sources.<name>.format): remove {key}",
+            )
+    parts: list[str] | None = None
+    first_source = ""
+    source_files: dict[str, dict[str, str]] = {}
+    per_source: dict[str, dict[str, RawLayout]] = {}
+    spans: dict[str, dict[str, tuple[pd.Timestamp, pd.Timestamp, float | None, str]]] = {}
+    for name, source in declared_sources.items():
+        prefix = f"{sources.SOURCES}.{name}"
+        fmt = source["format"]
+        _check_format(file, fmt, f"{prefix}.format")
+        tf = timeaxis.time_format(fmt["time"])
+        if not tf.absolute:
+            try:
+                timeaxis.start_instant(file, tf)
+            except ConfigError as exc:
+                raise _prefixed(exc, "format", f"{prefix}.format") from None
+        if parts is None:
+            parts, first_source = list(source["files"]), name
+        elif set(source["files"]) != set(parts):
+            raise ConfigError(
+                file,
+                f"{prefix}.files",
+                sorted(source["files"]),
+                f"must name the same parts of the record as {sources.SOURCES}.{first_source}"
+                f".files ({words(parts)}): every source has a file for every part",
+            )
+        per_source[name] = {}
+        for part, raw in source["files"].items():
+            local = os.path.normpath(os.path.join(yaml_dir, raw))
+            normalised = _normalise(local, workdir)
+            source_files.setdefault(part, {})[name] = normalised
+            try:
+                layout = _layout(file, part, raw, local, normalised, fmt, layouts or {})
+            except ConfigError as exc:
+                exc = _prefixed(exc, f"raw_files.{part}", f"{prefix}.files.{part}")
+                raise _prefixed(exc, "format", f"{prefix}.format") from None
+            per_source[name][part] = layout
+            t0 = sources.source_utc0(name, source, layout.t_first, file)
+            t1 = sources.source_utc0(name, source, layout.t_last, file)
+            spans.setdefault(part, {})[name] = (t0, t1, layout.step_s, normalised)
+    _check_source_channels(file, data, per_source)
+
+    raw_files: dict[str, str] = {}
+    found: dict[str, RawLayout] = {}
+    for part, by_source in spans.items():
+        raw_files[part] = sources.label(source_files[part])
+        t_first = max(t0 for t0, _, _, _ in by_source.values())
+        t_last = min(t1 for _, t1, _, _ in by_source.values())
+        if not t_last > t_first:
+            listed = "; ".join(
+                f"sources.{n} ({path}) from {_fmt_time(t0)} to {_fmt_time(t1)}"
+                for n, (t0, t1, _, path) in by_source.items()
+            )
+            raise ConfigError(
+                file,
+                sources.SOURCES,
+                None,
+                f"the sources' times do not overlap ({listed}): check each source's "
+                "format.time (zone, start) and clock_offset_s",
+            )
+        steps = [step for _, _, step, _ in by_source.values() if step]
+        found[part] = RawLayout(
+            path=raw_files[part],
+            columns=tuple(c for layout in per_source.values() for c in layout[part].columns),
+            time_column="time",
+            time_format="iso",
+            t_first=t_first,
+            t_last=t_last,
+            step_s=max(steps) if steps else None,
+            gap_s=max((layout[part].gap_s or 0.0) for layout in per_source.values()) or None,
+        )
+    return raw_files, source_files, found
+
+
+def _check_source_channels(
+    file: str, data: dict[str, Any], per_source: dict[str, dict[str, RawLayout]]
+) -> None:
+    """Every channel names a declared source (the one source by default), whose every file
+    holds its column; no column used twice within a source, nor its time column."""
+    names = list(per_source)
+    used: dict[tuple[str, str], str] = {}
+    for group in CHANNEL_GROUPS:
+        for i, channel in enumerate(data["channels"].get(group, [])):
+            key = f"channels.{group}[{i}]"
+            name = channel.get("source")
+            if name is None:
+                if len(names) > 1:
+                    raise ConfigError(
+                        file,
+                        f"{key}.source",
+                        None,
+                        f"missing: with several sources every channel names its source "
+                        f"(one of {words(names)})",
+                    )
+                name = channel["source"] = names[0]
+            if name not in per_source:
+                close = difflib.get_close_matches(str(name), names, n=1)
+                hint = f"did you mean '{close[0]}'? " if close else ""
+                raise ConfigError(
+                    file,
+                    f"{key}.source",
+                    name,
+                    f"not a declared source ({hint}known: {words(names)})",
+                )
+            column = channel["column"]
+            time_column = data[sources.SOURCES][name]["format"]["time"]["column"]
+            if column == time_column:
+                raise ConfigError(
+                    file,
+                    f"{key}.column",
+                    column,
+                    f"is the time column of sources.{name} (sources.{name}.format.time.column)",
+                )
+            if (name, column) in used:
+                raise ConfigError(
+                    file,
+                    f"{key}.column",
+                    column,
+                    f"column of sources.{name} already used by {used[name, column]}",
+                )
+            used[name, column] = f"{key}.column"
+            for part, layout in per_source[name].items():
+                if column not in layout.columns:
+                    raise _missing_column(
+                        file,
+                        f"{key}.column",
+                        column,
+                        f"{layout.path or part} (sources.{name})",
+                        layout,
+                    )
+            _check_stated_unit(file, key, group, channel)
+    idle = [
+        n
+        for n in names
+        if not any(
+            channel.get("source") == n
+            for group in CHANNEL_GROUPS
+            for channel in data["channels"].get(group, [])
+        )
+    ]
+    if idle:
+        raise ConfigError(
+            file,
+            f"{sources.SOURCES}.{idle[0]}",
+            None,
+            "no channel names this source: name it in a channel's source, or remove it",
+        )
+
+
 def _check_channels(
     file: str,
     data: dict[str, Any],
@@ -487,6 +703,14 @@ def _check_channels(
             if column in used:
                 raise ConfigError(file, key, column, f"column already used by {used[column]}")
             used[column] = key
+            if "source" in channel:
+                raise ConfigError(
+                    file,
+                    f"channels.{group}[{i}].source",
+                    channel["source"],
+                    "names a source, but the record is declared as raw_files and format: "
+                    "declare it under sources, or remove the key",
+                )
             for name, layout in layouts.items():
                 if column not in layout.columns:
                     where = (local or {}).get(name)
@@ -558,7 +782,19 @@ def _check_envelope(file: str, data: dict[str, Any], model: dict[str, Any]) -> N
                 f"the {one_node[0].title} ({one_node[0].key}) has one node, no envelope: "
                 f"declare node air, or fit only {', '.join(structures.with_envelope())}",
             )
-    timing = data["format"].get("power_timing", "instant")
+    formats = (
+        [s["format"] for s in data[sources.SOURCES].values()]
+        if sources.declared(data)
+        else [data["format"]]
+    )
+    timing = next(
+        (
+            f.get("power_timing", "instant")
+            for f in formats
+            if f.get("power_timing", "instant") != "instant"
+        ),
+        "instant",
+    )
     if model.get("input_hold") == "first_order" and timing != "instant":
         raise ConfigError(
             file,
@@ -615,7 +851,10 @@ def _windows(data: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
 
 def _check_windows(file: str, data: dict[str, Any], layouts: dict[str, RawLayout]) -> None:
     """File keys, time format, start < end and windows inside the data."""
-    time_format = timeaxis.time_format(data["format"]["time"])
+    if sources.declared(data):
+        time_format = sources.RECORD_TIME  # ISO 8601 instants; without an offset UTC
+    else:
+        time_format = timeaxis.time_format(data["format"]["time"])
     names: dict[str, str] = {}
     for key, window in _windows(data):
         if "name" in window and key.startswith("windows.identification"):
@@ -1117,7 +1356,15 @@ class VehicleCache:
         yaml_dir = os.path.dirname(name)
         files = [
             os.path.abspath(os.path.normpath(os.path.join(yaml_dir, raw)))
-            for raw in vehicle.data["raw_files"].values()
+            for raw in (
+                vehicle.data["raw_files"].values()
+                if "raw_files" in vehicle.data
+                else [
+                    r
+                    for src in vehicle.data[sources.SOURCES].values()
+                    for r in src["files"].values()
+                ]
+            )
         ]
         self.used[name] = (key, [(f, _stat_key(f)) for f in files], vehicle)
         self._dirty = True

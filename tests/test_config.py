@@ -152,7 +152,7 @@ BAD_VEHICLES = [
         None,
         "channels.indoor_air[1].wieght",
         2.0,
-        "unknown key (did you mean 'weight'? allowed: column, weight, unit, scale, offset)",
+        "unknown key (did you mean 'weight'? allowed: column, weight, unit, scale, offset, source)",
     ),
     (
         "typo-top-level",

@@ -43,6 +43,8 @@ def step_warnings(vehicle: Vehicle) -> list[str]:
     """A sentence per raw file whose logger step is implausible for a thermal record, naming
     the declared time unit and the steps the same numbers would give in the other units."""
     lo, hi = PLAUSIBLE_STEP_S
+    if vehicle.source_files:  # sources: each source's step is the record's concern
+        return []
     tf = timeaxis.time_format(vehicle.format["time"])
     out = []
     for name, layout in vehicle.layouts.items():
@@ -93,13 +95,15 @@ def check_values(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> Dat
     for name in ingest.window_names(vehicle.data):
         raw_name, window, key = ingest.window_spec(vehicle.data, name)
         display = vehicle.raw_files[raw_name]
-        local = os.path.join(str(workdir), display)
-        if not os.path.isfile(local):
+        record = vehicle.record(raw_name)
+        paths = list(record.values()) if isinstance(record, dict) else [record]
+        missing = [p for p in paths if not os.path.isfile(os.path.join(str(workdir), p))]
+        if missing:
             if display not in out.not_written:
                 out.not_written.append(display)
             continue
         if display not in raws:
-            raws[display] = ingest.read_raw(local, vehicle.format, label=display)
+            raws[display] = ingest.read_record_part(record, vehicle.data, workdir)
         table = ingest.tidy(raws[display], vehicle.data, window, display, window_key=key)
         if name == "kvalue":
             k = kvalue.for_vehicle(table, vehicle.data, source=f"{display} ({key})")
@@ -134,8 +138,8 @@ def check_study_values(
         passed = set()  # a missing or broken cache is only a cache
     checked = []
     for vehicle in study.vehicles.values():
-        files = [os.path.join(str(workdir), f) for f in vehicle.raw_files.values()]
-        if any(skip(f) or not os.path.isfile(f) for f in vehicle.raw_files.values()):
+        files = [os.path.join(str(workdir), f) for f in vehicle.files()]
+        if any(skip(f) or not os.path.isfile(f) for f in vehicle.files()):
             continue
         h = hashlib.sha256(code.encode())
         h.update(json.dumps(vehicle.data, sort_keys=True, default=str).encode())

@@ -97,6 +97,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from railtherm.data import sources as sources_
 from railtherm.data import timeaxis, units
 from railtherm.data.rawfile import parse_times, read_columns, separator_hint
 from railtherm.data.readers import elsewhere_hint, line_of, read_table, reader_kind
@@ -254,6 +255,14 @@ def read_raw(
 # Windows
 
 
+def part_names(vehicle_data: Mapping[str, Any]) -> list[str]:
+    """The names of a record's parts: the keys of ``raw_files``, or with sources those of each
+    source's ``files`` (the same in every source)."""
+    if vehicle_data.get("sources"):
+        return list(next(iter(vehicle_data["sources"].values()))["files"])
+    return list(vehicle_data["raw_files"])
+
+
 def window_names(vehicle_data: dict[str, Any]) -> list[str]:
     """Names of the windows the vehicle config defines: ``kvalue`` (if any), then the
     identification windows in config order (``record``, the whole file, is always available)."""
@@ -276,7 +285,7 @@ def window_spec(
     ident = windows["identification"]
 
     def file_of(window: dict[str, Any]) -> str:
-        return window.get("file") or next(iter(vehicle_data["raw_files"]))
+        return window.get("file") or part_names(vehicle_data)[0]
 
     if window_name == "kvalue":
         if "kvalue" not in windows:
@@ -615,63 +624,46 @@ def _hold_error(t: np.ndarray, fine: np.ndarray, grid: np.ndarray, rows: np.ndar
     return np.sqrt(np.divide(total, count, out=np.zeros(grid.size), where=count > 0))
 
 
-def tidy(
-    raw: pd.DataFrame,
-    vehicle_data: dict[str, Any],
-    window: dict[str, Any] | None,
+class _Part:
+    """One source of a record on the record's time axis: its raw table (index in seconds on
+    that axis), the file that names it in messages, its power timing and its channels by
+    group as ``(column, weight, values in SI units)``."""
+
+    def __init__(
+        self, file: str, raw: pd.DataFrame, timing: str, groups: dict[str, list], source=None
+    ):
+        self.file = file
+        self.source = source
+        self.t = raw.index.to_numpy(dtype=float)
+        self.timing = timing
+        self.groups = groups
+        self.dt_log = float(np.median(np.diff(self.t))) if self.t.size > 1 else 0.0
+
+
+def _part_groups(
     file: str,
-    window_key: str | None = None,
-) -> pd.DataFrame:
-    """The tidy table (module docstring) of one window of a raw file read by :func:`read_raw`.
-
-    ``vehicle_data`` is the validated vehicle config as plain data (``Vehicle.data``);
-    ``window`` is a window of it (``start``/``end`` in the file's time notation, or ISO 8601
-    for a file of instants; :func:`railtherm.data.timeaxis.instant`) or ``None`` for
-    the whole recording; ``file`` names the raw file in messages, ``window_key`` the window
-    (default: found in ``vehicle_data``, e.g. ``windows.kvalue``).
-
-    Raises :class:`DataError` for a missing channel (file, column), a value that is no number,
-    a gap longer than ``cleaning.max_gap_s`` (file, column, time); :class:`ConfigError` for a
-    window outside the data (file, the window's start or end, the data's range) or without any
-    data row.
-    """
-    fmt = vehicle_data["format"]
-    time_column = fmt["time"]["column"]
-    tf = timeaxis.declared(file, fmt["time"])
-    timing = fmt.get("power_timing", "instant")
-    hold = input_hold(vehicle_data)
-    cleaning = vehicle_data.get("cleaning") or {}
-    max_gap = float(cleaning.get("max_gap_s", 900.0))
-    key = window_key or _window_key(vehicle_data, window)
-
-    t = raw.index.to_numpy(dtype=float)
-    if t.size < 2:
-        raise DataError(file, time_column, None, "needs at least two data rows")
-    if not np.all(np.diff(t) > 0):
-        raise DataError(file, time_column, None, "the time index must increase strictly")
-    origin = None
-    if tf.absolute:  # the time at index 0 s
-        origin = raw.attrs.get("origin")
-        if origin is None:
-            first = raw[time_column].iloc[:1].astype(str).reset_index(drop=True)
-            decimal = fmt.get("decimal", ".")
-            origin = timeaxis.parse(file, first, time_column, tf, decimal).iloc[0]
-            origin -= pd.Timedelta(seconds=float(t[0]))
-    labels = _Labels(tf.absolute, origin)
-
-    # channels: numbers in SI units (degC, W), in config order
+    raw: pd.DataFrame,
+    vehicle_data: Mapping[str, Any],
+    time_column: str,
+    source: str | None,
+) -> dict[str, list[tuple[str, float, np.ndarray]]]:
+    """The channels of one source (``source`` None: the one raw file) by group, as numbers in
+    SI units (degC, W), in config order."""
     groups: dict[str, list[tuple[str, float, np.ndarray]]] = {}
     for group in (*TEMPERATURE_GROUPS, *POWER_GROUPS, KNOWN_HEAT, IRRADIANCE):
         found = []
         for i, channel in enumerate(_channels(vehicle_data, group)):
+            if source is not None and channel.get("source") != source:
+                continue
             column = channel["column"]
             if column not in raw.columns:
                 shown = [c for c in raw.columns if c != time_column]
+                where = "the file" if source is None else f"the files of sources.{source}"
                 raise DataError(
                     file,
                     column,
                     None,
-                    f"channel channels.{group}[{i}] not found in the file "
+                    f"channel channels.{group}[{i}] not found in {where} "
                     f"(columns: {', '.join(map(str, shown))})",
                 )
             values = _numeric(file, raw, column)
@@ -679,113 +671,219 @@ def tidy(
             values = units.to_si(values, channel, default)
             found.append((column, float(channel.get("weight", 1.0)), values))
         groups[group] = found
+    return groups
 
-    # the window, in the raw index's seconds
-    dt_log = float(np.median(np.diff(t)))
+
+def tidy(
+    raw: pd.DataFrame | Mapping[str, pd.DataFrame],
+    vehicle_data: dict[str, Any],
+    window: dict[str, Any] | None,
+    file: str,
+    window_key: str | None = None,
+) -> pd.DataFrame:
+    """The tidy table (module docstring) of one window of a raw file read by :func:`read_raw`,
+    or of a record of several sources read by :func:`read_record_part`
+    (``raw`` then maps each source to its table on the record's UTC axis).
+
+    ``vehicle_data`` is the validated vehicle config as plain data (``Vehicle.data``);
+    ``window`` is a window of it (``start``/``end`` in the file's time notation, or ISO 8601
+    for a file of instants or a record of sources; :func:`railtherm.data.timeaxis.instant`) or
+    ``None`` for the whole recording (with sources: the span every source covers); ``file``
+    names the raw file (or the record) in messages, ``window_key`` the window (default: found
+    in ``vehicle_data``, e.g. ``windows.kvalue``).
+
+    With sources, each source is gap-filled on its own time axis and averaged over each tidy
+    step on its own (:func:`_bin_means`, :func:`_power_means`); a group's mean then weights
+    every channel of every source, powers add up across sources, and a row is ``filled`` when
+    any source's samples in it were. The default step is the coarsest source's logger step.
+
+    Raises :class:`DataError` for a missing channel (file, column), a value that is no number,
+    a gap longer than ``cleaning.max_gap_s`` (file, column, time); :class:`ConfigError` for a
+    window outside the data (file, the window's start or end, the data's range) or without any
+    data row.
+    """
+    hold = input_hold(vehicle_data)
+    cleaning = vehicle_data.get("cleaning") or {}
+    max_gap = float(cleaning.get("max_gap_s", 900.0))
+    key = window_key or _window_key(vehicle_data, window)
+
+    if isinstance(raw, pd.DataFrame):
+        fmt = vehicle_data["format"]
+        time_column = fmt["time"]["column"]
+        tf = timeaxis.declared(file, fmt["time"])
+        t = raw.index.to_numpy(dtype=float)
+        if t.size < 2:
+            raise DataError(file, time_column, None, "needs at least two data rows")
+        if not np.all(np.diff(t) > 0):
+            raise DataError(file, time_column, None, "the time index must increase strictly")
+        origin = None
+        if tf.absolute:  # the time at index 0 s
+            origin = raw.attrs.get("origin")
+            if origin is None:
+                first = raw[time_column].iloc[:1].astype(str).reset_index(drop=True)
+                decimal = fmt.get("decimal", ".")
+                origin = timeaxis.parse(file, first, time_column, tf, decimal).iloc[0]
+                origin -= pd.Timedelta(seconds=float(t[0]))
+        labels = _Labels(tf.absolute, origin)
+        groups = _part_groups(file, raw, vehicle_data, time_column, None)
+        parts = [_Part(file, raw, fmt.get("power_timing", "instant"), groups)]
+        t_lo, t_hi = float(t[0]), float(t[-1])
+        span = f"the data of {file} run from {labels.one(t[0])} to {labels.one(t[-1])}"
+    else:
+        tf = sources_.RECORD_TIME
+        origin = sources_.origin(raw)
+        labels = _Labels(True, origin)
+        parts = []
+        for name, part in raw.items():
+            src_fmt = vehicle_data["sources"][name]["format"]
+            part_file = part.attrs.get("file", name)
+            groups = _part_groups(part_file, part, vehicle_data, src_fmt["time"]["column"], name)
+            timing = src_fmt.get("power_timing", "instant")
+            parts.append(_Part(part_file, part, timing, groups, name))
+        t_lo = max(float(p.t[0]) for p in parts)
+        t_hi = min(float(p.t[-1]) for p in parts)
+        span = f"the sources all hold data from {labels.one(t_lo)} to {labels.one(t_hi)}"
+        if not t_hi > t_lo:
+            raise ConfigError(file, "sources", None, sources_.no_overlap(raw, labels))
+
+    # the window, in the record's seconds
+    dt_log = max(p.dt_log for p in parts)
     step = float(cleaning.get("step_s") or dt_log)
-    tol = 1e-6 * min(dt_log, step)
-    span = f"the data of {file} run from {labels.one(t[0])} to {labels.one(t[-1])}"
+    tol = 1e-6 * min(min(p.dt_log for p in parts), step)
     if window is None:
-        start, end = float(t[0]), float(t[-1])
+        start, end = t_lo, t_hi
     else:
         start = _bound(file, f"{key}.start", window["start"], tf, origin)
         end = _bound(file, f"{key}.end", window["end"], tf, origin)
-        if start < t[0] - tol or start > t[-1] + tol:
+        if start < t_lo - tol or start > t_hi + tol:
             raise ConfigError(file, f"{key}.start", window["start"], f"outside the data: {span}")
-        if end > t[-1] + tol or end < t[0] - tol:
+        if end > t_hi + tol or end < t_lo - tol:
             raise ConfigError(file, f"{key}.end", window["end"], f"outside the data: {span}")
         if not end > start:
             raise ConfigError(
                 file, f"{key}.end", window["end"], f"must be after start ({window['start']!r})"
             )
-        inside = np.count_nonzero((t >= start - tol) & (t <= end + tol))
-        if inside == 0:
-            raise ConfigError(
-                file, key, f"{window['start']} .. {window['end']}", "no data row in the window"
-            )
+        for p in parts:
+            inside = np.count_nonzero((p.t >= start - tol) & (p.t <= end + tol))
+            if inside == 0:
+                raise ConfigError(
+                    p.file,
+                    key,
+                    f"{window['start']} .. {window['end']}",
+                    "no data row in the window",
+                )
     n_steps = int(np.floor((end - start) / step + 1e-9))
     grid = start + np.arange(n_steps + 1) * step
-
-    # per-channel gap filling on the completed time axis
-    t_full, rows = _complete_axis(t, dt_log)
     region = (grid[0] - step / 2.0, grid[-1] + step)
-    _check_temperatures(file, groups, t, region, cleaning, labels)
-    filled_parts: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for group, found in groups.items():
-        if found:
-            filled_parts[group] = _fill_channels(
-                file,
-                [c for c, _, _ in found],
-                [v for _, _, v in found],
-                t_full,
-                rows,
-                dt_log,
-                max_gap,
-                region,
-                labels,
-            )
 
-    # temperatures: per-channel bin means, then the weighted sensor means
-    temps = [g for g in TEMPERATURE_GROUPS if g in filled_parts]
-    t_values = np.hstack([filled_parts[g][0] for g in temps])
-    t_flags = np.any(np.hstack([filled_parts[g][1] for g in temps]), axis=1)
-    t_means, t_filled = _bin_means(t_full, t_values, t_flags, grid, step, tol)
+    # per source: per-channel gap filling on its completed time axis, then its means over
+    # each step (temperatures per channel, powers per sum)
+    channel_means: dict[str, list[tuple[float, np.ndarray]]] = {g: [] for g in TEMPERATURE_GROUPS}
+    t_filled = np.zeros(grid.size, dtype=bool)
+    q_filled = np.zeros(grid.size, dtype=bool)
+    power = {group: np.zeros(grid.size) for group in POWER_GROUPS}
+    extra: dict[str, np.ndarray] = {}
+    hold_errors: dict[str, np.ndarray] = {}
+    resampled = hold == "first_order" and step > dt_log + tol
+    names = irradiance_names(vehicle_data)
+    channels_irr = _channels(vehicle_data, IRRADIANCE)
+    for p in parts:
+        t_full, rows = _complete_axis(p.t, p.dt_log)
+        _check_temperatures(p.file, p.groups, p.t, region, cleaning, labels)
+        filled_parts: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for group, found in p.groups.items():
+            if found:
+                filled_parts[group] = _fill_channels(
+                    p.file,
+                    [c for c, _, _ in found],
+                    [v for _, _, v in found],
+                    t_full,
+                    rows,
+                    p.dt_log,
+                    max_gap,
+                    region,
+                    labels,
+                )
+        p_tol = 1e-6 * min(p.dt_log, step)
+        temps = [g for g in TEMPERATURE_GROUPS if g in filled_parts]
+        if temps:
+            t_values = np.hstack([filled_parts[g][0] for g in temps])
+            t_flags = np.any(np.hstack([filled_parts[g][1] for g in temps]), axis=1)
+            t_means, used = _bin_means(t_full, t_values, t_flags, grid, step, p_tol)
+            t_filled |= used
+            col = 0
+            for group in temps:
+                for c, (_, weight, _) in enumerate(p.groups[group]):
+                    channel_means[group].append((weight, t_means[:, col + c]))
+                col += len(p.groups[group])
+        # powers: heater and fan sums (then known heat flows, then each irradiance channel,
+        # when declared), integrated over [t_n, t_n + step)
+        sums, slots = [], []
+        p_flags = np.zeros(t_full.size, dtype=bool)
+        for group in (*POWER_GROUPS, KNOWN_HEAT):
+            if group in filled_parts:
+                values, flags = filled_parts[group]
+                sums.append(values.sum(axis=1))
+                slots.append(group)
+                p_flags |= flags.any(axis=1)
+        if IRRADIANCE in filled_parts:
+            values, flags = filled_parts[IRRADIANCE]
+            mine = [
+                n
+                for n, c in zip(names, channels_irr, strict=True)
+                if p.source is None or c.get("source") == p.source
+            ]
+            for i, name in enumerate(mine):
+                sums.append(values[:, i])
+                slots.append(name)
+            p_flags |= flags.any(axis=1)
+        if not sums:
+            continue
+        if hold == "first_order":  # values at t_n, linear between (config: instant timing)
+            q, used = _bin_means(t_full, np.column_stack(sums), p_flags, grid, step, p_tol)
+        else:
+            q, used = _power_means(
+                t_full, np.column_stack(sums), p_flags, grid, step, p.dt_log, p.timing, p_tol
+            )
+        q_filled |= used
+        part_Q_H = np.zeros(grid.size)
+        fine_Q_H = np.zeros(t_full.size)
+        for i, slot in enumerate(slots):
+            if slot in POWER_GROUPS:
+                power[slot] = power[slot] + q[:, i]
+            else:
+                extra[{KNOWN_HEAT: "Q_known"}.get(slot, slot)] = q[:, i]
+            if slot in (*POWER_GROUPS, KNOWN_HEAT):
+                part_Q_H = part_Q_H + q[:, i]
+                fine_Q_H = fine_Q_H + sums[i]
+        if resampled:
+            # how far the straight lines between the rows miss the logged signal (with
+            # several sources, the sum of each source's: a bound on the whole)
+            if any(slot in (*POWER_GROUPS, KNOWN_HEAT) for slot in slots):
+                e = _hold_error(t_full, fine_Q_H, grid, part_Q_H)
+                hold_errors["Q_H"] = hold_errors["Q_H"] + e if "Q_H" in hold_errors else e
+            for i, slot in enumerate(slots):
+                if slot in names:
+                    hold_errors[slot] = _hold_error(t_full, sums[i], grid, q[:, i])
+
     means: dict[str, np.ndarray] = {}
     spread = np.zeros(grid.size)
-    col = 0
     for group in TEMPERATURE_GROUPS:
-        found = groups[group]
+        found = channel_means[group]
         if not found:
             means[group] = np.full(grid.size, np.nan)
             continue
-        w = np.array([weight for _, weight, _ in found])
-        x = t_means[:, col : col + len(found)]
-        col += len(found)
+        w = np.array([weight for weight, _ in found])
+        x = np.column_stack([m for _, m in found])
         means[group] = x @ w / w.sum()
         if group == "indoor_air":
             dev = x - means[group][:, None]
             spread = np.sqrt(np.maximum((dev * dev) @ w / w.sum(), 0.0))
-
-    # powers: heater and fan sums (then known heat flows, then each irradiance channel, when
-    # declared), integrated over [t_n, t_n + step)
-    sums = []
-    p_flags = np.zeros(t_full.size, dtype=bool)
-    for group in POWER_GROUPS:
-        if group in filled_parts:
-            values, flags = filled_parts[group]
-            sums.append(values.sum(axis=1))
-            p_flags |= flags.any(axis=1)
-        else:
-            sums.append(np.zeros(t_full.size))
-    extra: dict[str, int] = {}
-    if KNOWN_HEAT in filled_parts:
-        values, flags = filled_parts[KNOWN_HEAT]
-        extra["Q_known"] = len(sums)
-        sums.append(values.sum(axis=1))
-        p_flags |= flags.any(axis=1)
-    if IRRADIANCE in filled_parts:
-        values, flags = filled_parts[IRRADIANCE]
-        for i, name in enumerate(irradiance_names(vehicle_data)):
-            extra[name] = len(sums)
-            sums.append(values[:, i])
-        p_flags |= flags.any(axis=1)
-    if hold == "first_order":  # values at t_n, linear between (config: instant timing)
-        q, q_filled = _bin_means(t_full, np.column_stack(sums), p_flags, grid, step, tol)
-    else:
-        q, q_filled = _power_means(
-            t_full, np.column_stack(sums), p_flags, grid, step, dt_log, timing, tol
-        )
-    Q_H = q[:, 0] + q[:, 1]
+    Q_H = power["heater_power"] + power["fan_power"]
     if "Q_known" in extra:
-        Q_H = Q_H + q[:, extra["Q_known"]]
-    hold_errors: dict[str, np.ndarray] = {}
-    if hold == "first_order" and step > dt_log + tol:
-        # resampled: how far the straight lines between the rows miss the logged signal
-        fine_Q_H = sums[0] + sums[1] + (sums[extra["Q_known"]] if "Q_known" in extra else 0.0)
-        hold_errors["Q_H"] = _hold_error(t_full, fine_Q_H, grid, Q_H)
-        for name in irradiance_names(vehicle_data):
-            if name in extra:
-                hold_errors[name] = _hold_error(t_full, sums[extra[name]], grid, q[:, extra[name]])
+        Q_H = Q_H + extra["Q_known"]
+    ordered = (["Q_known"] if "Q_known" in extra else []) + [n for n in names if n in extra]
+    hold_order = [n for n in ("Q_H", *names) if n in hold_errors]
 
     out = pd.DataFrame(
         {
@@ -795,17 +893,17 @@ def tidy(
             "T_veh": means["surface"],
             "T_o": means["outdoor_air"],
             "Q_H": Q_H,
-            "Q_heater": q[:, 0],
-            "Q_fan": q[:, 1],
+            "Q_heater": power["heater_power"],
+            "Q_fan": power["fan_power"],
             "T_spread": spread,
             "filled": (t_filled | q_filled).astype(np.int64),
-            **{name: q[:, i] for name, i in extra.items()},
-            **{f"{name}{HOLD_ERROR_SUFFIX}": e for name, e in hold_errors.items()},
+            **{name: extra[name] for name in ordered},
+            **{f"{name}{HOLD_ERROR_SUFFIX}": hold_errors[name] for name in hold_order},
         },
         columns=[
             *TIDY_COLUMNS,
-            *extra,
-            *(f"{name}{HOLD_ERROR_SUFFIX}" for name in hold_errors),
+            *ordered,
+            *(f"{name}{HOLD_ERROR_SUFFIX}" for name in hold_order),
         ],
     )
     out.attrs = {
@@ -813,7 +911,7 @@ def tidy(
         "window": key,
         "step_s": step,
         "logger_step_s": dt_log,
-        "power_timing": timing,
+        "power_timing": parts[0].timing,
         "input_hold": hold,
     }
     return out
@@ -839,21 +937,42 @@ def clean_window(
 
 def clean_windows(
     vehicle_data: dict[str, Any],
-    sources: Mapping[str, str],
+    sources: Mapping[str, str | Mapping[str, str]],
     workdir: str | os.PathLike[str] = ".",
 ) -> dict[str, pd.DataFrame]:
     """The tidy table of each window named in ``sources`` (window name -> the raw file it is
-    cut from, relative to ``workdir``, as messages name it; names as in :func:`window_spec`),
+    cut from, relative to ``workdir``, as messages name it, or with sources {source: path};
+    names as in :func:`window_spec`),
     in the order of ``sources``, each raw file read once."""
-    raws: dict[str, pd.DataFrame] = {}
+    raws: dict[str, Any] = {}
     tables = {}
     for name, path in sources.items():
         _, window, key = window_spec(vehicle_data, name)
-        if path not in raws:
-            local = os.path.join(str(workdir), path)
-            raws[path] = read_raw(local, vehicle_data["format"], label=path)
-        tables[name] = tidy(raws[path], vehicle_data, window, path, window_key=key)
+        label = path if isinstance(path, str) else " + ".join(path.values())
+        if label not in raws:
+            raws[label] = read_record_part(path, vehicle_data, workdir)
+        tables[name] = tidy(raws[label], vehicle_data, window, label, window_key=key)
     return tables
+
+
+def read_record_part(
+    path: str | Mapping[str, str],
+    vehicle_data: Mapping[str, Any],
+    workdir: str | os.PathLike[str] = ".",
+) -> pd.DataFrame | dict[str, pd.DataFrame]:
+    """One part of a vehicle's record, relative to ``workdir``: a raw file read by
+    :func:`read_raw` with the vehicle's ``format``, or with sources ({source: path}) each
+    source's file on the record's UTC axis (:func:`read_record_part`)."""
+    if isinstance(path, str):
+        local = os.path.join(str(workdir), path)
+        return read_raw(local, vehicle_data["format"], label=path)
+    raws = {
+        name: read_raw(
+            os.path.join(str(workdir), file), vehicle_data["sources"][name]["format"], label=file
+        )
+        for name, file in path.items()
+    }
+    return sources_.align(raws, vehicle_data)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -80,6 +80,7 @@ class TimeFormat:
     format: str
     timezone: str | None = None
     dst: str = "raise"
+    start: str | None = None  # elapsed time: the instant of its zero (ISO 8601 with offset)
 
     @property
     def absolute(self) -> bool:
@@ -114,7 +115,12 @@ def time_format(spec: Mapping[str, Any] | str) -> TimeFormat:
             f"unknown time format {name!r}: one of {', '.join([*NAMED_ABSOLUTE, *ELAPSED_UNITS_S])}"
             " or a strftime pattern such as '%d.%m.%Y %H:%M:%S'"
         )
-    return TimeFormat(format=name, timezone=spec.get("timezone"), dst=spec.get("dst", "raise"))
+    return TimeFormat(
+        format=name,
+        timezone=spec.get("timezone"),
+        dst=spec.get("dst", "raise"),
+        start=spec.get("start"),
+    )
 
 
 def declared(file: str, spec: Mapping[str, Any]) -> TimeFormat:
@@ -166,6 +172,16 @@ def declared(file: str, spec: Mapping[str, Any]) -> TimeFormat:
                 zone,
                 f"not an IANA time zone name ({hint}e.g. Europe/Berlin, UTC)",
             )
+    if tf.start is not None:
+        if tf.absolute:
+            raise ConfigError(
+                file,
+                "format.time.start",
+                tf.start,
+                f"only for elapsed time (seconds, minutes, hours, days): {tf.describe()} "
+                "carries its own date and time; remove the key",
+            )
+        start_instant(file, tf)
     if tf.dst not in DST_RULES:
         raise ConfigError(file, "format.time.dst", tf.dst, f"must be one of {', '.join(DST_RULES)}")
     if "dst" in spec and tf.timezone is None:
@@ -177,6 +193,36 @@ def declared(file: str, spec: Mapping[str, Any]) -> TimeFormat:
             "remove the key",
         )
     return tf
+
+
+def start_instant(file: str, tf: TimeFormat) -> pd.Timestamp:
+    """The instant (UTC) that the zero of an elapsed time stands for (``format.time.start``):
+    :class:`ConfigError` naming the key when it is missing, no ISO 8601 timestamp, or without
+    a UTC offset (an elapsed time has no zone of its own to read it in)."""
+    value = tf.start
+    example = "e.g. 2026-03-02T08:57:43+01:00 or 2026-03-02T07:57:43Z"
+    if value is None:
+        raise ConfigError(
+            file,
+            "format.time.start",
+            None,
+            f"missing: the instant the elapsed time's zero stands for ({example}), so that "
+            "this record can be placed on UTC beside the others",
+        )
+    try:
+        stamp = pd.Timestamp(dt.datetime.fromisoformat(str(value).strip()))
+    except ValueError:
+        raise ConfigError(
+            file, "format.time.start", value, f"not an ISO 8601 timestamp ({example})"
+        ) from None
+    if stamp.tzinfo is None:
+        raise ConfigError(
+            file,
+            "format.time.start",
+            value,
+            f"has no UTC offset: write the offset of the clock that started ({example})",
+        )
+    return stamp.tz_convert("UTC")
 
 
 def _known_zone(name: Any) -> bool:

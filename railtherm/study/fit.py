@@ -202,12 +202,17 @@ class Fit:
 
     def summary(self) -> str:
         """A few lines for people: the model, each parameter, R^2, the verdict with its
-        reasons (-) and the record's outlying samples (!)."""
+        reasons (-), each source's clock as the fit judges it (~; a record of several
+        sources) and the record's outlying samples (!)."""
         lines = [
             f"{self.vehicle} {self.model} ({self.k_source}): {self.verdict}, R2 = {self.R2:.4f}"
         ]
         lines += [f"  {p}" for p in self.parameters.values()]
         lines += [f"  - {r}" for r in self.reasons]
+        if self.data.get("clocks"):
+            from railtherm.study import clocks
+
+            lines += [f"  ~ {n}" for n in clocks.notes(self.data["clocks"])]
         lines += [f"  ! {t}" for t in self.outlying_samples()]
         return "\n".join(lines)
 

@@ -768,6 +768,8 @@ def identify(
         "cross_validation": _cross_validate(structure, exps, options) if len(exps) > 1 else [],
         "unit_checks": unit_checks(fitted, vehicle_data, tables),
     }
+    if len(vehicle_data.get("sources") or {}) > 1:
+        estimate["clocks"] = _clocks(structure, tables, vehicle_data, options, result)
     series = _series(structure, exps, result)
     if estimator == "kalman":
         series = _innovation_series(structure, series, result)
@@ -776,6 +778,26 @@ def identify(
         estimate["fit"]["loglik"] = float(result.loglik)
         estimate["fit"]["n_params"] = int(result.n_params)
     return estimate, series
+
+
+def _clocks(structure, tables, vehicle_data, options, result) -> dict[str, Any]:
+    """Each source's clock against the indoor air's, by the profile of this fit's criterion
+    over shifts of the source (:mod:`railtherm.study.clocks`), every refit started at this
+    fit's values."""
+    from railtherm.study import clocks
+
+    warm = dict(options)
+    warm["initial"] = {p: v for p, v in result.theta.items() if p not in options["fixed"]}
+    warm["start"] = "initial"
+    if warm.get("estimator", "output_error") != "kalman":
+        warm["covariance"] = "iid"  # the criterion only: no interval needed
+    hold = input_hold(vehicle_data)
+
+    def refit(moved: Mapping[str, pd.DataFrame]):
+        moved = envelope_tables(structure, vehicle_data, moved)
+        return estimate_parameters(structure, experiments(structure, moved, hold), warm)
+
+    return clocks.clock_offsets(refit, result, tables, vehicle_data)
 
 
 def unit_checks(
@@ -1727,6 +1749,7 @@ CRITERIA = {
     "flags": "flags",
     "plausibility": "plausibility",
     "k_stage": "k method",
+    "clocks": "clocks",
 }
 
 
@@ -1828,7 +1851,14 @@ def check(
     judge("flags", quality.verdict(1.0, severe)[1])
     judge("plausibility", plausibility(estimate, thresholds))
     judge("k_stage", list(estimate["notes"]))
+    clock_notes: list[str] = []
+    if "clocks" in estimate:  # a record of several sources: their clocks checked
+        from railtherm.study import clocks
+
+        judge("clocks", clocks.reasons(estimate["clocks"]))
+        clock_notes = clocks.notes(estimate["clocks"])
     notes = [f["message"] for f in fit["flags"] if f["code"] in NOTE_ONLY_FLAGS]
+    notes += clock_notes
     notes += estimate.get("method_notes", [])
     notes += skipped_checks(estimate)
     outlying = outlying_samples(estimate, series, thresholds)
@@ -1869,4 +1899,5 @@ def check(
         **({"innovations": estimate["innovations"]} if kalman else {}),
         **({"noise": fit["noise"]} if kalman and "noise" in fit else {}),
         "outliers": {state: found.to_dict() for state, found in outlying.items()},
+        **({"clocks": estimate["clocks"]} if "clocks" in estimate else {}),
     }

@@ -46,7 +46,7 @@ class StudyPlan:
 
     def raw_files(self, vehicle: str) -> list[str]:
         """The raw files of one vehicle, as paths relative to the working directory."""
-        return list(self.study.vehicles[vehicle].raw_files.values())
+        return self.study.vehicles[vehicle].files()
 
     @functools.cache  # noqa: B019 (one plan per parse: the cache lives as long as the study)
     def tidy_tables(self, vehicle: str) -> tuple[str, ...]:
@@ -55,14 +55,18 @@ class StudyPlan:
         return tuple(names + ["record"] if "kvalue" in names else names)
 
     @functools.cache  # noqa: B019
-    def table_sources(self, vehicle: str) -> dict[str, str]:
-        """{tidy table: the raw file it is cut from} (railtherm.data.ingest.window_spec)."""
+    def table_sources(self, vehicle: str) -> dict[str, str | dict[str, str]]:
+        """{tidy table: the raw file it is cut from, or with sources {source: file}}
+        (railtherm.data.ingest.window_spec)."""
         v = self.study.vehicles[vehicle]
-        return {w: v.raw_files[ingest.window_spec(v.data, w)[0]] for w in self.tidy_tables(vehicle)}
+        return {w: v.record(ingest.window_spec(v.data, w)[0]) for w in self.tidy_tables(vehicle)}
 
     def clean_input(self, vehicle: str) -> list[str]:
         """The raw files a vehicle's tidy tables are cut from (each once)."""
-        return list(dict.fromkeys(self.table_sources(vehicle).values()))
+        files = []
+        for record in self.table_sources(vehicle).values():
+            files += list(record.values()) if isinstance(record, dict) else [record]
+        return list(dict.fromkeys(files))
 
     def has_kvalue(self, vehicle: str) -> bool:
         """Whether a vehicle has a steady window for the standardized static k test."""

@@ -41,7 +41,7 @@ def tidy_tables(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> dict
     """Every window of ``vehicle`` cleaned (rule ``clean``): the k window and the
     identification windows, each raw file read once."""
     sources = {
-        name: vehicle.raw_files[ingest.window_spec(vehicle.data, name)[0]]
+        name: vehicle.record(ingest.window_spec(vehicle.data, name)[0])
         for name in ingest.window_names(vehicle.data)
     }
     return ingest.clean_windows(vehicle.data, sources, workdir)

@@ -1,0 +1,345 @@
+"""A tunnel's record from three data-acquisition systems, generated here (not by the
+synthesizer): the cabin's thermocouples every 30 s with ISO times at UTC+01:00, the heater's
+power analyser every second in kW, tab-separated under `#` comment lines, its time counted from
+its own start 137 s before the loggers, and the tunnel controller every 60 s, `;`-separated
+with decimal commas, in UTC and with its clock 40 s fast. The vehicle YAML declares each system
+as a source with its own format and clock; railtherm aligns them on UTC, and the second-order
+fit finds the truth inside its intervals. Every mistake in a source is refused by name."""
+
+from __future__ import annotations
+
+import copy
+import datetime as dt
+import importlib.util
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from railtherm.config import load_vehicle
+from railtherm.errors import ConfigError, DataError
+from railtherm.study import run
+
+REPO = Path(__file__).resolve().parents[1]
+
+# the record's generator: docs/examples/three_systems.py (the worked example's), not railtherm's
+_spec = importlib.util.spec_from_file_location(
+    "three_systems", REPO / "docs" / "examples" / "three_systems.py"
+)
+three_systems = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(three_systems)
+TRUTH, MASS_KG, SURFACE_M2 = three_systems.TRUTH, three_systems.MASS_KG, three_systems.SURFACE_M2
+CABIN_START, METER_EARLY_S = three_systems.CABIN_START, three_systems.METER_EARLY_S
+TUNNEL_FAST_S = three_systems.TUNNEL_FAST_S
+write_three_systems = three_systems.write_three_systems
+
+
+# the tunnel controller's source (its clock offset aside)
+TUNNEL = {
+    "files": {"record": "tunnel.csv"},
+    "format": {
+        "separator": ";",
+        "decimal": ",",
+        "time": {"column": "Zeit", "format": "%Y-%m-%d %H:%M:%S", "timezone": "UTC"},
+    },
+}
+
+
+def meter_start() -> str:
+    """The power analyser's true start, as the engineer writes it in the YAML."""
+    return (CABIN_START - dt.timedelta(seconds=METER_EARLY_S)).isoformat()
+
+
+def vehicle_yaml(folder: Path, **changes) -> dict:
+    """The three-source vehicle config of the record in ``folder``."""
+    data = {
+        "id": "Metro9",
+        "class": "metro",
+        "mass_kg": MASS_KG,
+        "surface_m2": SURFACE_M2,
+        "sources": {
+            "cabin": {
+                "files": {"record": "cabin.csv"},
+                "format": {"time": {"column": "time", "format": "iso"}},
+            },
+            "power": {
+                "files": {"record": "power_meter.txt"},
+                "format": {
+                    "separator": "\t",
+                    "comment": "#",
+                    "time": {"column": "t_s", "format": "seconds", "start": meter_start()},
+                },
+            },
+            "tunnel": {**TUNNEL, "clock_offset_s": TUNNEL_FAST_S},
+        },
+        "channels": {
+            "indoor_air": [{"column": f"TC0{i}", "source": "cabin"} for i in range(1, 5)],
+            "surface": [{"column": f"TS0{i}", "source": "cabin"} for i in (1, 2)],
+            "outdoor_air": [{"column": f"T_Luft_{i}", "source": "tunnel"} for i in (1, 2)],
+            "heater_power": [{"column": "P_heater_kW", "unit": "kW", "source": "power"}],
+        },
+        "windows": {
+            "kvalue": {"start": "2026-03-02T08:30:00Z", "end": "2026-03-02T14:55:00Z"},
+            "identification": [
+                {"name": "run", "start": "2026-03-02T08:05:00Z", "end": "2026-03-03T13:55:00Z"}
+            ],
+        },
+        "model": {"orders": [2]},
+    }
+    data = copy.deepcopy(data)  # TUNNEL and the changes' values are shared between tests
+    for key, value in changes.items():
+        node = data
+        *path, last = key.split(".")
+        for part in path:
+            node = node[int(part)] if isinstance(node, list) else node[part]
+        if value is None:
+            del node[last]
+        else:
+            node[last] = value
+    path = folder / "Metro9.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return data
+
+
+@pytest.fixture(scope="module")
+def record(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("three_systems")
+    write_three_systems(folder)
+    return folder
+
+
+def load(folder: Path):
+    return load_vehicle(folder / "Metro9.yaml", workdir=folder)
+
+
+def test_three_systems_aligned_on_utc_are_fitted_with_the_truth_inside_the_intervals(record):
+    vehicle_yaml(record)
+    vehicle = load(record)
+    result = run.fit_vehicle(vehicle, ["order2"], workdir=record)
+    table = result.tables["run"]
+    assert table.attrs["step_s"] == 60.0  # the coarsest source's step
+    assert table["timestamp"].iloc[0] == "2026-03-02T08:05:00+00:00"
+    assert table["filled"].sum() == 0
+    k = result.kvalue
+    assert k.steady and k.usable, k.reasons
+    k_true = TRUTH["kA"] / SURFACE_M2
+    assert abs(k.k - k_true) <= 1.96 * k.u_k, (k.k, k.u_k, k_true)  # u: standard uncertainty
+    fit = result.fits["order2"]
+    assert fit.verdict == "fit acceptable", fit.reasons
+    for name in ("C", "K_veh", "C_veh"):
+        truth = TRUTH[name]
+        p = fit.parameters[name]
+        assert p.identified and p.ci95 is not None, str(p)
+        assert p.ci95[0] <= truth <= p.ci95[1], f"{p} (truth {truth:g})"
+        assert abs(p.value / truth - 1.0) < 0.05, f"{p} (truth {truth:g})"
+
+
+def test_the_clocks_as_written_shift_the_tunnel_and_the_meter(record):
+    """The same record read with the meter's start taken as the loggers' and the tunnel's
+    clock as written: the tidy tables differ where the power steps, by what the clocks say."""
+    vehicle_yaml(record)
+    aligned = run.tidy_tables(load(record), record)["run"]
+    start = CABIN_START.isoformat()
+    vehicle_yaml(record, **{"sources.power.format.time.start": start})
+    naive = run.tidy_tables(load(record), record)["run"]
+    # the first heater step (0 -> 30 kW at the cabin start) comes 137 s late in the naive table
+    gap = (naive["Q_H"] - aligned["Q_H"]).abs()
+    assert gap.max() > 10_000.0
+    assert np.allclose(naive["T"], aligned["T"])
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad sources: each refused by validation with a message that names the source and the key
+
+
+BAD = [
+    # (change, key named, words in the reason)
+    ({"channels.indoor_air.0.source": None}, "channels.indoor_air[0].source", "names its source"),
+    ({"channels.indoor_air.0.source": "cabn"}, "channels.indoor_air[0].source", "did you mean"),
+    ({"channels.outdoor_air.0.source": "cabin"}, "channels.outdoor_air[0].column", "T_Luft_1"),
+    (
+        {"channels.heater_power.0.column": "P_kW"},
+        "channels.heater_power[0].column",
+        "sources.power",
+    ),
+    ({"channels.heater_power.0.column": "t_s"}, "channels.heater_power[0].column", "time column"),
+    ({"channels.indoor_air.1.column": "TC01"}, "channels.indoor_air[1].column", "already used"),
+    ({"sources.power.format.time.start": None}, "sources.power.format.time.start", "missing"),
+    (
+        {"sources.power.format.time.start": "2026-03-02T08:57:43"},
+        "sources.power.format.time.start",
+        "no UTC offset",
+    ),
+    ({"sources.power.format.time.start": "yesterday"}, "sources.power.format.time.start", "ISO"),
+    (
+        {"sources.power.format.time.timezone": "UTC"},
+        "sources.power.format.time.timezone",
+        "elapsed time",
+    ),
+    (
+        {"sources.cabin.format.time.start": "2026-03-02T09:00:00+01:00"},
+        "sources.cabin.format.time.start",
+        "only for elapsed",
+    ),
+    (
+        {"sources.tunnel.format.time.timezone": None},
+        "sources.tunnel.format.time.timezone",
+        "no UTC offset",
+    ),
+    (
+        {"sources.tunnel.format.time.timezone": "Europe/Berln"},
+        "sources.tunnel.format.time.timezone",
+        "did you mean",
+    ),
+    ({"sources.tunnel.format.separator": ","}, "sources.tunnel.format.decimal", "must differ"),
+    (
+        {"sources.tunnel.format.time.column": "Time"},
+        "sources.tunnel.format.time.column",
+        "tunnel.csv",
+    ),
+    (
+        {"sources.tunnel.format.time.format": "iso8601"},
+        "sources.tunnel.format.time.format",
+        "must be",
+    ),
+    ({"sources.tunnel.files": {"record": "tunel.csv"}}, "sources.tunnel.files.record", "not found"),
+    ({"sources.tunnel.files": {"run": "tunnel.csv"}}, "sources.tunnel.files", "same parts"),
+    ({"sources.tunnel.files": {}}, "sources.tunnel.files", "at least 1"),
+    ({"sources.tunnel.clock_offset_s": "40 s"}, "sources.tunnel.clock_offset_s", "number"),
+    ({"sources.tunnel.clock_offset_s": 86400.0 * 3}, "sources", "do not overlap"),
+    ({"sources.power.format.time.start": "2026-03-09T08:57:43+01:00"}, "sources", "do not overlap"),
+    ({"sources.tunnel.colour": "red"}, "sources.tunnel.colour", "unknown key"),
+    ({"sources.tunnel.format": None}, "sources.tunnel.format", "missing required key"),
+    (
+        {
+            "sources.1tunnel": {
+                "files": {"record": "tunnel.csv"},
+                "format": {"time": {"column": "Zeit", "format": "iso"}},
+            }
+        },
+        "sources.1tunnel",
+        "invalid name",
+    ),
+    (
+        {"sources.spare": TUNNEL},
+        "sources.spare",
+        "no channel names",
+    ),
+    ({"raw_files": {"record": "cabin.csv"}}, "raw_files", "remove raw_files"),
+    ({"format": {"time": {"column": "time", "format": "iso"}}}, "format", "remove format"),
+    ({"sources": None}, "raw_files", "missing required key"),
+    (
+        {"windows.identification.0.start": "2026-03-02T07:00:00Z"},
+        "windows.identification[0].start",
+        "outside the data",
+    ),
+    (
+        {"windows.identification.0.end": "2026-03-04T00:00:00+01:00"},
+        "windows.identification[0].end",
+        "outside the data",
+    ),
+    ({"windows.identification.0.start": 300}, "windows.identification[0].start", "ISO 8601"),
+]
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize("change, key, words", BAD, ids=[b[1] + ":" + b[2] for b in BAD])
+def test_a_bad_source_is_refused_naming_the_source_and_the_key(record, change, key, words):
+    vehicle_yaml(record, **change)
+    with pytest.raises(ConfigError) as err:
+        load(record)
+    assert err.value.key == key, str(err.value)
+    assert words in str(err.value), str(err.value)
+
+
+@pytest.mark.bad_input
+def test_a_channel_source_on_a_single_file_record_is_refused(tmp_path):
+    folder = tmp_path / "one"
+    paths = write_three_systems(folder)
+    data = {
+        "id": "Metro9",
+        "class": "metro",
+        "mass_kg": MASS_KG,
+        "surface_m2": SURFACE_M2,
+        "raw_files": {"record": paths["cabin"].name},
+        "format": {"time": {"column": "time", "format": "iso"}},
+        "channels": {
+            "indoor_air": [{"column": "TC01", "source": "cabin"}],
+            "outdoor_air": [{"column": "TC02"}],
+            "heater_power": [{"column": "TC03", "unit": "W"}],
+        },
+        "windows": {
+            "kvalue": {"start": "2026-03-02T08:30:00Z", "end": "2026-03-02T14:55:00Z"},
+            "identification": [
+                {
+                    "name": "run",
+                    "start": "2026-03-02T09:05:00+01:00",
+                    "end": "2026-03-02T20:00:00+01:00",
+                }
+            ],
+        },
+    }
+    (folder / "Metro9.yaml").write_text(yaml.safe_dump(data), encoding="utf-8")
+    with pytest.raises(ConfigError) as err:
+        load(folder)
+    assert err.value.key == "channels.indoor_air[0].source"
+    assert "declare it under sources" in str(err.value)
+
+
+@pytest.mark.bad_input
+def test_a_bad_value_in_one_source_names_that_file_and_its_line(record, tmp_path):
+    folder = tmp_path / "bad"
+    folder.mkdir()
+    for name in ("cabin.csv", "power_meter.txt", "tunnel.csv"):
+        (folder / name).write_bytes((record / name).read_bytes())
+    lines = (folder / "tunnel.csv").read_text(encoding="utf-8").splitlines()
+    lines[100] = lines[100].split(";")[0] + ";x17;-10,0"
+    (folder / "tunnel.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    vehicle_yaml(folder)
+    with pytest.raises(DataError) as err:
+        run.tidy_tables(load(folder), folder)
+    assert "tunnel.csv" in str(err.value) and "T_Luft_1" in str(err.value)
+
+
+def test_validate_checks_the_record_and_the_workflow_plans_its_three_files(
+    record, monkeypatch, capsys
+):
+    """`railtherm validate` reads the three systems' values as the clean job will; the
+    workflow's clean job takes all three files as its input."""
+    from snakemake_run import snakemake
+
+    from railtherm.cli import main
+
+    vehicle_yaml(record)
+    monkeypatch.chdir(record)
+    assert main(["validate", "Metro9.yaml"]) == 0, capsys.readouterr().err
+    assert "values of 2 windows checked" in capsys.readouterr().out
+    (record / "config").mkdir(exist_ok=True)
+    study = {"vehicles": ["Metro9.yaml"], "sindy": {"enabled": False}}
+    (record / "config" / "config.yaml").write_text(yaml.safe_dump(study), encoding="utf-8")
+    run_ = snakemake(record, "--dry-run", "results/vehicles/Metro9/clean/run.csv")
+    assert run_.returncode == 0, run_.stderr[-2000:]
+    planned = run_.stdout + run_.stderr
+    for name in ("cabin.csv", "power_meter.txt", "tunnel.csv"):
+        assert name in planned, planned[-2000:]
+
+
+def test_a_clock_left_undeclared_is_found_and_puts_the_fit_in_doubt(record):
+    """The meter's start taken as the loggers' (its 137 s early start left undeclared): the
+    profile of the fit over shifts of the meter's columns finds its offset within 30 s, and
+    the verdict names the key to declare; declared, the flag is gone."""
+    vehicle_yaml(record, **{"sources.power.format.time.start": CABIN_START.isoformat()})
+    fit = run.fit_vehicle(load(record), ["order2"], workdir=record).fits["order2"]
+    power = fit.data["clocks"]["power"]
+    assert abs(power["offset_s"] - METER_EARLY_S) <= 30.0, power
+    assert power["significant"], power
+    assert fit.verdict != "fit acceptable"
+    declared = [re.search(r"sources\.power\.clock_offset_s: (\d+)", r) for r in fit.reasons]
+    assert any(m and abs(int(m.group(1)) - METER_EARLY_S) <= 30 for m in declared), fit.reasons
+    assert power["ci95"][0] <= METER_EARLY_S <= power["ci95"][1], power
+    vehicle_yaml(record)
+    fit = run.fit_vehicle(load(record), ["order2"], workdir=record).fits["order2"]
+    assert fit.verdict == "fit acceptable", fit.reasons
+    assert abs(fit.data["clocks"]["power"]["offset_s"]) < 30.0
