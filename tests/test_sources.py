@@ -76,7 +76,7 @@ def vehicle_yaml(folder: Path, **changes) -> dict:
         },
         "channels": {
             "indoor_air": [{"column": f"TC0{i}", "source": "cabin"} for i in range(1, 5)],
-            "surface": [{"column": f"TS0{i}", "source": "cabin"} for i in (1, 2)],
+            "surface": [{"column": f"T_Wand_{i}", "source": "cabin"} for i in (1, 2)],
             "outdoor_air": [{"column": f"T_Luft_{i}", "source": "tunnel"} for i in (1, 2)],
             "heater_power": [{"column": "P_heater_kW", "unit": "kW", "source": "power"}],
         },
@@ -343,3 +343,54 @@ def test_a_clock_left_undeclared_is_found_and_puts_the_fit_in_doubt(record):
     fit = run.fit_vehicle(load(record), ["order2"], workdir=record).fits["order2"]
     assert fit.verdict == "fit acceptable", fit.reasons
     assert abs(fit.data["clocks"]["power"]["offset_s"]) < 30.0
+
+
+def test_new_vehicle_on_the_three_files_writes_a_yaml_that_fits_once_its_todos_are_filled(
+    tmp_path, capsys
+):
+    """`railtherm new-vehicle cabin.csv power_meter.txt tunnel.csv`: one source per file with
+    its separator, decimal mark, comment lines and time column detected, the channels guessed
+    by name (TC01, T_Wand, T_Luft, P_heater_kW) naming their source, and TODOs for what the
+    files cannot tell: the class, mass, surface and the meter's start. Filled in (the tunnel
+    clock's 40 s left as written), the YAML validates and the second-order fit holds the truth
+    inside its intervals."""
+    from railtherm.cli import main
+
+    folder = tmp_path / "lab"
+    paths = write_three_systems(folder)
+    out = folder / "Metro9.yaml"
+    raws = [str(paths[n]) for n in ("cabin", "power", "tunnel")]
+    assert main(["new-vehicle", *raws, "--id", "Metro9", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    todo_keys = re.findall(r"^  ([\w.]+): ", printed.split("TODO", 1)[1], re.M)
+    assert todo_keys == [
+        "class",
+        "mass_kg",
+        "surface_m2",
+        "sources.power_meter.format.time.start",
+    ], printed
+    data = yaml.safe_load(out.read_text(encoding="utf-8"))
+    assert data["sources"]["power_meter"]["format"]["comment"] == "#"
+    assert data["sources"]["power_meter"]["format"]["separator"] == "\t"
+    assert data["sources"]["tunnel"]["format"]["decimal"] == ","
+    channels = {g: [(c["column"], c["source"]) for c in v] for g, v in data["channels"].items()}
+    assert channels["outdoor_air"] == [("T_Luft_1", "tunnel"), ("T_Luft_2", "tunnel")]
+    assert channels["heater_power"] == [("P_heater_kW", "power_meter")]
+    assert len(channels["indoor_air"]) == 4 and len(channels["surface"]) == 2
+    text = out.read_text(encoding="utf-8")
+    for key, value in (
+        ("class", "metro"),
+        ("mass_kg", f"{MASS_KG:g}"),
+        ("surface_m2", f"{SURFACE_M2:g}"),
+        ("start", f'"{meter_start()}"'),
+    ):
+        text, n = re.subn(rf"^(\s*){key}: TODO.*$", rf"\g<1>{key}: {value}", text, flags=re.M)
+        assert n == 1, key
+    assert "TODO" not in re.sub(r"#.*", "", text)
+    out.write_text(text, encoding="utf-8")
+    result = run.fit_vehicle(load_vehicle(out, workdir=folder), ["order2"], workdir=folder)
+    fit = result.fits["order2"]
+    for name, truth in TRUTH.items():
+        p = fit.parameters[name]
+        assert p.identified and p.ci95 is not None, str(p)
+        assert p.ci95[0] <= truth <= p.ci95[1], f"{p} (truth {truth:g})"

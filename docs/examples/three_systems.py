@@ -80,7 +80,7 @@ def write_three_systems(folder: Path, seed: int = 5) -> dict[str, Path]:
     folder.mkdir(parents=True, exist_ok=True)
     # cabin loggers: every 30 s from the cabin start, ISO at +01:00, four air and two surface
     # thermocouples with small offsets and noise
-    rows = ["time,TC01,TC02,TC03,TC04,TS01,TS02"]
+    rows = ["time,TC01,TC02,TC03,TC04,T_Wand_1,T_Wand_2"]
     offsets = [0.05, -0.04, 0.02, -0.03, 0.04, -0.04]
     for s in np.arange(0.0, HOURS * 3600.0 + 1.0, 30.0):
         i = int(s - t[0])

@@ -49,7 +49,7 @@ import re
 import sys
 import zlib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -96,7 +96,9 @@ TIME_FORMATS = ("seconds", "iso", *timeaxis.COMMON_PATTERNS)
 UNIX_TIME_S = (1e8, 1e10)  # numbers in this range look like Unix time (1973 to 2286)
 SERIAL_DAYS = (2e4, 8e4)  # and these, with a step below a day, like spreadsheet dates
 # Channel groups in the order a name is tried: the more specific words first (a wall
-# temperature is not the indoor air, a fan power is not the heater's). Names are lowercased
+# temperature is not the indoor air, a fan power is not the heater's, the cabin's air is not
+# the tunnel's: "Innenluft" is indoor, "T_Luft" alone the tunnel's). A thermocouple numbered
+# alone (TC01) is taken for the cabin air. Names are lowercased
 # and German umlauts spelt out (Außen -> aussen, Lüfter -> luefter) before matching; short
 # symbols such as T_in must stand alone ("Zeit_in" is not T_in).
 _ALONE_BEFORE, _ALONE_AFTER = r"(?<![a-z])", r"(?![a-z])"
@@ -109,17 +111,17 @@ CHANNEL_WORDS: tuple[tuple[str, re.Pattern[str]], ...] = (
     ("fan_power", re.compile(r"fan|luefter|geblaese")),
     ("heater_power", re.compile(rf"{_ALONE_BEFORE}p_?hea|heat|heiz|power|leistung")),
     (
-        "outdoor_air",
-        re.compile(
-            rf"{_ALONE_BEFORE}t_?(ext|out|amb|o){_ALONE_AFTER}|aussen|outdoor|outside|ambient"
-            r"|umgebung|kanal|tunnel|chamber|kammer"
-        ),
-    ),
-    (
         "indoor_air",
         re.compile(
             rf"{_ALONE_BEFORE}t_?(int|in|i){_ALONE_AFTER}|innen|cabin|kabine|indoor|inside"
-            r"|interior|raum|fahrgast"
+            rf"|interior|raum|fahrgast|{_ALONE_BEFORE}tc_?\d"
+        ),
+    ),
+    (
+        "outdoor_air",
+        re.compile(
+            rf"{_ALONE_BEFORE}t_?(ext|out|amb|o){_ALONE_AFTER}|aussen|outdoor|outside|ambient"
+            r"|umgebung|kanal|tunnel|chamber|kammer|luft"
         ),
     ),
 )
@@ -169,6 +171,7 @@ class Channel:
     column: str
     unit: str | None = None
     note: str = ""
+    source: str | None = None  # of several sources: the one whose file holds the column
 
 
 # ---------------------------------------------------------------------------------------------
@@ -634,7 +637,10 @@ def _metadata(vid: str, from_file_name: bool, todos: _Todos) -> list[str]:
     return [*lines, ""]
 
 
-def _format(found: Detected, todos: _Todos) -> list[str]:
+def _format(found: Detected, todos: _Todos, prefix: str = "", multi: bool = False) -> list[str]:
+    """The ``format`` section of one file; ``prefix`` goes before the keys of its TODOs (a
+    source's ``sources.<name>.``), ``multi``: the file is one of several sources (its time
+    must be placed on UTC)."""
     layout = found.layout
     lines = ["format:"]
     if found.kind == "csv":
@@ -657,13 +663,15 @@ def _format(found: Detected, todos: _Todos) -> list[str]:
         first = "# the first column (no name looks like time): check"
         why = GUESSED if found.time_by_name else first
         lines.append(_comment_line(f"    column: {_scalar(found.time_column)}", why))
-        lines += _time_format_lines(layout, found, todos)
+        lines += _time_format_lines(layout, found, todos, prefix, multi)
         if layout.step_s:
             lines.append(f"    # logger step: {layout.step_s:g} s (the median time difference)")
     elif not found.time_column_known:
-        column = todos.add("format.time.column", f"name the time column ({found.time_problem})")
+        column = todos.add(
+            f"{prefix}format.time.column", f"name the time column ({found.time_problem})"
+        )
         form = todos.add(
-            "format.time.format",
+            f"{prefix}format.time.format",
             "the notation of that column: iso, a strftime pattern, seconds, minutes, hours, "
             "days, epoch or serial_days",
         )
@@ -676,15 +684,21 @@ def _format(found: Detected, todos: _Todos) -> list[str]:
             "serial_days)"
         )
         lines.append(_comment_line(f"    column: {_scalar(found.time_column)}", GUESSED))
-        lines.append(_comment_line(f"    format: {TODO}", todos.add("format.time.format", meaning)))
+        lines.append(
+            _comment_line(f"    format: {TODO}", todos.add(f"{prefix}format.time.format", meaning))
+        )
     return [*lines, ""]
 
 
-def _time_format_lines(layout: RawLayout, found: Detected, todos: _Todos) -> list[str]:
+def _time_format_lines(
+    layout: RawLayout, found: Detected, todos: _Todos, prefix: str = "", multi: bool = False
+) -> list[str]:
     """``format:`` of the time column with what to check, and for instants written without a
     UTC offset the ``timezone``/``dst`` lines of a logger clock on local time: declared when
     the record repeats an hour (the end of summer time), with the zone its column's name
-    states or a TODO; else commented, with that zone or an example."""
+    states or a TODO; else commented, with that zone or an example. One of several sources
+    (``multi``) must be placed on UTC: its elapsed time gets a TODO for its ``start``, its
+    instants without an offset the zone its name states or UTC, guessed."""
     tf = timeaxis.time_format(layout.time_format)
     note = "# detected: every value parses"
     if tf.format == "seconds":
@@ -708,7 +722,7 @@ def _time_format_lines(layout: RawLayout, found: Detected, todos: _Todos) -> lis
         else:
             meaning = f"the logger clock's IANA time zone ({said[2:]})"
             zone = _comment_line(
-                f"    timezone: {TODO}", todos.add("format.time.timezone", meaning)
+                f"    timezone: {TODO}", todos.add(f"{prefix}format.time.timezone", meaning)
             )
         lines += [
             zone,
@@ -716,6 +730,22 @@ def _time_format_lines(layout: RawLayout, found: Detected, todos: _Todos) -> lis
                 "    dst: infer", "# the repeated hour read in order: first summer, then winter"
             ),
         ]
+    elif tf.absolute and not offset and multi:
+        said = "the zone the name states" if found.zone else "no UTC offset written: UTC"
+        lines.append(
+            _comment_line(
+                f"    timezone: {found.zone or 'UTC'}",
+                f"# guessed ({said}); this system's clock must be placed on UTC: check",
+            )
+        )
+    elif not tf.absolute and multi:
+        meaning = (
+            "the instant this elapsed time's zero stands for (the system's start), ISO 8601 "
+            "with its UTC offset, e.g. 2026-03-02T08:57:43+01:00"
+        )
+        lines.append(
+            _comment_line(f"    start: {TODO}", todos.add(f"{prefix}format.time.start", meaning))
+        )
     elif tf.absolute and not offset:
         example = found.zone or "Europe/Berlin"
         lines += [
@@ -730,8 +760,19 @@ def _time_format_lines(layout: RawLayout, found: Detected, todos: _Todos) -> lis
     return lines
 
 
-def _channels(found: Detected, todos: _Todos) -> list[str]:
-    groups, unmapped = guess_channels(found)
+def _channels(found: Detected | Mapping[str, Detected], todos: _Todos) -> list[str]:
+    """The ``channels`` section guessed from the column names: of one file, or of several
+    sources ({source name: what was found}), each entry then naming its source."""
+    if isinstance(found, Detected):
+        groups, unmapped = guess_channels(found)
+    else:
+        groups = {g: [] for g in GROUP_ORDER}
+        unmapped = []
+        for name, one in found.items():
+            guessed, left = guess_channels(one)
+            for group, channels in guessed.items():
+                groups[group] += [replace(c, source=name) for c in channels]
+            unmapped += [f"{column} ({name})" for column in left]
     block: list[tuple[str, str]] = []  # (entry, comment), the comments aligned
     for group in GROUP_ORDER:
         channels = groups[group]
@@ -745,6 +786,8 @@ def _channels(found: Detected, todos: _Todos) -> list[str]:
             entry = f"column: {_scalar(channel.column)}"
             if channel.unit is not None:
                 entry += f", unit: {_scalar(channel.unit)}"
+            if channel.source is not None:
+                entry += f", source: {_scalar(channel.source)}"
             block.append((f"    - {{{entry}}}", f"{GUESSED} ({channel.note})"))
     width = max(30, *(len(entry) for entry, comment in block if comment))
     lines = ["channels:", *(_comment_line(entry, comment, width) for entry, comment in block)]
@@ -778,6 +821,20 @@ def _windows(found: Detected, todos: _Todos) -> list[str]:
     return [*lines, ""]
 
 
+def _check_inputs(paths: list[str], vehicle_id: str | None) -> None:
+    """Every raw file exists; an id given is one the schema accepts."""
+    for path in paths:
+        if not os.path.isfile(path):
+            raise ConfigError(path, "(file)", path, "file not found")
+    if vehicle_id is not None and not NAME_PATTERN.match(vehicle_id):
+        raise ConfigError(
+            "--id",
+            "id",
+            vehicle_id,
+            "must start with a letter and contain only letters, digits, _ or -",
+        )
+
+
 def starter_vehicle(
     raw_path: str | os.PathLike[str],
     vehicle_id: str | None = None,
@@ -794,15 +851,7 @@ def starter_vehicle(
     every TODO is filled. The keys come in the schema's order.
     """
     path = str(raw_path)
-    if not os.path.isfile(path):
-        raise ConfigError(path, "(file)", path, "file not found")
-    if vehicle_id is not None and not NAME_PATTERN.match(vehicle_id):
-        raise ConfigError(
-            "--id",
-            "id",
-            vehicle_id,
-            "must start with a letter and contain only letters, digits, _ or -",
-        )
+    _check_inputs([path], vehicle_id)
     found = detect(path, given)
     stem = _stem(path)
     yaml_dir = os.path.abspath(yaml_dir if yaml_dir is not None else os.getcwd())
@@ -816,6 +865,102 @@ def starter_vehicle(
         *_format(found, todos),
         *_channels(found, todos),
         *_windows(found, todos),
+        "# model:                       # optional; the study's defaults.model applies",
+        "#   mode: joint                # kA estimated with the capacities: for a record",
+        "#                              # without a steady window (windows.kvalue)",
+    ]
+    return "\n".join(lines) + "\n", list(todos)
+
+
+def _utc_span(found: Detected) -> tuple[pd.Timestamp, pd.Timestamp] | None:
+    """A file's first and last time in UTC: instants with their offset, or without one in
+    the zone its time column's name states, else in UTC (as the starter proposes); None for
+    elapsed time (its start is the user's to give) or times not understood."""
+    layout = found.layout
+    if layout is None or not layout.absolute:
+        return None
+    span = []
+    for t in (layout.t_first, layout.t_last):
+        t = pd.Timestamp(t)
+        t = t.tz_localize(found.zone or "UTC") if t.tzinfo is None else t
+        span.append(t.tz_convert("UTC"))
+    return span[0], span[1]
+
+
+def starter_sources(
+    raw_paths: list[str],
+    vehicle_id: str | None = None,
+    yaml_dir: str | os.PathLike[str] | None = None,
+    given: Mapping[str, Any] | None = None,
+) -> tuple[str, list[str]]:
+    """The text of a starter vehicle YAML for a record of several files, one source per file
+    (:mod:`railtherm.data.sources`), and its TODO list: each file's reader settings and time
+    column detected as :func:`starter_vehicle` does, its channels guessed by name and naming
+    their source, an elapsed time given a TODO for its start, instants without an offset a
+    guessed zone (UTC, or the one the column's name states), and the identification window
+    the span every file with dates covers (UTC)."""
+    _check_inputs(raw_paths, vehicle_id)
+    yaml_dir = os.path.abspath(yaml_dir if yaml_dir is not None else os.getcwd())
+    found: dict[str, Detected] = {}
+    for i, path in enumerate(raw_paths):
+        name = _name_from(_stem(path), f"source{i + 1}")
+        while name in found:
+            name += "_2"
+        found[name] = detect(path, given)
+    todos = _Todos()
+    lines = [
+        "# Starter vehicle file written by `railtherm new-vehicle` from a record of "
+        f"{len(found)} systems, one source each:",
+    ]
+    for name, one in found.items():
+        detected = [line for line in _header(one)[1:4] if line.startswith("# ")]
+        lines += [f"# sources.{name}:", *(f"#  {line[1:]}" for line in detected)]
+    lines += [
+        "# Fill in every TODO and check every line marked 'guessed', then run",
+        "#   railtherm validate <this file>",
+        "# Every key is explained in config/README.md.",
+        "",
+    ]
+    lines += _metadata(vehicle_id or "V", False, todos)
+    lines.append("sources:                       # one per data-acquisition system")
+    for name, one in found.items():
+        section = _format(one, todos, prefix=f"sources.{name}.", multi=True)
+        lines += [
+            f"  {name}:",
+            "    files:                     # relative to the directory of this file",
+            f"      record: {_scalar(_raw_path(one.path, yaml_dir))}",
+            *(f"    {line}" if line else line for line in section[:-1]),
+            "    # clock_offset_s: 0         # how far this system's clock runs ahead of true "
+            "time (s)",
+        ]
+    lines.append("")
+    lines += _channels(found, todos)
+    spans = [span for span in map(_utc_span, found.values()) if span is not None]
+    lines += [
+        "windows:                        # instants, ISO 8601 (without an offset: UTC)",
+        "  # kvalue:                    # TODO (optional): the steady part of the test for",
+        "  #   start: ...               # the static k test (eq. 10); only you can choose it",
+        "  #   end: ...",
+    ]
+    if spans:
+        first = max(a for a, _ in spans).strftime("%Y-%m-%dT%H:%M:%SZ")
+        last = min(b for _, b in spans).strftime("%Y-%m-%dT%H:%M:%SZ")
+        lines += [
+            "  identification:              # the span every file with dates covers",
+            "    - name: whole",
+            f"      start: {_scalar(first)}",
+            f"      end: {_scalar(last)}",
+        ]
+    else:
+        meaning = "the window's start and end, as ISO 8601 instants"
+        lines += [
+            "  identification:",
+            "    - name: whole",
+            _comment_line(f"      start: {TODO}", todos.add("windows.identification", meaning)),
+            f"      end: {TODO}",
+        ]
+    lines += [
+        "",
         "# model:                       # optional; the study's defaults.model applies",
         "#   mode: joint                # kA estimated with the capacities: for a record",
         "#                              # without a steady window (windows.kvalue)",
@@ -838,7 +983,10 @@ def _run(args: argparse.Namespace) -> int:
     if sheet is not None and sheet.isdigit():
         sheet = int(sheet)  # a position, counted from 0, as format.sheet
     given = {"sheet": sheet, "header_row": args.header_row, "encoding": args.encoding}
-    text, todos = starter_vehicle(args.raw, args.id, yaml_dir, given)
+    if len(args.raw) > 1:
+        text, todos = starter_sources(args.raw, args.id, yaml_dir, given)
+    else:
+        text, todos = starter_vehicle(args.raw[0], args.id, yaml_dir, given)
     listing = [f"  {t}" for t in todos]
     if out is None:
         sys.stdout.write(text)
@@ -877,7 +1025,9 @@ def register(commands: Any) -> None:
     parser.add_argument(
         "raw",
         metavar="RAW",
-        help="raw logger file: .csv/.txt (or .gz), .xlsx/.xls, .mat, .rda/.rds",
+        nargs="+",
+        help="raw logger file: .csv/.txt (or .gz), .xlsx/.xls, .mat, .rda/.rds; several files "
+        "(one per data-acquisition system of one record) give one source each",
     )
     parser.add_argument(
         "--sheet", help="a workbook's sheet: its name or position from 0 (default: found)"
