@@ -394,3 +394,16 @@ def test_new_vehicle_on_the_three_files_writes_a_yaml_that_fits_once_its_todos_a
         p = fit.parameters[name]
         assert p.identified and p.ci95 is not None, str(p)
         assert p.ci95[0] <= truth <= p.ci95[1], f"{p} (truth {truth:g})"
+
+
+@pytest.mark.bad_input
+def test_two_sources_with_one_name_are_refused_naming_it(record):
+    """A source declared twice under one name (a copied block left unrenamed) is refused by
+    the YAML loader, naming the key, rather than one of them silently winning."""
+    vehicle_yaml(record)
+    text = (record / "Metro9.yaml").read_text(encoding="utf-8")
+    block = text[text.index("  tunnel:\n") : text.index("channels:")]
+    (record / "Metro9.yaml").write_text(text.replace(block, block + block), encoding="utf-8")
+    with pytest.raises(ConfigError) as err:
+        load(record)
+    assert "duplicate key 'tunnel' (first at line" in str(err.value), str(err.value)
