@@ -21,20 +21,21 @@ REPO = Path(__file__).resolve().parents[1]
 PACKAGE = REPO / "railtherm"
 ARMADILLO = REPO / "validation" / "config" / "vehicles" / "Armadillo_zoh.yaml"
 NEW = "envelope_copy"  # the new structure's key: its module's file name
+RENAMED = ("K_o", "K_w")  # a parameter of the copy renamed to a name no schema file contains
 
 
 def package_with_new_structure(tmp_path: Path) -> Path:
     """A copy of the package (with the workflow beside it, as in the repository) with
-    ``structures/interior_envelope.py`` copied unchanged to ``structures/envelope_copy.py``:
-    no other file of the copy differs from the repository's."""
+    ``structures/interior_envelope.py`` copied to ``structures/envelope_copy.py``, its
+    conductance K_o renamed K_w: no other file of the copy differs from the repository's."""
     root = tmp_path / "pkg"
     shutil.copytree(PACKAGE, root / "railtherm", ignore=shutil.ignore_patterns("__pycache__"))
     for folder in ("workflow", "profiles"):
         shutil.copytree(REPO / folder, root / folder, ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copyfile(REPO / "Snakefile", root / "Snakefile")
-    shutil.copyfile(
-        PACKAGE / "structures" / "interior_envelope.py",
-        root / "railtherm" / "structures" / f"{NEW}.py",
+    text = (PACKAGE / "structures" / "interior_envelope.py").read_text(encoding="utf-8")
+    (root / "railtherm" / "structures" / f"{NEW}.py").write_text(
+        text.replace(*RENAMED), encoding="utf-8"
     )
     return root
 
@@ -127,10 +128,14 @@ def test_two_structures_under_one_key_are_refused(tmp_path):
 @pytest.mark.workflow
 def test_a_structure_added_as_one_file_is_fitted_by_the_cli_and_the_workflow(tmp_path):
     """The acceptance check of the registry: in a copy of the package with one module added
-    (a copy of interior_envelope.py under the key envelope_copy) and no other file changed,
-    ``railtherm fit`` and ``snakemake`` fit it for a vehicle that asks for it, models.md has
-    its row and the vehicle its fit figure. The installed package does not know the key."""
+    (a copy of interior_envelope.py under the key envelope_copy, one parameter renamed to a
+    name no schema file contains) and no other file changed, ``railtherm fit`` and
+    ``snakemake`` fit it for a vehicle that asks for it and gives the renamed parameter a
+    start value and bounds, models.md has its row and the vehicle its fit figure. The
+    installed package does not know the key."""
     root = package_with_new_structure(tmp_path)
+    schemas = " ".join(p.read_text() for p in (PACKAGE / "schemas").glob("*.yaml"))
+    assert RENAMED[1] not in schemas
     changed = [
         p.relative_to(root / "railtherm")
         for p in (root / "railtherm").rglob("*")
@@ -141,13 +146,19 @@ def test_a_structure_added_as_one_file_is_fitted_by_the_cli_and_the_workflow(tmp
     assert changed == [Path("structures") / f"{NEW}.py"]
     study = study_asking_for(tmp_path, NEW)
     vehicle = "config/vehicles/Box.yaml"
+    box = yaml.safe_load((study / vehicle).read_text())
+    box["model"]["initial"] = {RENAMED[1]: 900.0}
+    box["model"]["bounds"] = {RENAMED[1]: [0.5, 2.0e5]}
+    (study / vehicle).write_text(yaml.safe_dump(box))
 
     refused = run(["-m", "railtherm", "validate", vehicle], study, None)
-    assert refused.returncode != 0 and "model.structures" in refused.stderr + refused.stdout
+    said = refused.stderr + refused.stdout  # the installed package knows neither name
+    assert refused.returncode != 0 and ("model.structures" in said or RENAMED[1] in said), said
 
     fit = run(["-m", "railtherm", "fit", vehicle], study, root)
     assert fit.returncode == 0, fit.stderr[-3000:]
     assert NEW in fit.stdout and "K_i" in fit.stdout and "C_e" in fit.stdout
+    assert f"{RENAMED[1]} = " in fit.stdout, fit.stdout
 
     workflow = run(
         ["-m", "snakemake", "--snakefile", str(root / "Snakefile"), "--cores", "2"], study, root
@@ -161,6 +172,7 @@ def test_a_structure_added_as_one_file_is_fitted_by_the_cli_and_the_workflow(tmp
         (study / "results" / "vehicles" / "Box" / f"fit_{NEW}.yaml").read_text()
     )
     assert fitted["structure"] == fitted["model"] == NEW
+    assert RENAMED[1] in fitted["parameters"] and RENAMED[0] not in fitted["parameters"]
 
 
 def test_the_interior_fittings_structure_recovers_its_truth():
