@@ -41,7 +41,7 @@ import pandas as pd
 
 from railtherm import codedigest, structures
 from railtherm.data import sources, timeaxis, units
-from railtherm.data.ingest import irradiance_names
+from railtherm.data.ingest import CHANNEL_GROUPS, irradiance_names
 from railtherm.data.rawfile import (
     MAX_RAW_ROWS,
     MAX_ROWS,
@@ -78,15 +78,6 @@ __all__ = [
     "vehicle_schema",
 ]
 
-CHANNEL_GROUPS = (
-    "indoor_air",
-    "surface",
-    "outdoor_air",
-    "heater_power",
-    "fan_power",
-    "heat_flows",
-    "irradiance",
-)
 DEFAULT_ORDERS = (1, 2)  # the paper's two models, when model.orders is not given
 # Parameters model.initial and model.bounds name, besides the solar ones of the vehicle's
 # irradiance inputs I_<name>: a_I_<name> and, for a gain on both nodes, f_I_<name>.

@@ -119,3 +119,28 @@ def test_the_estimation_layer_passes_no_bare_dicts_of_results():
                 if p in results and ("dict" in text or "Mapping" in text):
                     offending.append(f"{module.__name__}.{name}({p}: {text})")
     assert not offending, offending
+
+
+def test_the_layers_of_the_architecture_hold_and_the_doc_lists_the_contracts_exceptions():
+    """import-linter's contract (pyproject.toml) is kept, imports inside functions included,
+    and docs/architecture.md names exactly the imports the contract lets a layer make upwards."""
+    import re
+    import shutil
+    import tomllib
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    lint = shutil.which("lint-imports", path=str(Path(sys.executable).parent))
+    assert lint, "import-linter is in the test extra (pyproject.toml)"
+    run = subprocess.run([lint], cwd=repo, capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout[-3000:]
+    config = tomllib.loads((repo / "pyproject.toml").read_text(encoding="utf-8"))
+    contracts = config["tool"]["importlinter"]["contracts"]
+    ignored = {i for c in contracts for i in c.get("ignore_imports", [])}
+    shown = {
+        f"railtherm.{a} -> railtherm.{b}"
+        for a, b in re.findall(
+            r"`([a-z.]+) -> ([a-z.*]+)`", (repo / "docs" / "architecture.md").read_text()
+        )
+    }
+    assert shown == ignored

@@ -135,6 +135,8 @@ POWER_GROUPS = ("heater_power", "fan_power")
 HOLD_ERROR_SUFFIX = "_hold_error"
 KNOWN_HEAT = "heat_flows"  # eq. 1's known heat flows (W), summed into Q_H
 IRRADIANCE = "irradiance"  # W/m2, one model input per channel
+# every channel group of a vehicle config, in the schema's order
+CHANNEL_GROUPS = (*TEMPERATURE_GROUPS, *POWER_GROUPS, KNOWN_HEAT, IRRADIANCE)
 
 
 def input_hold(vehicle_data: Mapping[str, Any]) -> str:

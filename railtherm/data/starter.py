@@ -56,8 +56,8 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from railtherm.config import CHANNEL_GROUPS
 from railtherm.data import timeaxis, units
+from railtherm.data.ingest import CHANNEL_GROUPS
 from railtherm.data.rawfile import (
     RawLayout,
     csv_error,
