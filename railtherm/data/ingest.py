@@ -676,39 +676,10 @@ def _part_groups(
     return groups
 
 
-def tidy(
-    raw: pd.DataFrame | Mapping[str, pd.DataFrame],
-    vehicle_data: dict[str, Any],
-    window: dict[str, Any] | None,
-    file: str,
-    window_key: str | None = None,
-) -> pd.DataFrame:
-    """The tidy table (module docstring) of one window of a raw file read by :func:`read_raw`,
-    or of a record of several sources read by :func:`read_record_part`
-    (``raw`` then maps each source to its table on the record's UTC axis).
-
-    ``vehicle_data`` is the validated vehicle config as plain data (``Vehicle.data``);
-    ``window`` is a window of it (``start``/``end`` in the file's time notation, or ISO 8601
-    for a file of instants or a record of sources; :func:`railtherm.data.timeaxis.instant`) or
-    ``None`` for the whole recording (with sources: the span every source covers); ``file``
-    names the raw file (or the record) in messages, ``window_key`` the window (default: found
-    in ``vehicle_data``, e.g. ``windows.kvalue``).
-
-    With sources, each source is gap-filled on its own time axis and averaged over each tidy
-    step on its own (:func:`_bin_means`, :func:`_power_means`); a group's mean then weights
-    every channel of every source, powers add up across sources, and a row is ``filled`` when
-    any source's samples in it were. The default step is the coarsest source's logger step.
-
-    Raises :class:`DataError` for a missing channel (file, column), a value that is no number,
-    a gap longer than ``cleaning.max_gap_s`` (file, column, time); :class:`ConfigError` for a
-    window outside the data (file, the window's start or end, the data's range) or without any
-    data row.
-    """
-    hold = input_hold(vehicle_data)
-    cleaning = vehicle_data.get("cleaning") or {}
-    max_gap = float(cleaning.get("max_gap_s", 900.0))
-    key = window_key or _window_key(vehicle_data, window)
-
+def _record(raw: Any, vehicle_data: Mapping[str, Any], file: str) -> tuple:
+    """The parts of a record (one raw file, or each source on the record's UTC axis), its
+    time notation, the instant of its 0 s, its labels, the span every part covers and that
+    span in words: ``(parts, tf, origin, labels, t_lo, t_hi, span)``."""
     if isinstance(raw, pd.DataFrame):
         fmt = vehicle_data["format"]
         time_column = fmt["time"]["column"]
@@ -748,10 +719,16 @@ def tidy(
         if not t_hi > t_lo:
             raise ConfigError(file, "sources", None, sources_.no_overlap(raw, labels))
 
-    # the window, in the record's seconds
-    dt_log = max(p.dt_log for p in parts)
-    step = float(cleaning.get("step_s") or dt_log)
-    tol = 1e-6 * min(min(p.dt_log for p in parts), step)
+    return parts, tf, origin, labels, t_lo, t_hi, span
+
+
+def _window_bounds(
+    window: dict[str, Any] | None, key: str, file: str, record: tuple, tol: float
+) -> tuple[float, float]:
+    """A window's start and end in the record's seconds (the whole span every part covers for
+    ``None``): :class:`ConfigError` for a bound outside the data, an end before the start, a
+    part without a row in it."""
+    parts, tf, origin, _, t_lo, t_hi, span = record
     if window is None:
         start, end = t_lo, t_hi
     else:
@@ -774,6 +751,147 @@ def tidy(
                     f"{window['start']} .. {window['end']}",
                     "no data row in the window",
                 )
+    return start, end
+
+
+def _add_part(
+    acc: dict[str, Any],
+    p: _Part,
+    grid: np.ndarray,
+    step: float,
+    region: tuple[float, float],
+    cleaning: Mapping[str, Any],
+    labels: _Labels,
+    vehicle_data: Mapping[str, Any],
+) -> None:
+    """One part's contribution to the tidy table in ``acc`` (:func:`tidy`): its channels
+    gap-filled on its completed time axis, then averaged over each step (temperatures per
+    channel, powers per sum), and its flags."""
+    hold, max_gap, resampled = acc["hold"], acc["max_gap"], acc["resampled"]
+    names = irradiance_names(vehicle_data)
+    channels_irr = _channels(vehicle_data, IRRADIANCE)
+    channel_means, power, extra = acc["channel_means"], acc["power"], acc["extra"]
+    hold_errors = acc["hold_errors"]
+    t_full, rows = _complete_axis(p.t, p.dt_log)
+    _check_temperatures(p.file, p.groups, p.t, region, cleaning, labels)
+    filled_parts: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for group, found in p.groups.items():
+        if found:
+            filled_parts[group] = _fill_channels(
+                p.file,
+                [c for c, _, _ in found],
+                [v for _, _, v in found],
+                t_full,
+                rows,
+                p.dt_log,
+                max_gap,
+                region,
+                labels,
+            )
+    p_tol = 1e-6 * min(p.dt_log, step)
+    temps = [g for g in TEMPERATURE_GROUPS if g in filled_parts]
+    if temps:
+        t_values = np.hstack([filled_parts[g][0] for g in temps])
+        t_flags = np.any(np.hstack([filled_parts[g][1] for g in temps]), axis=1)
+        t_means, used = _bin_means(t_full, t_values, t_flags, grid, step, p_tol)
+        acc["t_filled"] |= used
+        col = 0
+        for group in temps:
+            for c, (_, weight, _) in enumerate(p.groups[group]):
+                channel_means[group].append((weight, t_means[:, col + c]))
+            col += len(p.groups[group])
+    # powers: heater and fan sums (then known heat flows, then each irradiance channel,
+    # when declared), integrated over [t_n, t_n + step)
+    sums, slots = [], []
+    p_flags = np.zeros(t_full.size, dtype=bool)
+    for group in (*POWER_GROUPS, KNOWN_HEAT):
+        if group in filled_parts:
+            values, flags = filled_parts[group]
+            sums.append(values.sum(axis=1))
+            slots.append(group)
+            p_flags |= flags.any(axis=1)
+    if IRRADIANCE in filled_parts:
+        values, flags = filled_parts[IRRADIANCE]
+        mine = [
+            n
+            for n, c in zip(names, channels_irr, strict=True)
+            if p.source is None or c.get("source") == p.source
+        ]
+        for i, name in enumerate(mine):
+            sums.append(values[:, i])
+            slots.append(name)
+        p_flags |= flags.any(axis=1)
+    if not sums:
+        return
+    if hold == "first_order":  # values at t_n, linear between (config: instant timing)
+        q, used = _bin_means(t_full, np.column_stack(sums), p_flags, grid, step, p_tol)
+    else:
+        q, used = _power_means(
+            t_full, np.column_stack(sums), p_flags, grid, step, p.dt_log, p.timing, p_tol
+        )
+    acc["q_filled"] |= used
+    part_Q_H = np.zeros(grid.size)
+    fine_Q_H = np.zeros(t_full.size)
+    for i, slot in enumerate(slots):
+        if slot in POWER_GROUPS:
+            power[slot] = power[slot] + q[:, i]
+        else:
+            extra[{KNOWN_HEAT: "Q_known"}.get(slot, slot)] = q[:, i]
+        if slot in (*POWER_GROUPS, KNOWN_HEAT):
+            part_Q_H = part_Q_H + q[:, i]
+            fine_Q_H = fine_Q_H + sums[i]
+    if resampled:
+        # how far the straight lines between the rows miss the logged signal (with
+        # several sources, the sum of each source's: a bound on the whole)
+        if any(slot in (*POWER_GROUPS, KNOWN_HEAT) for slot in slots):
+            e = _hold_error(t_full, fine_Q_H, grid, part_Q_H)
+            hold_errors["Q_H"] = hold_errors["Q_H"] + e if "Q_H" in hold_errors else e
+        for i, slot in enumerate(slots):
+            if slot in names:
+                hold_errors[slot] = _hold_error(t_full, sums[i], grid, q[:, i])
+
+
+def tidy(
+    raw: pd.DataFrame | Mapping[str, pd.DataFrame],
+    vehicle_data: dict[str, Any],
+    window: dict[str, Any] | None,
+    file: str,
+    window_key: str | None = None,
+) -> pd.DataFrame:
+    """The tidy table (module docstring) of one window of a raw file read by :func:`read_raw`,
+    or of a record of several sources read by :func:`read_record_part`
+    (``raw`` then maps each source to its table on the record's UTC axis).
+
+    ``vehicle_data`` is the validated vehicle config as plain data (``Vehicle.data``);
+    ``window`` is a window of it (``start``/``end`` in the file's time notation, or ISO 8601
+    for a file of instants or a record of sources; :func:`railtherm.data.timeaxis.instant`) or
+    ``None`` for the whole recording (with sources: the span every source covers); ``file``
+    names the raw file (or the record) in messages, ``window_key`` the window (default: found
+    in ``vehicle_data``, e.g. ``windows.kvalue``).
+
+    With sources, each source is gap-filled on its own time axis and averaged over each tidy
+    step on its own (:func:`_bin_means`, :func:`_power_means`); a group's mean then weights
+    every channel of every source, powers add up across sources, and a row is ``filled`` when
+    any source's samples in it were. The default step is the coarsest source's logger step.
+
+    Raises :class:`DataError` for a missing channel (file, column), a value that is no number,
+    a gap longer than ``cleaning.max_gap_s`` (file, column, time); :class:`ConfigError` for a
+    window outside the data (file, the window's start or end, the data's range) or without any
+    data row.
+    """
+    hold = input_hold(vehicle_data)
+    cleaning = vehicle_data.get("cleaning") or {}
+    max_gap = float(cleaning.get("max_gap_s", 900.0))
+    key = window_key or _window_key(vehicle_data, window)
+
+    record = _record(raw, vehicle_data, file)
+    parts, labels = record[0], record[3]
+
+    # the window, in the record's seconds
+    dt_log = max(p.dt_log for p in parts)
+    step = float(cleaning.get("step_s") or dt_log)
+    tol = 1e-6 * min(min(p.dt_log for p in parts), step)
+    start, end = _window_bounds(window, key, file, record, tol)
     n_steps = int(np.floor((end - start) / step + 1e-9))
     grid = start + np.arange(n_steps + 1) * step
     region = (grid[0] - step / 2.0, grid[-1] + step)
@@ -787,87 +905,21 @@ def tidy(
     extra: dict[str, np.ndarray] = {}
     hold_errors: dict[str, np.ndarray] = {}
     resampled = hold == "first_order" and step > dt_log + tol
-    names = irradiance_names(vehicle_data)
-    channels_irr = _channels(vehicle_data, IRRADIANCE)
+    acc = {
+        "hold": hold,
+        "max_gap": max_gap,
+        "resampled": resampled,
+        "channel_means": channel_means,
+        "t_filled": t_filled,
+        "q_filled": q_filled,
+        "power": power,
+        "extra": extra,
+        "hold_errors": hold_errors,
+    }
     for p in parts:
-        t_full, rows = _complete_axis(p.t, p.dt_log)
-        _check_temperatures(p.file, p.groups, p.t, region, cleaning, labels)
-        filled_parts: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        for group, found in p.groups.items():
-            if found:
-                filled_parts[group] = _fill_channels(
-                    p.file,
-                    [c for c, _, _ in found],
-                    [v for _, _, v in found],
-                    t_full,
-                    rows,
-                    p.dt_log,
-                    max_gap,
-                    region,
-                    labels,
-                )
-        p_tol = 1e-6 * min(p.dt_log, step)
-        temps = [g for g in TEMPERATURE_GROUPS if g in filled_parts]
-        if temps:
-            t_values = np.hstack([filled_parts[g][0] for g in temps])
-            t_flags = np.any(np.hstack([filled_parts[g][1] for g in temps]), axis=1)
-            t_means, used = _bin_means(t_full, t_values, t_flags, grid, step, p_tol)
-            t_filled |= used
-            col = 0
-            for group in temps:
-                for c, (_, weight, _) in enumerate(p.groups[group]):
-                    channel_means[group].append((weight, t_means[:, col + c]))
-                col += len(p.groups[group])
-        # powers: heater and fan sums (then known heat flows, then each irradiance channel,
-        # when declared), integrated over [t_n, t_n + step)
-        sums, slots = [], []
-        p_flags = np.zeros(t_full.size, dtype=bool)
-        for group in (*POWER_GROUPS, KNOWN_HEAT):
-            if group in filled_parts:
-                values, flags = filled_parts[group]
-                sums.append(values.sum(axis=1))
-                slots.append(group)
-                p_flags |= flags.any(axis=1)
-        if IRRADIANCE in filled_parts:
-            values, flags = filled_parts[IRRADIANCE]
-            mine = [
-                n
-                for n, c in zip(names, channels_irr, strict=True)
-                if p.source is None or c.get("source") == p.source
-            ]
-            for i, name in enumerate(mine):
-                sums.append(values[:, i])
-                slots.append(name)
-            p_flags |= flags.any(axis=1)
-        if not sums:
-            continue
-        if hold == "first_order":  # values at t_n, linear between (config: instant timing)
-            q, used = _bin_means(t_full, np.column_stack(sums), p_flags, grid, step, p_tol)
-        else:
-            q, used = _power_means(
-                t_full, np.column_stack(sums), p_flags, grid, step, p.dt_log, p.timing, p_tol
-            )
-        q_filled |= used
-        part_Q_H = np.zeros(grid.size)
-        fine_Q_H = np.zeros(t_full.size)
-        for i, slot in enumerate(slots):
-            if slot in POWER_GROUPS:
-                power[slot] = power[slot] + q[:, i]
-            else:
-                extra[{KNOWN_HEAT: "Q_known"}.get(slot, slot)] = q[:, i]
-            if slot in (*POWER_GROUPS, KNOWN_HEAT):
-                part_Q_H = part_Q_H + q[:, i]
-                fine_Q_H = fine_Q_H + sums[i]
-        if resampled:
-            # how far the straight lines between the rows miss the logged signal (with
-            # several sources, the sum of each source's: a bound on the whole)
-            if any(slot in (*POWER_GROUPS, KNOWN_HEAT) for slot in slots):
-                e = _hold_error(t_full, fine_Q_H, grid, part_Q_H)
-                hold_errors["Q_H"] = hold_errors["Q_H"] + e if "Q_H" in hold_errors else e
-            for i, slot in enumerate(slots):
-                if slot in names:
-                    hold_errors[slot] = _hold_error(t_full, sums[i], grid, q[:, i])
-
+        _add_part(acc, p, grid, step, region, cleaning, labels, vehicle_data)
+    t_filled, q_filled = acc["t_filled"], acc["q_filled"]
+    names = irradiance_names(vehicle_data)
     means: dict[str, np.ndarray] = {}
     spread = np.zeros(grid.size)
     for group in TEMPERATURE_GROUPS:
