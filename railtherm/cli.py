@@ -48,6 +48,7 @@ import math
 import os
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from railtherm import __version__, structures
 from railtherm.config import Study, add_vehicle, load_study, read_yaml, study_context
@@ -467,7 +468,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"railtherm {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    _add_validate(commands)
+    starter.register(commands)
+    _add_audit(commands)
+    _add_fit(commands)
+    _add_reference(commands)
+    _add_design(commands)
+    _add_energy(commands)
+    _add_simulate(commands)
+    return parser
 
+
+def _add_validate(commands: Any) -> None:
+    """The ``validate`` command's subparser."""
     validate = commands.add_parser(
         "validate",
         help="check the study config and vehicle configs against their raw files",
@@ -497,8 +510,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     validate.add_argument("vehicles", nargs="*", metavar="VEHICLE.yaml", help="vehicle files")
     validate.set_defaults(run=_validate)
-    starter.register(commands)
 
+
+def _add_audit(commands: Any) -> None:
+    """The ``audit`` command's subparser."""
     audit = commands.add_parser(
         "audit",
         help="audit a set of published values (consistency, plausibility, fitness, units)",
@@ -530,6 +545,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     audit.set_defaults(run=_audit)
 
+
+def _add_fit(commands: Any) -> None:
+    """The ``fit`` command's subparser."""
     fit = commands.add_parser(
         "fit",
         help="one vehicle through clean, static k, fit and check, without the workflow",
@@ -564,6 +582,9 @@ def build_parser() -> argparse.ArgumentParser:
     _directory_option(fit)
     fit.set_defaults(run=_fit)
 
+
+def _add_reference(commands: Any) -> None:
+    """The ``reference`` command's subparser."""
     reference = commands.add_parser(
         "reference",
         help="class reference model of an unmeasured vehicle from the study's fits",
@@ -610,6 +631,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     reference.set_defaults(run=_reference_model)
 
+
+def _add_design(commands: Any) -> None:
+    """The ``design`` command's subparser."""
     design = commands.add_parser(
         "design",
         help="the predicted uncertainty of a planned tunnel programme, before it runs",
@@ -663,6 +687,9 @@ def build_parser() -> argparse.ArgumentParser:
     _study_options(design, "the study's results: tables/table2.csv and the class's fits")
     design.set_defaults(run=_design)
 
+
+def _add_energy(commands: Any) -> None:
+    """The ``energy`` command's subparser."""
     energy = commands.add_parser(
         "energy",
         help="annual heating energy in a typical year under an operating profile",
@@ -705,6 +732,9 @@ def build_parser() -> argparse.ArgumentParser:
     _directory_option(energy)
     energy.set_defaults(run=_energy)
 
+
+def _add_simulate(commands: Any) -> None:
+    """The ``simulate`` command's subparser."""
     simulate = commands.add_parser(
         "simulate",
         help="scenarios through a fit or a class reference model, with 95 %% bands",
@@ -758,7 +788,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _directory_option(simulate)
     simulate.set_defaults(run=_simulate)
-    return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
