@@ -1016,7 +1016,7 @@ def read_record_part(
 ) -> pd.DataFrame | dict[str, pd.DataFrame]:
     """One part of a vehicle's record, relative to ``workdir``: a raw file read by
     :func:`read_raw` with the vehicle's ``format``, or with sources ({source: path}) each
-    source's file on the record's UTC axis (:func:`read_record_part`)."""
+    source's file on the record's UTC axis (:func:`railtherm.data.sources.align`)."""
     if isinstance(path, str):
         local = os.path.join(str(workdir), path)
         return read_raw(local, vehicle_data["format"], label=path)

@@ -11,17 +11,15 @@ shift), and the shift that fits best is the source's offset:
 
 - the criterion: the Kalman fit's negative log-likelihood (-2 log L difference); for output
   error the sum of squared simulation errors, as N_eff ln(SSE(d) / SSE_min), with N_eff the
-  effective number of independent residuals (their lag-1 autocorrelation, as the verdict's
-  whiteness test counts them), so that coloured residuals do not make the profile
-  over-confident;
+  effective number of independent residuals (from their lag-1 autocorrelation), so that
+  coloured residuals do not make the profile over-confident;
 - the estimate: the parabola through the best shift and its two neighbours; its 95 %
   interval: where the profile rises by 3.84 (chi-square, one degree of freedom), from the
   parabola, widened in quadrature by the resolution of moving tidy means (what a power
   switching within a step looks like moved by part of a step: taken as uniform over a step,
   1.96 step / sqrt(12));
 - moving a column by d: temperatures (tidy means) interpolated linearly, powers (means over
-  each step) from their cumulative energy, so that a shift of less than a step is exact for
-  a piecewise constant power.
+  each step) from their cumulative energy, exact for a power constant over each step.
 
 An offset whose interval excludes 0 and that exceeds a tidy step is a reason of the verdict
 (:func:`reasons`): a fit on clocks that disagree is not acceptable until the offset is
