@@ -90,7 +90,8 @@ class Vehicle:
 
     ``raw_files`` maps each raw-file name to its path normalised relative to the working
     directory (with ``sources``: to its files joined by ' + ', a label; ``source_files``
-    then maps each name to {source: path}); ``layouts`` maps the same names to the
+    then maps each name to {source: path}, ``source_layouts`` each source to its layouts by
+    name); ``layouts`` maps the same names to the
     :class:`RawLayout` the checks used (read from the file, or planned by the campaign when
     the file does not exist yet). ``data`` is
     the whole validated YAML with schema defaults filled in and the study's defaults merged
@@ -111,6 +112,7 @@ class Vehicle:
     data: dict[str, Any]
     layouts: dict[str, RawLayout] = field(default_factory=dict)
     source_files: dict[str, dict[str, str]] = field(default_factory=dict)
+    source_layouts: dict[str, dict[str, RawLayout]] = field(default_factory=dict)
 
     def record(self, name: str) -> str | dict[str, str]:
         """The file of one part of the record (a key of ``raw_files``), or with sources the
@@ -307,8 +309,11 @@ def load_vehicle(
     yaml_dir = os.path.dirname(path)
     raw_files: dict[str, str] = {}
     source_files: dict[str, dict[str, str]] = {}
+    source_layouts: dict[str, dict[str, RawLayout]] = {}
     if sources.declared(data):
-        raw_files, source_files, found = _check_sources(file, data, yaml_dir, workdir, layouts)
+        raw_files, source_files, found, source_layouts = _check_sources(
+            file, data, yaml_dir, workdir, layouts
+        )
     else:
         for key in ("raw_files", "format"):
             if key not in data:
@@ -356,6 +361,7 @@ def load_vehicle(
         data=data,
         layouts=found,
         source_files=source_files,
+        source_layouts=source_layouts,
     )
 
 
@@ -510,14 +516,16 @@ def _check_sources(
     yaml_dir: str,
     workdir: str,
     layouts: Mapping[str, RawLayout] | None,
-) -> tuple[dict[str, str], dict[str, dict[str, str]], dict[str, RawLayout]]:
+) -> tuple[
+    dict[str, str], dict[str, dict[str, str]], dict[str, RawLayout], dict[str, dict[str, RawLayout]]
+]:
     """The record's sources (:mod:`railtherm.data.sources`) against their files: each
     source's format and files, the same parts in every source, every source placed on UTC
     (a zone for instants, a start for elapsed time), their spans overlapping, every channel
     naming a source whose files hold its column. Returns ``(raw_files, source_files,
-    layouts)``: each part's label, its files by source, and the part's span on UTC as one
-    layout (ISO 8601, from the latest first time to the earliest last) for the windows'
-    checks."""
+    layouts, source_layouts)``: each part's label, its files by source, the part's span on
+    UTC as one layout (ISO 8601, from the latest first time to the earliest last) for the
+    windows' checks, and each source's own layouts by part."""
     declared_sources = data[sources.SOURCES]
     for key in ("raw_files", "format"):
         if key in data:
@@ -598,7 +606,7 @@ def _check_sources(
             step_s=max(steps) if steps else None,
             gap_s=max((layout[part].gap_s or 0.0) for layout in per_source.values()) or None,
         )
-    return raw_files, source_files, found
+    return raw_files, source_files, found, per_source
 
 
 def _check_source_channels(

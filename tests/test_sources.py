@@ -407,3 +407,27 @@ def test_two_sources_with_one_name_are_refused_naming_it(record):
     with pytest.raises(ConfigError) as err:
         load(record)
     assert "duplicate key 'tunnel' (first at line" in str(err.value), str(err.value)
+
+
+def test_validate_warns_of_a_sources_implausible_logger_step_naming_its_key(
+    record, tmp_path, monkeypatch, capsys
+):
+    """A power analyser logging twice a second: validate accepts the record and warns that a
+    step of 0.5 s is implausible for a thermal record, naming the source's time format key."""
+    from railtherm.cli import main
+
+    folder = tmp_path / "fast"
+    folder.mkdir()
+    for name in ("cabin.csv", "tunnel.csv"):
+        (folder / name).write_bytes((record / name).read_bytes())
+    lines = (record / "power_meter.txt").read_text(encoding="utf-8").splitlines()
+    head = [line for line in lines if line.startswith("#") or line.startswith("t_s")]
+    rows = [line.split("\t") for line in lines[len(head) :]]
+    halves = [f"{float(t) + h:.1f}\t{p}" for t, p in rows for h in (0.0, 0.5)]
+    (folder / "power_meter.txt").write_text("\n".join(head + halves) + "\n", encoding="utf-8")
+    vehicle_yaml(folder)
+    monkeypatch.chdir(folder)
+    assert main(["validate", "Metro9.yaml"]) == 0, capsys.readouterr().err
+    printed = capsys.readouterr()
+    said = printed.out + printed.err
+    assert "logged every 0.5 s" in said and "sources.power.format.time.format" in said, said

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from railtherm import codedigest
 from railtherm.config import Study, Vehicle
 from railtherm.data import ingest, timeaxis
-from railtherm.data.rawfile import DigestCache
+from railtherm.data.rawfile import DigestCache, RawLayout
 from railtherm.estimation import kvalue
 
 
@@ -41,33 +41,50 @@ PLAUSIBLE_STEP_S = (1.0, 3 * 3600.0)
 
 def step_warnings(vehicle: Vehicle) -> list[str]:
     """A sentence per raw file whose logger step is implausible for a thermal record, naming
-    the declared time unit and the steps the same numbers would give in the other units."""
+    the declared time unit and the steps the same numbers would give in the other units (with
+    sources: each source's files, naming its key)."""
+    if vehicle.source_files:
+        files = [
+            (layout, name, vehicle.data["sources"][source]["format"]["time"], f"sources.{source}.")
+            for source, parts in vehicle.source_layouts.items()
+            for name, layout in parts.items()
+        ]
+    else:
+        files = [
+            (layout, name, vehicle.format["time"], "") for name, layout in vehicle.layouts.items()
+        ]
+    warnings = []
+    for layout, name, time, prefix in files:
+        text = _step_warning(vehicle, layout, name, timeaxis.time_format(time), prefix)
+        if text:
+            warnings.append(text)
+    return warnings
+
+
+def _step_warning(
+    vehicle: Vehicle, layout: RawLayout, name: str, tf: timeaxis.TimeFormat, prefix: str
+) -> str | None:
     lo, hi = PLAUSIBLE_STEP_S
-    if vehicle.source_files:  # sources: each source's step is the record's concern
-        return []
-    tf = timeaxis.time_format(vehicle.format["time"])
-    out = []
-    for name, layout in vehicle.layouts.items():
-        step = layout.step_s
-        if step and not lo <= step <= hi:
-            if tf.absolute:
-                advice = "is format.time.format right?"
-            else:
-                number = step / timeaxis.ELAPSED_UNITS_S[tf.format]  # as the file writes it
-                others = [
-                    f"{number * factor:g} s in {unit}"
-                    for unit, factor in timeaxis.ELAPSED_UNITS_S.items()
-                    if unit != tf.format and lo <= number * factor <= hi
-                ]
-                advice = "is the time unit right?"
-                if others:
-                    advice += f" (a step of {number:g} is {', '.join(others)})"
-            out.append(
-                f"{vehicle.path}: raw file {layout.path} ({name}) is logged every {step:g} s by "
-                f"its time column read as format.time.format '{tf.format}': implausible for a "
-                f"thermal record ({lo:g} s to {hi / 3600:g} h); {advice}"
-            )
-    return out
+    step = layout.step_s
+    if not step or lo <= step <= hi:
+        return None
+    if tf.absolute:
+        advice = f"is {prefix}format.time.format right?"
+    else:
+        number = step / timeaxis.ELAPSED_UNITS_S[tf.format]  # as the file writes it
+        others = [
+            f"{number * factor:g} s in {unit}"
+            for unit, factor in timeaxis.ELAPSED_UNITS_S.items()
+            if unit != tf.format and lo <= number * factor <= hi
+        ]
+        advice = "is the time unit right?"
+        if others:
+            advice += f" (a step of {number:g} is {', '.join(others)})"
+    return (
+        f"{vehicle.path}: raw file {layout.path} ({name}) is logged every {step:g} s by "
+        f"its time column read as {prefix}format.time.format '{tf.format}': implausible for a "
+        f"thermal record ({lo:g} s to {hi / 3600:g} h); {advice}"
+    )
 
 
 def k_window_warning(vehicle: Vehicle, display: str, k: kvalue.KValue) -> str:
