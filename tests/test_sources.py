@@ -431,3 +431,29 @@ def test_validate_warns_of_a_sources_implausible_logger_step_naming_its_key(
     printed = capsys.readouterr()
     said = printed.out + printed.err
     assert "logged every 0.5 s" in said and "sources.power.format.time.format" in said, said
+
+
+def test_a_refit_that_fails_at_a_shift_leaves_that_shift_out_of_the_clock_profile():
+    """A record moved so far that its refit fails (a Kalman fit not evaluable there) gives the
+    profile no support at that shift, not a traceback; the offset comes from the others."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from railtherm.study import clocks
+
+    t = np.arange(0.0, 3600.0 * 6, 60.0)
+    table = pd.DataFrame({"time": t, "T_o": np.sin(t / 3600.0), "Q_H": 1.0, "Q_heater": 1.0})
+    rng = np.random.default_rng(1)
+    nominal = SimpleNamespace(cost=10.0, residuals=[rng.standard_normal(t.size)])
+
+    def fit(moved):
+        d = moved["w"]["T_o"].iloc[100] - table["T_o"].iloc[100]  # the shift, read back
+        if d < -0.004:  # moved one way far enough: the stand-in refit fails
+            raise ValueError("not evaluable")
+        return SimpleNamespace(cost=10.0 + 1e4 * d * d)
+
+    data = {"channels": {}, "model": {}}
+    p = clocks.profile(fit, nominal, {"w": table}, ["outdoor_air"], data, 60.0)
+    assert np.isinf([v for v in p["rise"].values()]).any()
+    assert np.isfinite(p["shift_s"])

@@ -1002,7 +1002,7 @@ def clean_windows(
     tables = {}
     for name, path in sources.items():
         _, window, key = window_spec(vehicle_data, name)
-        label = path if isinstance(path, str) else " + ".join(path.values())
+        label = path if isinstance(path, str) else sources_.label(path)
         if label not in raws:
             raws[label] = read_record_part(path, vehicle_data, workdir)
         tables[name] = tidy(raws[label], vehicle_data, window, label, window_key=key)

@@ -11,8 +11,8 @@ shift), and the shift that fits best is the source's offset:
 
 - the criterion: the Kalman fit's negative log-likelihood (-2 log L difference); for output
   error the sum of squared simulation errors, as N_eff ln(SSE(d) / SSE_min), with N_eff the
-  effective number of independent residuals (from their lag-1 autocorrelation), so that
-  coloured residuals do not make the profile over-confident;
+  effective number of independent residuals (n / tau, tau their integrated autocorrelation
+  time), so that coloured residuals do not make the profile over-confident;
 - the estimate: the parabola through the best shift and its two neighbours; its 95 %
   interval: where the profile rises by 3.84 (chi-square, one degree of freedom), from the
   parabola, widened in quadrature by the resolution of moving tidy means (what a power
@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from railtherm.data.ingest import IRRADIANCE, irradiance_names
+from railtherm.estimation.acf import autocorrelation_time
 
 # the tidy columns each channel group becomes, and how a shift moves them
 TEMPERATURE_COLUMNS = {
@@ -119,20 +120,16 @@ def _criterion(result: Any) -> float:
 
 
 def _effective(result: Any) -> float:
-    """The effective number of independent residuals of an output-error fit (lag-1
-    autocorrelation of each record's residuals of each output)."""
+    """The effective number of independent residuals of an output-error fit: each record's
+    residuals of each output counted as n / tau, tau their integrated autocorrelation time
+    (:func:`railtherm.estimation.acf.autocorrelation_time`, as the verdict's whiteness counts
+    effective samples)."""
     total = 0.0
     for r in result.residuals:
         r = np.asarray(r, dtype=float)
-        r = r.reshape(len(r), -1) if r.ndim > 1 else r[:, None]
-        for col in r.T:
+        for col in (r.reshape(len(r), -1) if r.ndim > 1 else r[:, None]).T:
             col = col[np.isfinite(col)]
-            if col.size < 3:
-                continue
-            c = col - col.mean()
-            rho = float(np.dot(c[:-1], c[1:]) / max(np.dot(c, c), 1e-300))
-            rho = min(max(rho, 0.0), 0.99)
-            total += col.size * (1.0 - rho) / (1.0 + rho)
+            total += col.size / autocorrelation_time(col)
     return max(total, 1.0)
 
 
@@ -156,7 +153,12 @@ def profile(
             costs.append(_criterion(nominal))
             continue
         moved = {name: shifted(t, groups, float(d), vehicle_data) for name, t in tables.items()}
-        costs.append(_criterion(fit(moved)))
+        try:
+            costs.append(_criterion(fit(moved)))
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+            # a record moved so far that the model cannot be fitted (the Kalman filter's
+            # NotEvaluable is a ValueError): no support at this shift
+            costs.append(math.inf)
     costs = np.asarray(costs)
     best = int(np.argmin(costs))
     if kalman:
@@ -165,7 +167,7 @@ def profile(
         rise = _effective(nominal) * np.log(costs / costs[best])
     estimate = float(shifts[best])
     lo = hi = None
-    if 0 < best < shifts.size - 1:
+    if 0 < best < shifts.size - 1 and np.isfinite(rise[best - 1 : best + 2]).all():
         y0, y1, y2 = rise[best - 1], rise[best], rise[best + 1]
         curvature = (y0 - 2.0 * y1 + y2) / step**2
         if curvature > 0:
