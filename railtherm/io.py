@@ -7,7 +7,7 @@ plain data and stops with a :class:`~railtherm.errors.DataError` naming the file
 be read or holds no mapping; the typed views build on it (:func:`railtherm.study.fit.read_fit`,
 :meth:`railtherm.estimation.kvalue.KValue.from_dict`). The workflow's scripts, the figures and the
 tables read result files through this module only; it imports no other part of railtherm but its
-errors.
+errors and the YAML loader.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from typing import Any
 import yaml
 
 from railtherm.errors import DataError
+from railtherm.yamlio import SafeLoader
 
 __all__ = ["read_result", "write_result"]
 
@@ -36,7 +37,7 @@ def read_result(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The content of a result file as plain data."""
     try:
         with open(path, encoding="utf-8") as stream:
-            data = yaml.safe_load(stream)
+            data = yaml.load(stream, Loader=SafeLoader)
     except (OSError, yaml.YAMLError) as exc:
         raise DataError(str(path), "", None, f"cannot read the result file: {exc}") from None
     if not isinstance(data, dict):

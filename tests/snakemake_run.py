@@ -44,3 +44,23 @@ def job_counts(output: str) -> dict[str, int]:
         for m in re.finditer(r"^(\w+)\s+(\d+)\s*$", table, re.MULTILINE)
         if m.group(1) != "total"
     }
+
+
+def planned_outputs(output: str, rule: str) -> list[str]:
+    """The output files of the jobs of one rule in a dry run's job listing."""
+    return re.findall(rf"^rule {rule}:\n\s+output: (\S+)", output, re.MULTILINE)
+
+
+def outputs(study: Path) -> dict[str, bytes]:
+    """Every file a run wrote (resources/ and results/), by path relative to the study."""
+    files = sorted(
+        p for d in ("resources", "results") for p in (study / d).rglob("*") if p.is_file()
+    )
+    return {str(p.relative_to(study)): p.read_bytes() for p in files}
+
+
+def copy_of(study: Path, tmp_path: Path) -> Path:
+    """A copy of a finished study with its timestamps and Snakemake's records."""
+    target = tmp_path / "study"
+    shutil.copytree(study, target, symlinks=True)  # copy2: modification times kept
+    return target

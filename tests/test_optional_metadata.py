@@ -404,6 +404,12 @@ def test_snakemake_study_with_objects_without_metadata(tmp_path):
     other = summary[(summary["class"] == "other") & (summary["quantity"] == "c_veh")]
     assert "Tram2" not in " ".join(other["vehicles"]) + " ".join(other["not_identified"])
     findings = pd.read_csv(study / "results" / "audit" / "findings.csv")
+    # a study of some vehicles synthesises, re-estimates and draws only those: no Metro1
+    # (Figure 4 shows Metro1 and Metro2)
+    assert not (study / "resources" / "campaign" / "Metro1").exists()
+    reestimated = findings.loc[findings["check"] == "reestimate", "subject"]
+    assert "Tram2 C" in set(reestimated) and not reestimated.str.startswith("Metro1 ").any()
+    assert not (study / "results" / "figures" / "figure4.png").exists()
     tram_k = findings[findings["subject"] == "Tram2 k"]["message"].iloc[0]
     assert tram_k.startswith("not comparable: not given: no surface_m2")
     assert (tables / "reference.md").is_file()
