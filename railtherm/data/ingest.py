@@ -362,7 +362,6 @@ def _numeric(file: str, raw: pd.DataFrame, column: str) -> np.ndarray:
     series = raw[column]
     if pd.api.types.is_numeric_dtype(series.dtype):
         values = series.to_numpy(dtype=float, na_value=np.nan)
-        text = series.astype("string")
     else:
         text = series.astype("string")
         values = pd.to_numeric(text, errors="coerce").to_numpy(dtype=float, na_value=np.nan)
@@ -380,7 +379,7 @@ def _numeric(file: str, raw: pd.DataFrame, column: str) -> np.ndarray:
         raise DataError(
             file,
             column,
-            str(text.iloc[i]),
+            str(series.iloc[i]),
             f"{line_of(series, i)}: not a finite measurement (a logger's overflow or fault); empty "
             "the cell to mark a gap, which is interpolated up to cleaning.max_gap_s",
         )
