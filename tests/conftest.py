@@ -4,10 +4,18 @@ import os
 import shutil
 from pathlib import Path
 
-import pytest
+# One BLAS thread per process: the suite already runs a worker per CPU (`-n auto`), and the
+# processes its tests start (the command line, Snakemake) run beside them. OpenBLAS's own
+# threads on top only wait for each other: on 2 cores they cost the kalman, plots, design,
+# pem and simulate tests a third more CPU and wall time. Set before numpy is first imported
+# (below); a value in the environment wins.
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
 
-from railtherm import synth
-from railtherm.config import load_study
+import pytest  # noqa: E402
+
+from railtherm import synth  # noqa: E402
+from railtherm.config import load_study  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
