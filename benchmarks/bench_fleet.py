@@ -231,9 +231,9 @@ def make_fleet(root: Path, n: int, figures: bool = True, fleet: str = "own") -> 
 
 
 def model_keys() -> list[str]:
-    """The fits of the Armadillo Box (railtherm.study.identify.model_keys of its config)."""
+    """The fits of the Armadillo Box (railtherm.study.fitsettings.model_keys of its config)."""
     sys.path.insert(0, str(REPO))
-    from railtherm.study.identify import model_keys as keys
+    from railtherm.study.fitsettings import model_keys as keys
 
     return keys(yaml.safe_load(VEHICLE.read_text(encoding="utf-8")))
 

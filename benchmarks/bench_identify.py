@@ -7,8 +7,8 @@ data, one window, kA estimated jointly, initial states estimated), each window r
 N / (number of windows) points over the same programme (linear interpolation of every tidy
 column: the same experiment logged finer). Every phase is timed inside one call of
 :func:`railtherm.study.identify.identify` by wrapping the functions it calls; the bare fit is the
-same estimator alone (:func:`railtherm.study.identify.estimate_parameters`) with iid covariance (no
-HAC, no budget, no cross-validation). Best of ``--rounds`` (default 3).
+same estimator alone (:func:`railtherm.study.fitsettings.estimate_parameters`) with iid
+covariance (no HAC, no budget, no cross-validation). Best of ``--rounds`` (default 3).
 
     python benchmarks/bench_identify.py [--rounds 3] [--sizes 1000 10000 100000]
 
@@ -31,7 +31,7 @@ import pandas as pd
 
 from railtherm import cli
 from railtherm.config import load_vehicle
-from railtherm.study import identify, run
+from railtherm.study import fitsettings, identify, run
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -119,9 +119,9 @@ def timed_identify(data, windows, kvalue, model) -> dict[str, float]:
 
 
 def bare_fit(data, windows, kvalue, model) -> float:
-    structure = identify.model_structure(model, data)
-    exps = identify.experiments(structure, windows)
-    fixed, initial, bounds, _, _ = identify._settings(structure, data, kvalue, windows)
+    structure = fitsettings.model_structure(model, data)
+    exps = fitsettings.experiments(structure, windows)
+    fixed, initial, bounds, _, _ = fitsettings._settings(structure, data, kvalue, windows)
     options = {
         "fixed": fixed,
         "initial": initial,
@@ -133,7 +133,7 @@ def bare_fit(data, windows, kvalue, model) -> float:
         **({"estimator": "kalman"} if model.endswith("_kalman") else {}),
     }
     t0 = time.perf_counter()
-    identify.estimate_parameters(structure, exps, options)
+    fitsettings.estimate_parameters(structure, exps, options)
     return time.perf_counter() - t0
 
 

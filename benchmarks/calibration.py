@@ -436,7 +436,8 @@ def fit_rows(truth: Truth, yaml_path: Path, setting: str) -> list[dict]:
     """Fit one vehicle file as the study does and compare k, C, K_veh, C_veh with the truth."""
     from railtherm.config import load_vehicle
     from railtherm.estimation import kvalue
-    from railtherm.study import identify, run
+    from railtherm.study import fitsettings, identify, run
+    from railtherm.study.storage import storage_corrected_k
 
     vehicle = load_vehicle(yaml_path, workdir=yaml_path.parent)
     started = time.process_time()
@@ -444,8 +445,8 @@ def fit_rows(truth: Truth, yaml_path: Path, setting: str) -> list[dict]:
     k = kvalue.for_vehicle(tables["kvalue"], vehicle.data, source=vehicle.id).to_dict()
     windows = {w["name"]: tables[w["name"]] for w in vehicle.windows["identification"]}
     estimator = setting.split("/")[0]
-    model = "order2" if estimator == "output_error" else f"order2{identify.KALMAN_SUFFIX}"
-    storage = identify.storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k)
+    model = "order2" if estimator == "output_error" else f"order2{fitsettings.KALMAN_SUFFIX}"
+    storage = storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k)
     estimate, _ = identify.identify(windows, vehicle.data, k, model, storage)
     seconds = time.process_time() - started
     parameters = estimate["fit"]["parameters"]

@@ -14,9 +14,9 @@ alarm.
 
 Each record is fitted as the study fits it (railtherm.study.run.tidy_tables ->
 kvalue.for_vehicle -> identify.storage_corrected_k -> identify.identify) and judged as the
-rule ``check`` judges it (identify.check with the vehicle's ``check`` section, here the
+rule ``check`` judges it (quality.check with the vehicle's ``check`` section, here the
 defaults), once per setting (estimator/mode/surface sensors, as in calibration.py). Printed
-per setting and criterion family (identify.CRITERIA): the fits the criterion applies to,
+per setting and criterion family (quality.CRITERIA): the fits the criterion applies to,
 those it put in doubt, the share with its exact (Clopper-Pearson) binomial 95 % interval,
 and the same for the verdict as a whole (any criterion); then every reason given, for
 reading. A criterion family that runs several tests (whiteness over outputs and tests) is
@@ -56,17 +56,18 @@ def judge(truth, yaml_path: Path, setting: str) -> dict:
     applied and passed, and the reasons."""
     from railtherm.config import load_vehicle
     from railtherm.estimation import kvalue
-    from railtherm.study import identify, run
+    from railtherm.study import fitsettings, identify, quality, run
+    from railtherm.study.storage import storage_corrected_k
 
     vehicle = load_vehicle(yaml_path, workdir=yaml_path.parent)
     tables = run.tidy_tables(vehicle, workdir=yaml_path.parent)
     k = kvalue.for_vehicle(tables["kvalue"], vehicle.data, source=vehicle.id).to_dict()
     windows = {w["name"]: tables[w["name"]] for w in vehicle.windows["identification"]}
     estimator = setting.split("/")[0]
-    model = "order2" if estimator == "output_error" else f"order2{identify.KALMAN_SUFFIX}"
-    storage = identify.storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k)
+    model = "order2" if estimator == "output_error" else f"order2{fitsettings.KALMAN_SUFFIX}"
+    storage = storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k)
     estimate, series = identify.identify(windows, vehicle.data, k, model, storage)
-    checked = identify.check(estimate, series, vehicle.data.get("check"))
+    checked = quality.check(estimate, series, vehicle.data.get("check"))
     row = {
         "setting": setting,
         "vehicle": truth.vehicle,
@@ -113,7 +114,8 @@ def interval(k: int, n: int) -> tuple[float, float]:
 def table(df: pd.DataFrame) -> pd.DataFrame:
     """Per setting and criterion family (and the verdict as a whole): fits judged, fits in
     doubt, their share and its 95 % interval."""
-    from railtherm.study.identify import CRITERIA, STATIC_CONTRADICTED, STATIC_UNDETERMINED
+    from railtherm.study.identify import STATIC_CONTRADICTED, STATIC_UNDETERMINED
+    from railtherm.study.quality import CRITERIA
 
     rows = []
     for setting, part in df.groupby("setting", sort=False):

@@ -36,6 +36,7 @@ from railtherm.config import load_study
 from railtherm.data import ingest
 from railtherm.estimation import kvalue
 from railtherm.study import identify
+from railtherm.study.storage import storage_corrected_k
 
 REPO = Path(__file__).resolve().parents[1]
 PARAMETERS = ("C", "K_veh", "C_veh")
@@ -80,7 +81,7 @@ def one_seed(seed: int) -> list[dict]:
             k_window = clean("kvalue")
             k = kvalue.for_vehicle(k_window, data, source=vid).to_dict()
             tables = {w["name"]: clean(w["name"]) for w in data["windows"]["identification"]}
-            storage = identify.storage_corrected_k(tables, k_window, data, k)
+            storage = storage_corrected_k(tables, k_window, data, k)
             estimate, _ = identify.identify(tables, data, k, 2, storage)
             k_true = float(truth.loc[vid, "k"])
             if estimate["kA_fixed"] is not None:

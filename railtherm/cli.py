@@ -79,10 +79,12 @@ def _references(args: argparse.Namespace, study: Study) -> int:
     config = read_yaml(os.path.join(args.directory, args.config), display=args.config)
     paths = ((config or {}).get("study") or {}).get("references") or []
     if paths:
-        from railtherm.study import identify, reference
+        from railtherm.study import fitsettings, reference
 
         fits = [
-            (vid, key) for vid, v in study.vehicles.items() for key in identify.model_keys(v.data)
+            (vid, key)
+            for vid, v in study.vehicles.items()
+            for key in fitsettings.model_keys(v.data)
         ]
         reference.study_references(paths, fits, workdir=args.directory)
     return len(paths)

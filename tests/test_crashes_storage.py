@@ -14,12 +14,14 @@ from test_kvalue_storage import IDENTIFICATION, k_stage, k_window, vehicle
 
 from railtherm.estimation import pem
 from railtherm.study import identify
+from railtherm.study import storage as storage_module
+from railtherm.study.storage import storage_corrected_k
 
 
 def no_usable_step(monkeypatch, joint_kA: float = -250.0):
     """The joint fit's balance gives ``joint_kA`` (not a positive kA) and every stage-two fit
     (kA fixed) leaves C_veh at its search bound."""
-    real_balance = identify.storage_corrected_kA
+    real_balance = storage_module.storage_corrected_kA
     calls = {"n": 0}
 
     def balance(window, C, K_veh, C_veh, **kw):
@@ -35,7 +37,7 @@ def no_usable_step(monkeypatch, joint_kA: float = -250.0):
             result.flags.append(pem.Flag("at_bound", ("C_veh",), "C_veh at its upper bound"))
         return result
 
-    monkeypatch.setattr(identify, "storage_corrected_kA", balance)
+    monkeypatch.setattr(storage_module, "storage_corrected_kA", balance)
     monkeypatch.setattr(identify.pem, "fit", bounded)
 
 
@@ -45,7 +47,7 @@ def test_no_usable_first_step_falls_back_to_eq10_and_says_why(monkeypatch, joint
     no_usable_step(monkeypatch, joint_kA)
     data, window = vehicle(), k_window(0.3)
     k = k_stage(window, data)
-    storage = identify.storage_corrected_k(IDENTIFICATION, window, data, k)
+    storage = storage_corrected_k(IDENTIFICATION, window, data, k)
     assert storage["applied"] is False
     reason = storage["reason"]
     assert f"no usable stage-two fit from kA = {k['kA']:.4g} W/K" in reason
@@ -57,7 +59,7 @@ def test_the_fit_after_the_fallback_holds_eq10s_kA_and_gives_numbers(monkeypatch
     no_usable_step(monkeypatch)
     data, window = vehicle(), k_window(0.3)
     k = k_stage(window, data)
-    storage = identify.storage_corrected_k(IDENTIFICATION, window, data, k)
+    storage = storage_corrected_k(IDENTIFICATION, window, data, k)
     monkeypatch.undo()
     data["model"] = {**data["model"], "two_stage_check": False}
     estimate, _ = identify.identify(IDENTIFICATION, data, k, 2, storage)
@@ -73,6 +75,8 @@ def test_the_fit_after_the_fallback_holds_eq10s_kA_and_gives_numbers(monkeypatch
 def test_the_unsettled_message_names_the_last_kA_or_its_absence():
     """Both ways the message is built from what there is: the last kA and the count of fits,
     or the start where no fit could be used, with the step's own reason."""
-    assert "last kA 612 W/K after 3 fits" in identify._unsettled([600.0, 605.0, 612.0], 580.0, None)
-    text = identify._unsettled([], 580.0, ValueError("C at a search bound"))
+    assert "last kA 612 W/K after 3 fits" in storage_module._unsettled(
+        [600.0, 605.0, 612.0], 580.0, None
+    )
+    text = storage_module._unsettled([], 580.0, ValueError("C at a search bound"))
     assert "no usable stage-two fit from kA = 580 W/K; C at a search bound" in text

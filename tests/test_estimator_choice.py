@@ -17,7 +17,7 @@ import yaml
 from railtherm.config import load_vehicle
 from railtherm.errors import ConfigError
 from railtherm.report import tableformat
-from railtherm.study import aggregate, identify
+from railtherm.study import aggregate, fitsettings, quality
 from railtherm.study.run import fit_vehicle
 
 REPO = Path(__file__).resolve().parents[1]
@@ -35,9 +35,9 @@ def armadillo_vehicle_file(tmp_path: Path, **model) -> Path:
 
 def test_model_keys_name_each_estimator_once():
     data = {"model": {"orders": [1, 2], "structures": ["interior_envelope"]}}
-    assert identify.model_keys(data) == ["order1", "order2", "interior_envelope"]
+    assert fitsettings.model_keys(data) == ["order1", "order2", "interior_envelope"]
     data["model"]["estimator"] = ["output_error", "kalman"]
-    assert identify.model_keys(data) == [
+    assert fitsettings.model_keys(data) == [
         "order1",
         "order1_kalman",
         "order2",
@@ -46,9 +46,9 @@ def test_model_keys_name_each_estimator_once():
         "interior_envelope_kalman",
     ]
     data["model"]["estimator"] = "kalman"
-    assert identify.model_keys(data)[0] == "order1_kalman"
-    assert identify.split_key("order2_kalman") == ("order2", "kalman")
-    assert identify.split_key(2) == ("order2", "output_error")
+    assert fitsettings.model_keys(data)[0] == "order1_kalman"
+    assert fitsettings.split_key("order2_kalman") == ("order2", "kalman")
+    assert fitsettings.split_key(2) == ("order2", "output_error")
 
 
 @pytest.mark.bad_input
@@ -149,12 +149,12 @@ def kalman_estimate(offset_K: float, white: bool = True) -> tuple[dict, pd.DataF
 def test_white_innovations_do_not_excuse_a_simulation_that_misses_the_record():
     """A Kalman fit with white innovations and a simulated T 1 K off: in doubt, failed on the
     RMSE criterion alone; 0.05 K off: acceptable."""
-    far = identify.check(*kalman_estimate(1.0), {})
+    far = quality.check(*kalman_estimate(1.0), {})
     assert far["verdict"] == "assumptions in doubt"
     failed = [c["criterion"] for c in far["criteria"] if c["applies"] and not c["passed"]]
     assert failed == ["rmse"]
     assert far["judged_by"] == ("R², RMSE ✗, innovations white, flags, plausibility, k method")
-    near = identify.check(*kalman_estimate(0.05), {})
+    near = quality.check(*kalman_estimate(0.05), {})
     assert near["verdict"] == "fit acceptable" and "✗" not in near["judged_by"]
 
 
@@ -163,8 +163,8 @@ def test_model_selection_considers_only_acceptable_converged_fits():
     the forward selection has a single candidate and is not shown, and the AIC mark goes to
     the acceptable fit whatever the in-doubt one scores; an unconverged fit is no candidate
     either."""
-    small = identify.check(*kalman_estimate(0.05), {})
-    large = identify.check(*kalman_estimate(1.0), {})
+    small = quality.check(*kalman_estimate(0.05), {})
+    large = quality.check(*kalman_estimate(1.0), {})
     large |= {"model": "order2_kalman", "order": 2, "loglik": 500.0, "n_params": 6}
     assert tableformat.model_selection_markdown([small, large]) == ""
     table = aggregate.model_table([small, large], "hand-built")

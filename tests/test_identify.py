@@ -7,7 +7,7 @@ import pytest
 from railtherm.config import section_defaults
 from railtherm.errors import DataError
 from railtherm.estimation import models
-from railtherm.study import identify
+from railtherm.study import fitsettings, identify, quality
 
 TRUTH = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
 A = 306.0
@@ -85,7 +85,7 @@ def test_two_stage_fit_recovers_the_truth_and_cross_validates():
     assert all(cv["r2_T"] > 0.999999 for cv in estimate["cross_validation"])
     assert set(series["window"]) == {"up", "down"}
     assert np.abs(series["T_residual"]).max() < 1e-6
-    result = identify.check(estimate, series, section_defaults("check"))
+    result = quality.check(estimate, series, section_defaults("check"))
     assert result["verdict"] == "fit acceptable" and result["R2"] == pytest.approx(1.0)
 
 
@@ -94,7 +94,7 @@ def test_unusable_static_k_falls_back_to_joint_and_says_so():
     estimate, series = identify.identify(TABLES, vehicle(), k_result(usable=False), 2)
     assert estimate["k_source"] == "joint estimation (PEM)"
     assert estimate["fit"]["parameters"]["kA"]["value"] == pytest.approx(TRUTH["kA"], rel=1e-5)
-    result = identify.check(estimate, series, section_defaults("check"))
+    result = quality.check(estimate, series, section_defaults("check"))
     assert result["verdict"] == "assumptions in doubt"
     assert any("kA estimated jointly" in r for r in result["reasons"])
 
@@ -167,7 +167,7 @@ def test_residuals_beyond_sensor_accuracy_put_the_fit_in_doubt():
     noisy = series.copy()
     noisy["T"] += 0.5 * np.sin(noisy["time"] / 3600.0)  # a dynamic the model lacks
     noisy["T_residual"] = noisy["T"] - noisy["T_sim"]
-    result = identify.check(estimate, noisy, section_defaults("check"))
+    result = quality.check(estimate, noisy, section_defaults("check"))
     assert result["verdict"] == "assumptions in doubt"
     assert any("misses the measurement" in r for r in result["reasons"])
 
@@ -197,19 +197,19 @@ def test_a_unit_mistake_in_the_power_is_never_fit_acceptable(factor, reasons):
     k = k_result()
     k["k"], k["Q_H_mean"] = k["k"] * factor, k["Q_H_mean"] * factor
     estimate, series = identify.identify(tables, vehicle(), k, 2)
-    result = identify.check(estimate, series, section_defaults("check"))
+    result = quality.check(estimate, series, section_defaults("check"))
     assert result["verdict"] == "assumptions in doubt"
     for text in reasons:
         assert any(text in r for r in result["reasons"]), (text, result["reasons"])
     ok, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
-    assert identify.plausibility(ok, section_defaults("check")) == []
+    assert quality.plausibility(ok, section_defaults("check")) == []
 
 
 @pytest.mark.bad_input
 def test_capacities_that_store_more_than_water_are_implausible():
     estimate, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
     light = {**estimate, "mass_kg": 5_000.0}  # (1.8e7 + 1e7) / 5 t = 5600 J/(kg K)
-    reasons = identify.plausibility(light, section_defaults("check"))
+    reasons = quality.plausibility(light, section_defaults("check"))
     assert len(reasons) == 1 and "5600 J/(kg K)" in reasons[0] and "more than water" in reasons[0]
 
 
@@ -226,17 +226,17 @@ def test_an_aperture_larger_than_the_whole_surface_is_implausible():
         return {**estimate, "A": 8.64, "fit": fit}
 
     thresholds = {**section_defaults("check"), "k_range_W_m2K": [0.01, 1000.0]}
-    (reason,) = identify.plausibility(with_aperture(1000.0), thresholds)
+    (reason,) = quality.plausibility(with_aperture(1000.0), thresholds)
     assert "a_I_sol = 1000 m²" in reason and "A = 8.64 m²" in reason
-    assert identify.plausibility(with_aperture(2.0), thresholds) == []
+    assert quality.plausibility(with_aperture(2.0), thresholds) == []
 
 
 def test_joint_conductance_bounds_follow_the_records_scale():
     """A 4 W/K test box and a 2000 W/K coach both start well inside their default bounds."""
     for kA in (4.0, 2000.0):
-        lo, hi = identify.conductance_bounds(kA)
+        lo, hi = fitsettings.conductance_bounds(kA)
         assert lo <= kA / 100 and hi >= kA * 100
-    assert identify.conductance_bounds(None) == identify.KA_BOUNDS
+    assert fitsettings.conductance_bounds(None) == fitsettings.KA_BOUNDS
 
 
 @pytest.mark.bad_input
@@ -245,7 +245,7 @@ def test_time_in_minutes_declared_seconds_is_never_fit_acceptable():
     every capacity is 60 times too small (k, from means, is unchanged)."""
     tables = {n: t.assign(time=t["time"] / 60.0) for n, t in TABLES.items()}
     estimate, series = identify.identify(tables, vehicle(), k_result(), 2)
-    result = identify.check(estimate, series, section_defaults("check"))
+    result = quality.check(estimate, series, section_defaults("check"))
     assert result["verdict"] == "assumptions in doubt"
     assert any("time column's unit" in r for r in result["reasons"]), result["reasons"]
 
@@ -278,31 +278,31 @@ def test_a_fit_says_how_many_rows_it_used_and_refuses_too_few():
 @pytest.mark.parametrize("order, air", [(2, "C"), (1, "C_bar")])
 def test_the_air_in_the_volume_is_the_lower_bound_of_the_air_node(order, air):
     data = vehicle(bounds={})
-    structure = identify.model_structure(order, data)
-    _, _, bounds, _, _ = identify._settings(structure, data, k_result(), TABLES)
-    assert bounds[air] == pytest.approx((identify.RHO_CP_AIR * 120.0, 1e10))
+    structure = fitsettings.model_structure(order, data)
+    _, _, bounds, _, _ = fitsettings._settings(structure, data, k_result(), TABLES)
+    assert bounds[air] == pytest.approx((quality.RHO_CP_AIR * 120.0, 1e10))
     without = {k: v for k, v in data.items() if k != "volume_m3"}
-    _, _, bounds, _, _ = identify._settings(structure, without, k_result(), TABLES)
+    _, _, bounds, _, _ = fitsettings._settings(structure, without, k_result(), TABLES)
     assert air not in bounds  # the structure's loose 1e4 J/K stays
     assert structure.bounds[air][0] == 1e4
     # a configured lower bound below the air's capacity (1.45e5 J/K) is raised to it ...
     given = vehicle(bounds={air: [2e4, 1e9]})
-    _, _, bounds, _, _ = identify._settings(structure, given, k_result(), TABLES)
-    assert bounds[air] == pytest.approx((identify.RHO_CP_AIR * 120.0, 1e9))
+    _, _, bounds, _, _ = fitsettings._settings(structure, given, k_result(), TABLES)
+    assert bounds[air] == pytest.approx((quality.RHO_CP_AIR * 120.0, 1e9))
     # ... one above it is kept
     given = vehicle(bounds={air: [1e6, 1e9]})
-    _, _, bounds, _, _ = identify._settings(structure, given, k_result(), TABLES)
+    _, _, bounds, _, _ = fitsettings._settings(structure, given, k_result(), TABLES)
     assert bounds[air] == (1e6, 1e9)
 
 
 def test_a_bad_volume_is_refused_naming_the_key():
     data = vehicle(bounds={}) | {"volume_m3": -5}
     with pytest.raises(identify.ConfigError, match="volume_m3"):
-        identify.physical_bounds(models.STRUCTURES["second_order"], data)
+        fitsettings.physical_bounds(models.STRUCTURES["second_order"], data)
 
 
 def test_an_estimate_at_the_physical_bound_says_so_and_takes_its_coupled_parameters_along():
-    floor = identify.RHO_CP_AIR * 120.0
+    floor = quality.RHO_CP_AIR * 120.0
 
     def entry(value, sd):
         ci = [value * np.exp(-1.96 * sd), value * np.exp(1.96 * sd)]
@@ -324,7 +324,7 @@ def test_an_estimate_at_the_physical_bound_says_so_and_takes_its_coupled_paramet
         fitted,
         bounds,
         models.STRUCTURES["second_order"],
-        physical={"C": identify.AIR_CAPACITY},
+        physical={"C": fitsettings.AIR_CAPACITY},
         budget={"effects_log": {"C_veh": {"scale_Q_H": 0.05}}},
     )
     par = fitted["parameters"]

@@ -17,7 +17,7 @@ from test_inputs import assert_jacobian_matches_central_differences
 from railtherm.config import load_vehicle
 from railtherm.errors import ConfigError
 from railtherm.estimation import models
-from railtherm.study import identify
+from railtherm.study import fitsettings
 from railtherm.study.run import fit_vehicle
 
 BASE_THETA = {
@@ -108,9 +108,9 @@ def test_one_node_model_and_unknown_nodes_are_refused():
     with pytest.raises(ValueError, match="declared on node"):
         models.with_irradiance(models.STRUCTURES["second_order"], ["I_sol@both"], ["air"])
     data = {"id": "V", "channels": {"irradiance": [{"column": "I", "node": "envelope"}]}}
-    assert identify.model_structure(2, data).name == "second_order+I_sol@envelope"
+    assert fitsettings.model_structure(2, data).name == "second_order+I_sol@envelope"
     with pytest.raises(ConfigError, match=r"channels\.irradiance\[0\]\.node.*one node"):
-        identify.model_structure(1, data)
+        fitsettings.model_structure(1, data)
 
 
 # --- the whole chain on simulated data

@@ -13,7 +13,7 @@ from scipy.integrate import quad_vec
 from scipy.linalg import expm
 
 from railtherm.estimation import kalman, models, pem
-from railtherm.study import identify
+from railtherm.study import fitsettings, identify
 
 REPO = Path(__file__).resolve().parents[1]
 S2 = models.STRUCTURES["second_order"]
@@ -394,7 +394,7 @@ def armadillo_record(power_timing: str | None = None) -> pem.Experiment:
     if power_timing not in (None, "instant"):  # a mean over a logger interval: power held
         vehicle.data["model"]["input_hold"] = "zero_order"
     table = tidy_tables(vehicle)["h2"]
-    hold = identify.input_hold(vehicle.data)
+    hold = fitsettings.input_hold(vehicle.data)
     return pem.experiment_from_table(table, "h2", states=SIE.states, hold=hold)
 
 

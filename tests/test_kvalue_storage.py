@@ -11,7 +11,9 @@ from test_identify import vehicle as identify_vehicle
 
 from railtherm.config import section_defaults
 from railtherm.estimation import kvalue, models, pem
-from railtherm.study import identify
+from railtherm.study import fitsettings, identify
+from railtherm.study import storage as storage_module
+from railtherm.study.storage import storage_corrected_k
 
 STEP = 120.0
 T_O = -10.0
@@ -74,7 +76,7 @@ def k_stage(window: pd.DataFrame, data: dict) -> dict:
 def two_stages(window: pd.DataFrame, data: dict | None = None):
     data = data or vehicle()
     k = k_stage(window, data)
-    storage = identify.storage_corrected_k(IDENTIFICATION, window, data, k)
+    storage = storage_corrected_k(IDENTIFICATION, window, data, k)
     estimate, _ = identify.identify(IDENTIFICATION, data, k, 2, storage)
     return k, storage, estimate
 
@@ -132,12 +134,12 @@ def test_records_disagree_with_eq10s_biased_kA_not_with_the_corrected_one(laggin
     assert eq10["k_source"] == "static test (eq. 10)"
     check = eq10["fit"]["static_kA_check"]
     assert check["kA_static"] == pytest.approx(k["kA"])
-    assert check["z"]["kA"] < -identify.CONTRADICTION_Z  # eq. 10 too high
+    assert check["z"]["kA"] < -fitsettings.CONTRADICTION_Z  # eq. 10 too high
     assert check["reason"] == identify.STATIC_CONFLICT and not check["kA_within_static_u"]
     assert any("the static test and the records disagree" in n for n in eq10["notes"])
     check = corrected["fit"]["static_kA_check"]
     assert check["use_joint"] is False
-    assert all(abs(z) < identify.CONTRADICTION_Z for z in check["z"].values())
+    assert all(abs(z) < fitsettings.CONTRADICTION_Z for z in check["z"].values())
     assert corrected["k_source"] == "static test (eq. 10), storage-corrected"
     assert not corrected["notes"]
 
@@ -182,7 +184,7 @@ def test_exact_balance_without_noise():
 def test_undetermined_capacities_leave_eq10_and_say_why(monkeypatch):
     """Where the second-order fit does not determine the capacities (statistical sd infinite),
     the correction is not made: eq. 10's kA is the static one, and the record says why."""
-    monkeypatch.setattr(identify, "_storage_model_u", lambda *args: float("inf"))
+    monkeypatch.setattr(storage_module, "_storage_model_u", lambda *args: float("inf"))
     k, storage, estimate = two_stages(k_window(0.3))
     assert storage["applied"] is False and "does not determine" in storage["reason"]
     # stage two holds eq. 10's kA (here biased by the lag, which the records then reject)
@@ -213,7 +215,7 @@ def test_records_that_accept_the_static_kA_keep_the_two_stage_fit():
     assert estimate["k_source"] == "static test (eq. 10)"
     assert estimate["kA_fixed"] == pytest.approx(k["kA"])
     assert check["use_joint"] is False
-    assert all(abs(z) < identify.CONTRADICTION_Z for z in check["z"].values())
+    assert all(abs(z) < fitsettings.CONTRADICTION_Z for z in check["z"].values())
     assert check["kA_joint"] == pytest.approx(TRUTH["kA"], rel=0.002)
 
 
@@ -223,7 +225,7 @@ def test_records_that_contradict_the_static_kA_get_the_joint_fit():
     rejects it and the joint fit, which recovers every parameter, is reported."""
     k, estimate = static_stage(1.01)
     check = estimate["fit"]["static_kA_check"]
-    assert check["use_joint"] is True and check["z"]["kA"] < -identify.CONTRADICTION_Z
+    assert check["use_joint"] is True and check["z"]["kA"] < -fitsettings.CONTRADICTION_Z
     assert estimate["k_source"] == f"joint estimation (PEM): {identify.STATIC_CONTRADICTED}"
     assert estimate["kA_fixed"] is None
     assert estimate["k_eq10"] == pytest.approx(k["k"])  # the static test is still reported
@@ -270,17 +272,17 @@ def test_a_runaway_alternation_is_solved_by_the_secant_method(monkeypatch):
     kA = balance(kA) from the joint fit instead, and ends where the two agree. Here the
     balance's answer is amplified about the truth to make the map steep (on records without
     surface sensors, where the capacities follow kA most)."""
-    real = identify.storage_corrected_kA
+    real = storage_module.storage_corrected_kA
     gain = 40.0
 
     def steep(window, C, K_veh, C_veh):
         result = real(window, C, K_veh, C_veh)
         return dataclasses.replace(result, kA=TRUTH["kA"] + gain * (result.kA - TRUTH["kA"]))
 
-    monkeypatch.setattr(identify, "storage_corrected_kA", steep)
+    monkeypatch.setattr(storage_module, "storage_corrected_kA", steep)
     data, window = vehicle(), k_window(0.3)
     k = k_stage(window, data)
-    storage = identify.storage_corrected_k(WITHOUT_SURFACE, window, data, k)
+    storage = storage_corrected_k(WITHOUT_SURFACE, window, data, k)
     data["model"] = {**data["model"], "two_stage_check": False}
     estimate, _ = identify.identify(WITHOUT_SURFACE, data, k, 2, storage)
     assert storage["applied"] and storage["solver"] == "secant"
@@ -310,7 +312,7 @@ def test_a_balance_under_a_capacity_at_its_search_bound_is_not_used(monkeypatch)
     monkeypatch.setattr(identify.pem, "fit", bounded)
     data, window = vehicle(), k_window(0.3)
     k = k_stage(window, data)
-    storage = identify.storage_corrected_k(IDENTIFICATION, window, data, k)
+    storage = storage_corrected_k(IDENTIFICATION, window, data, k)
     assert storage["applied"] is False
     assert "leaves C_veh at a search bound" in storage["reason"]
     assert "eq. 10's kA is fixed" in storage["reason"]

@@ -25,7 +25,7 @@ from railtherm.config import load_vehicle, metadata_classes, section_defaults
 from railtherm.errors import ConfigError
 from railtherm.estimation import kvalue
 from railtherm.report import audit, plots, tableformat
-from railtherm.study import aggregate, identify
+from railtherm.study import aggregate, fitsettings, identify, quality
 from railtherm.study.fit import read_fit
 
 REPO = Path(__file__).resolve().parents[1]
@@ -147,7 +147,7 @@ def test_two_stage_fit_without_surface_takes_kA_from_the_static_test():
     for p in ("C", "K_veh", "C_veh"):
         assert params[p]["value"] == pytest.approx(TRUTH[p], rel=1e-5)
     assert estimate["A"] is None and estimate["mass_kg"] is None
-    result = identify.check(estimate, series, section_defaults("check"))
+    result = quality.check(estimate, series, section_defaults("check"))
     assert result["verdict"] == "fit acceptable", result["reasons"]
     notes = " ".join(result["notes"])
     assert "k_range_W_m2K) not checked: no surface_m2" in notes
@@ -155,10 +155,10 @@ def test_two_stage_fit_without_surface_takes_kA_from_the_static_test():
 
 
 def test_joint_fit_without_surface_starts_from_the_energy_balance():
-    start = identify.energy_balance_kA(TABLES)
+    start = fitsettings.energy_balance_kA(TABLES)
     rows = pd.concat(TABLES.values())
     assert start == pytest.approx(rows["Q_H"].mean() / (rows["T"] - rows["T_o"]).mean())
-    assert identify.energy_balance_kA({"w": TABLES["up"].assign(Q_H=0.0)}) is None
+    assert fitsettings.energy_balance_kA({"w": TABLES["up"].assign(Q_H=0.0)}) is None
     estimate, _ = identify.identify(TABLES, bare(mode="joint"), None, 2)
     assert estimate["fit"]["parameters"]["kA"]["value"] == pytest.approx(TRUTH["kA"], rel=1e-5)
 
@@ -168,10 +168,10 @@ def test_an_implausible_fit_of_a_rail_vehicle_is_still_caught():
     """The skipped checks skip only where the metadata is absent."""
     estimate, _ = identify.identify(TABLES, vehicle(), None, 2)
     light = {**estimate, "mass_kg": 5_000.0}
-    assert any("more than water" in r for r in identify.plausibility(light, {}))
-    assert identify.skipped_checks(estimate) == []
-    assert identify.plausibility({**light, "mass_kg": None}, {}) == []
-    assert len(identify.skipped_checks({**light, "mass_kg": None})) == 1
+    assert any("more than water" in r for r in quality.plausibility(light, {}))
+    assert quality.skipped_checks(estimate) == []
+    assert quality.plausibility({**light, "mass_kg": None}, {}) == []
+    assert len(quality.skipped_checks({**light, "mass_kg": None})) == 1
 
 
 # --- the tables --------------------------------------------------------------------------------

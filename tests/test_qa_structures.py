@@ -47,6 +47,6 @@ def test_a_module_named_with_the_kalman_suffix_is_refused(tmp_path, monkeypatch)
 
 def test_the_registry_and_the_model_keys_share_the_kalman_suffix():
     from railtherm.structures import _load
-    from railtherm.study import identify
+    from railtherm.study import fitsettings
 
-    assert _load.KALMAN_SUFFIX == identify.KALMAN_SUFFIX
+    assert _load.KALMAN_SUFFIX == fitsettings.KALMAN_SUFFIX

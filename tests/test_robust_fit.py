@@ -17,8 +17,8 @@ import pandas as pd
 import pytest
 
 from railtherm.config import section_defaults
-from railtherm.estimation import models, pem
-from railtherm.study import identify
+from railtherm.estimation import common, models, pem
+from railtherm.study import identify, quality
 
 DT = 300.0  # s
 N = 3000  # 10.4 days
@@ -143,13 +143,13 @@ def test_a_hidden_heat_source_pins_the_initial_state_at_its_bound(monkeypatch):
     e = hidden_source_record()
     fixed = {"kA": HIDDEN["kA"]}
     hottest = float(np.nanmax(e.y))
-    assert pem.X0_MARGIN_K == 10.0
-    monkeypatch.setattr(pem, "X0_MARGIN_K", 1.0e4)  # as good as no bound
+    assert common.X0_MARGIN_K == 10.0
+    monkeypatch.setattr(common, "X0_MARGIN_K", 1.0e4)  # as good as no bound
     loose = pem.fit(s, [e], fixed=fixed)
     assert loose.x0[0][1] > hottest + 30.0  # three margins beyond
     monkeypatch.undo()
     r = pem.fit(s, [e], fixed=fixed)
-    assert r.x0[0][1] == pytest.approx(hottest + pem.X0_MARGIN_K, abs=1e-6)
+    assert r.x0[0][1] == pytest.approx(hottest + common.X0_MARGIN_K, abs=1e-6)
     flag = next(f for f in r.flags if f.code == "x0_at_bound")
     assert flag.parameters == ("T_veh",)
     assert "upper bound" in flag.message and "hidden heat source" in flag.message
@@ -188,7 +188,7 @@ def test_the_bounded_initial_state_puts_the_verdict_in_doubt():
     # stays, and the disagreement is a reason of its own
     assert estimate["k_source"] == "static test (eq. 10)"
     assert estimate["fit"]["static_kA_check"]["reason"] == identify.STATIC_CONFLICT
-    checked = identify.check(estimate, series, section_defaults("check"))
+    checked = quality.check(estimate, series, section_defaults("check"))
     assert checked["verdict"] == "assumptions in doubt"
     assert any("the static test and the records disagree" in r for r in checked["reasons"])
     assert any("estimated initial T_veh" in reason for reason in checked["reasons"])
@@ -197,6 +197,6 @@ def test_the_bounded_initial_state_puts_the_verdict_in_doubt():
     estimate, series = identify.identify({"run": table}, vehicle, k, 2)
     assert "static_kA_check" not in estimate["fit"]
     assert "x0_at_bound" in [f["code"] for f in estimate["fit"]["flags"]]
-    checked = identify.check(estimate, series, section_defaults("check"))
+    checked = quality.check(estimate, series, section_defaults("check"))
     assert checked["verdict"] == "assumptions in doubt"
     assert any("estimated initial T_veh" in reason for reason in checked["reasons"])

@@ -18,7 +18,7 @@ from railtherm.study import classvalidation, predictions
 from railtherm.study import simulate as sim
 from railtherm.study.classmodel import ClassMember
 from railtherm.study.fit import Fit
-from railtherm.study.identify import RHO_CP_AIR
+from railtherm.study.quality import RHO_CP_AIR
 from railtherm.study.scenario import Scenario
 
 TARGET, POWER = 15.0, 60_000.0

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from test_kalman import SIE, likelihood, random_point, sde_experiment
 
-from railtherm.estimation import kalman, models, pem
+from railtherm.estimation import common, kalman, models, pem
 
 
 def _numpy_reference(lik, v, order, monkeypatch):
@@ -96,7 +96,7 @@ def test_start_cost_with_best_initial_states_equals_a_direct_solve(hold):
     ok = np.isfinite(y[:, 0])
     a = models.simulate(SIE, trial, u, 1800.0, [y[0, 0], 0.0], hold)[ok, 0]
     b = models.simulate(SIE, trial, u, 1800.0, [y[0, 0], 1.0], hold)[ok, 0] - a
-    best = float(np.clip(np.dot(b, y[ok, 0] - a) / np.dot(b, b), *pem._measured_range(e)))
+    best = float(np.clip(np.dot(b, y[ok, 0] - a) / np.dot(b, b), *common.measured_range(e)))
     for compiled in (True, False):
         prob = pem._Problem(SIE, [e], {}, SIE.parameters, (0,), "measured", compiled)
         cost, w = prob.cost_x0_projected(v)

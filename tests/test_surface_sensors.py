@@ -1,5 +1,5 @@
 """Surface sensors as the measured envelope state of the interior-envelope structure
-(``model.envelope_sensors: surface``, railtherm.study.identify.envelope_tables): T_e compared in
+(``model.envelope_sensors: surface``, railtherm.study.fitsettings.envelope_tables): T_e compared in
 eq. 17 like T_veh in eqs. 7-8, through the whole chain (raw file -> config -> cleaning -> PEM
 fit), and the config's checks."""
 
@@ -16,7 +16,7 @@ from cell_case import write_cell
 from railtherm.config import load_vehicle
 from railtherm.errors import ConfigError
 from railtherm.estimation import models
-from railtherm.study import identify
+from railtherm.study import fitsettings, identify
 from railtherm.study.run import fit_vehicle, tidy_tables
 
 TRUTH = {"C": 2.0e6, "K_i": 400.0, "C_e": 1.5e7, "K_o": 70.0}
@@ -117,13 +117,13 @@ def test_measured_initial_envelope_state_with_x0_measured(case):
 def test_second_order_and_unmeasured_tables_are_left_as_they_are():
     table = pd.DataFrame({"time": [0.0, 60.0], "T": 20.0, "T_veh": [18.0, 18.5]})
     data = {"model": {"envelope_sensors": "surface"}}
-    second = identify.envelope_tables(models.STRUCTURES["second_order"], data, {"w": table})
+    second = fitsettings.envelope_tables(models.STRUCTURES["second_order"], data, {"w": table})
     assert second["w"] is table
-    first = identify.envelope_tables(models.STRUCTURES["first_order"], data, {"w": table})
+    first = fitsettings.envelope_tables(models.STRUCTURES["first_order"], data, {"w": table})
     assert first["w"] is table
     ie = models.STRUCTURES["interior_envelope"]
-    assert identify.envelope_tables(ie, {"model": {}}, {"w": table})["w"] is table
-    out = identify.envelope_tables(ie, data, {"w": table})["w"]
+    assert fitsettings.envelope_tables(ie, {"model": {}}, {"w": table})["w"] is table
+    out = fitsettings.envelope_tables(ie, data, {"w": table})["w"]
     assert out["T_e"].tolist() == [18.0, 18.5] and "T_e" not in table.columns
 
 

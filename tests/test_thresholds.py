@@ -46,7 +46,10 @@ def test_every_threshold_has_a_default_a_reason_and_a_line_in_the_docs():
 
 def test_every_threshold_the_code_reads_is_a_setting():
     """Whatever the verdict's code looks up in its thresholds is a key of the schema."""
-    source = (REPO / "railtherm" / "study" / "identify.py").read_text(encoding="utf-8")
+    source = "".join(
+        (REPO / "railtherm" / "study" / name).read_text(encoding="utf-8")
+        for name in ("identify.py", "fitsettings.py", "quality.py")
+    )
     read = set(re.findall(r'thresholds\["(\w+)"\]', source))
     read |= set(re.findall(r'get\("check"\) or \{\}\)\.get\("(\w+)"', source))
     assert read and read <= set(CHECK), read - set(CHECK)
@@ -135,10 +138,10 @@ def test_a_bad_threshold_value_is_a_one_line_error(tmp_path, check, key, reason)
 
 
 def test_library_callers_get_the_defaults_and_the_same_unknown_key_error():
-    assert identify.check_thresholds({}) == section_defaults("check")
-    assert identify.check_thresholds({"r2_min": 0.5})["r2_min"] == 0.5
+    assert quality.check_thresholds({}) == section_defaults("check")
+    assert quality.check_thresholds({"r2_min": 0.5})["r2_min"] == 0.5
     with pytest.raises(ConfigError, match=r"key 'check.r2min' .*did you mean 'r2_min'"):
-        identify.check_thresholds({"r2min": 0.5})
+        quality.check_thresholds({"r2min": 0.5})
     with pytest.raises(ValueError, match=r"unknown verdict thresholds: \['alpha'\] \(known:"):
         quality.verdict(0.99, thresholds={"alpha": 0.05})
 
@@ -159,7 +162,7 @@ def with_residuals(estimate, series, e: np.ndarray):
 
 
 def reasons(estimate, series, **check) -> list[str]:
-    return identify.check(estimate, series, check)["reasons"]
+    return quality.check(estimate, series, check)["reasons"]
 
 
 def test_rmse_limit_and_r2_min(exact):
@@ -171,7 +174,7 @@ def test_rmse_limit_and_r2_min(exact):
     assert not any("RMSE" in r for r in field)
     tight = reasons(*noisy, max_rmse_K=0.25)
     assert any("more than 0.25 K, check.max_rmse_K" in r for r in tight)
-    r2 = identify.check(*noisy, {})["R2"]
+    r2 = quality.check(*noisy, {})["R2"]
     assert not any("R^2" in r for r in field)
     assert any(
         f"below {r2 + 1e-4:g}" in r for r in reasons(*noisy, max_rmse_K=1.0, r2_min=r2 + 1e-4)
@@ -183,7 +186,7 @@ def test_whiteness_is_judged_only_when_required_and_at_its_level(exact):
     estimate = {**estimate, "outputs": ["T"]}  # T_veh's residuals are round-off here
     e = np.random.default_rng(3).normal(0.0, 0.05, len(series))  # white, within the limit
     white = with_residuals(estimate, series, e)
-    p = identify.check(*white, {})["measures"]["T"]["overall"]["ljung_box_p"]
+    p = quality.check(*white, {})["measures"]["T"]["overall"]["ljung_box_p"]
     assert 0.01 < p < 0.99
     assert reasons(*white) == []
     assert reasons(*white, require_white=True, whiteness_alpha=p / 2) == []

@@ -19,7 +19,7 @@ from snakemake_run import snakemake
 from railtherm import config, structures
 from railtherm.data import ingest
 from railtherm.errors import ConfigError
-from railtherm.study import identify, reference
+from railtherm.study import fitsettings, identify, reference
 
 REPO = Path(__file__).resolve().parents[1]
 VALIDATION = REPO / "validation"
@@ -137,7 +137,7 @@ def test_irradiance_and_known_heat_flows_are_declared_channels(tmp_path):
     np.testing.assert_allclose(table["Q_known"], 1000.0 * occupants)
     np.testing.assert_allclose(table["Q_H"], table["Q_heater"] + 1000.0 * occupants)
     np.testing.assert_allclose(table["I_south"].to_numpy(), raw["I_sol"].to_numpy())
-    structure = identify.model_structure("interior_envelope", vehicle.data)
+    structure = fitsettings.model_structure("interior_envelope", vehicle.data)
     assert structure.inputs[-1] == "I_south" and "a_I_south" in structure.parameters
 
 

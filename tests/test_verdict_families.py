@@ -82,7 +82,7 @@ def test_kalman_innovations_of_two_white_outputs_put_a_fit_in_doubt_at_most_at_a
             }
         )
         estimate = innovations_estimate(series, ["T", "T_veh"])
-        failed += bool(identify.innovation_reasons(estimate, {"whiteness_alpha": ALPHA}))
+        failed += bool(quality.innovation_reasons(estimate, {"whiteness_alpha": ALPHA}))
         union += any(
             min(t["ljung_box_p"], t["cpg_p"]) < ALPHA for t in estimate["innovations"].values()
         )
@@ -102,7 +102,7 @@ def test_a_single_test_below_alpha_is_no_reason_unless_holm_rejects_it():
                 "T_veh": {"ljung_box_p": 0.6, "cpg_p": 0.7, "white": True},
             }
         }
-        return identify.innovation_reasons(estimate, {"whiteness_alpha": ALPHA})
+        return quality.innovation_reasons(estimate, {"whiteness_alpha": ALPHA})
 
     assert reasons(0.03) == []
     (reason,) = reasons(0.004)
@@ -127,7 +127,7 @@ def test_a_clearly_coloured_output_is_still_found():
             "T_veh_innovation_sd": np.ones(e.size),
         }
     )
-    (reason,) = identify.innovation_reasons(
+    (reason,) = quality.innovation_reasons(
         innovations_estimate(series, ["T", "T_veh"]), {"whiteness_alpha": ALPHA}
     )
     assert "innovations of T are not white" in reason

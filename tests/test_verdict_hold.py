@@ -13,7 +13,7 @@ import yaml
 
 from railtherm.config import load_vehicle
 from railtherm.data import ingest
-from railtherm.study import identify, run
+from railtherm.study import identify, quality, run
 
 START = pd.Timestamp("2026-01-05T00:00:00")
 LOGGER_S = 60.0
@@ -90,7 +90,7 @@ def fit(tmp_path: Path, switching: bool, hold: str) -> tuple[dict, dict]:
     tables = run.tidy_tables(vehicle, workdir=tmp_path)
     windows = {"all": tables["all"]}
     estimate, series = identify.identify(windows, vehicle.data, None, 1, None)
-    return estimate, identify.check(estimate, series, vehicle.data.get("check"))
+    return estimate, quality.check(estimate, series, vehicle.data.get("check"))
 
 
 def codes(estimate: dict) -> set[str]:

@@ -13,7 +13,7 @@ import re
 import pytest
 from test_kvalue_storage import WITHOUT_SURFACE, k_stage, k_window, vehicle
 
-from railtherm.study import identify
+from railtherm.study import fitsettings, identify, quality
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +30,7 @@ def test_the_note_states_each_yardstick_with_its_own_number(contradicted):
     estimate, _ = contradicted
     check = estimate["fit"]["static_kA_check"]
     assert check["reason"] == identify.STATIC_CONTRADICTED and check["use_joint"]
-    assert abs(check["z"]["kA"]) > identify.CONTRADICTION_Z  # the case of the two yardsticks
+    assert abs(check["z"]["kA"]) > fitsettings.CONTRADICTION_Z  # the case of the two yardsticks
     (note,) = [n for n in estimate["method_notes"] if "contradict the two-stage fit" in n]
     # no bare "within the static test's uncertainty" beside "more than 3 standard
     # uncertainties of the difference": each claim names its yardstick and its number
@@ -40,15 +40,15 @@ def test_the_note_states_each_yardstick_with_its_own_number(contradicted):
     z = float(re.search(r"but z = ([+-][\d.]+) of their difference", note).group(1))
     sd = float(re.search(r"difference's standard uncertainty \(([\d.]+) %\)", note).group(1))
     assert own == pytest.approx(0.5)
-    assert abs(off) <= identify.CONTRADICTION_Z * own  # "within 3 times ... own" holds
-    assert abs(z) > identify.CONTRADICTION_Z  # "more than 3" holds
+    assert abs(off) <= fitsettings.CONTRADICTION_Z * own  # "within 3 times ... own" holds
+    assert abs(z) > fitsettings.CONTRADICTION_Z  # "more than 3" holds
     assert sd < own and abs(off) / sd == pytest.approx(abs(z), rel=0.1)  # and both at once
     assert z == pytest.approx(check["z"]["kA"], abs=0.05)
 
 
 def test_a_replacement_whose_kA_agrees_is_a_note_not_a_reason(contradicted):
     estimate, series = contradicted
-    checked = identify.check(estimate, series, {})
+    checked = quality.check(estimate, series, {})
     k_method = next(c for c in checked["criteria"] if c["criterion"] == "k_stage")
     assert k_method["applies"] and k_method["passed"]
     assert not any("contradict the two-stage fit" in r for r in checked["reasons"])

@@ -60,7 +60,7 @@ binned like a temperature (the sample itself when step = ``dt_log``). On a step 
 the logger's, a column ``<input>_hold_error`` per input (Q_H, each irradiance) gives, per row,
 the rms of the logged signal's departure from the straight line between the rows over
 ``[t_n, t_n+1)``: large where the input switches within a step (a heater's on/off), which
-the fit flags (``railtherm.study.identify.hold_flags``).
+the fit flags (``railtherm.study.fitsettings.hold_flags``).
 
 Data after the window end are used when the file has them. Where the power signal ends before
 ``t_N + step`` (the last row of a window that reaches the end of the data), the last row's

@@ -67,10 +67,10 @@ import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_discrete_are, solve_discrete_lyapunov
 from scipy.optimize import minimize
 
-from railtherm.estimation import models, pem
+from railtherm.estimation import common, models, pem
+from railtherm.estimation.common import Experiment
 from railtherm.estimation.estimate import Estimate, Identification
 from railtherm.estimation.models import Structure
-from railtherm.estimation.pem import Experiment
 
 __all__ = [
     "KalmanResult",
@@ -437,7 +437,7 @@ def _data(structure: Structure, e: Experiment, out_idx: Sequence[int], x0_mode: 
         x0_base=base,
         x0_free=x0_free,
         x0_prior=x0_prior,
-        x0_range=pem._measured_range(e),
+        x0_range=common.measured_range(e),
     )
 
 
@@ -1316,7 +1316,7 @@ def _finite_information(Hk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return Hk, bad
 
 
-@pem._single_threaded_blas
+@common.single_threaded_blas
 def fit(
     structure: Structure,
     experiments: Sequence[Experiment],
@@ -1476,7 +1476,7 @@ def fit(
     sol = _optimise(lik, v0, lo, hi, clip)
     v = sol.x
     H = _hessian(lik, v, _gradient(lik, v))
-    levels = pem._noise_levels(structure, input_noise or {}, experiments)
+    levels = common.noise_levels(structure, input_noise or {}, experiments)
     meat = None
     if any(levels):
         v = _input_noise_terms(lik, v, levels, lo, hi)
@@ -1667,11 +1667,11 @@ def _kept(lik: _Likelihood, sol, v: np.ndarray, lo, hi) -> np.ndarray:
 
 
 def _pinv_sym(Hk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The pseudo-inverse of a symmetric information matrix (directions below pem._NULL_REL of
+    """The pseudo-inverse of a symmetric information matrix (directions below common.NULL_REL of
     the largest eigenvalue dropped) and a mask of the unknowns loading on a dropped one."""
     lam, V = np.linalg.eigh(Hk)
     top = float(np.max(np.abs(lam))) if lam.size else 0.0
-    null = lam <= pem._NULL_REL * top if top > 0 else np.ones_like(lam, dtype=bool)
+    null = lam <= common.NULL_REL * top if top > 0 else np.ones_like(lam, dtype=bool)
     inv = np.where(null, 0.0, 1.0 / np.where(null, 1.0, lam))
     unresolved = np.abs(V[:, null]).max(axis=1) > 1e-8 if null.any() else np.zeros(len(lam), bool)
     return (V * inv) @ V.T, unresolved
@@ -1905,7 +1905,7 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
                 float(np.exp(v[i] + pem.Z95 * sd[i])),
             )
         noise_sd[names[i]] = float(sd[i])
-    flags = pem._flags(sol, v, th, free, ci, corr, cond, bnds)
+    flags = common.fit_flags(sol, v, th, free, ci, corr, cond, bnds)
     prob = SimpleNamespace(
         P=Qg,
         exps=[d.e for d in lik.data],
@@ -1913,7 +1913,7 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         x0_range=[d.x0_range for d in lik.data],
         s=structure,
     )
-    flags += pem._x0_flags(prob, sol, v)
+    flags += common.x0_flags(prob, sol, v)
     bound_of = {fl.parameters[0]: fl for fl in flags if fl.code == "at_bound"}
     identified = {}
     for i, p in enumerate(free):

@@ -16,7 +16,7 @@ from typing import Any
 import pandas as pd
 
 from railtherm import structures
-from railtherm.estimation import pem
+from railtherm.estimation import common
 from railtherm.report.tables import round_significant, write_csv
 from railtherm.study.aggregate import ESTIMATED, NOT_GIVEN, is_not_given, selectable
 
@@ -32,7 +32,7 @@ def model_selection_markdown(fits: Sequence[Mapping[str, Any]], alpha: float = 0
     model is the limit of the second-order model as K_veh -> 0 and of the interior-envelope
     model as K_i -> infinity); empty when no vehicle has them."""
     from railtherm.estimation import diagnostics
-    from railtherm.study.identify import split_key
+    from railtherm.study.fitsettings import split_key
 
     by_vehicle: dict[str, list] = {}
     for fit in fits:
@@ -169,7 +169,7 @@ def r2_text(x: float) -> str:
     return f"{x:.5f}" if x >= 0.999 else f"{x:.3f}"
 
 
-UNBOUNDED_FACTOR = pem.UNBOUNDED_FACTOR  # an interval limit this far prints as 0 or ∞
+UNBOUNDED_FACTOR = common.UNBOUNDED_FACTOR  # an interval limit this far prints as 0 or ∞
 
 
 def _delta(x: float, decimals: int = 2) -> str:

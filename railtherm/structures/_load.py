@@ -30,7 +30,7 @@ from railtherm.structures._structure import Structure
 # rounding (a few ulps of the matrix entry over h) and ATOL of the largest entry of that
 # parameter's derivative. A doubled or sign-flipped entry misses by 100 %; an exact one by
 # about STEP**2 (truncation) and 1e-16 / STEP (rounding) relative.
-# The suffix of a model key fitted by the Kalman filter (railtherm.study.identify.KALMAN_SUFFIX):
+# The suffix of a model key fitted by the Kalman filter (railtherm.study.fitsettings.KALMAN_SUFFIX):
 # a module named with it could not be asked for by output error.
 KALMAN_SUFFIX = "_kalman"
 

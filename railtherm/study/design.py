@@ -37,7 +37,7 @@ from railtherm import structures
 from railtherm.errors import ConfigError
 from railtherm.estimation import models
 from railtherm.estimation.acf import autocorrelation_time
-from railtherm.estimation.pem import Z95, identification
+from railtherm.estimation.common import Z95, identification
 from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_schema
 
 __all__ = [

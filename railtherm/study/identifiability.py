@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from railtherm.estimation.pem import Z95, identification
+from railtherm.estimation.common import Z95, identification
 
 __all__ = ["coupled_identification", "parameter_identification", "total_capacity"]
 
@@ -56,7 +56,7 @@ def total_capacity(
 
     Sigma the fit's statistical covariance of the log parameters (``sd_log`` and
     ``correlation`` over ``free``), e the signed systematic effects of each source
-    (``effects_log``, railtherm.study.identify.systematic_budget). A part at a bound of the search
+    (``effects_log``, railtherm.study.budget.systematic_budget). A part at a bound of the search
     (its entry's ``at_bound``, :func:`identification`) is held there: the sum is conditional
     on it (its variance and effects left out, ``note`` says so); a part at an upper bound, or
     every part at a bound, leaves the sum not identified, and a part with an unbounded

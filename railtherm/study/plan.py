@@ -17,7 +17,7 @@ from typing import Any
 from railtherm.config import Study
 from railtherm.data import ingest
 from railtherm.errors import ConfigError
-from railtherm.study import identify
+from railtherm.study import fitsettings
 
 __all__ = ["STUDY_TABLES", "VEHICLE_ID", "StudyPlan"]
 
@@ -40,7 +40,7 @@ class StudyPlan:
         # the fits of the study's tables: fit_order<n>.yaml, or fit_order<n>_kalman.yaml
         # when the study chooses the Kalman-filter estimator (study.estimator)
         kalman = config["study"].get("estimator") == "kalman"
-        self.table_key_suffix = identify.KALMAN_SUFFIX if kalman else ""
+        self.table_key_suffix = fitsettings.KALMAN_SUFFIX if kalman else ""
 
     # -- one vehicle -----------------------------------------------------------------------
 
@@ -100,7 +100,7 @@ class StudyPlan:
     def model_keys(self, vehicle: str) -> tuple[str, ...]:
         """The model keys of a vehicle's fits: order1, order2, then further structures, each
         per estimator (the key names the files: fit_<key>.yaml)."""
-        return tuple(identify.model_keys(self.study.vehicles[vehicle].data))
+        return tuple(fitsettings.model_keys(self.study.vehicles[vehicle].data))
 
     def has_fit(self, vehicle: str, order: int) -> bool:
         """Whether a vehicle fits the paper's model of this order."""
@@ -113,7 +113,7 @@ class StudyPlan:
         key = f"order{order}{self.table_key_suffix}"
         if key in self.model_keys(vehicle):
             return key
-        other = "" if self.table_key_suffix else identify.KALMAN_SUFFIX
+        other = "" if self.table_key_suffix else fitsettings.KALMAN_SUFFIX
         return f"order{order}{other}"
 
     def table_series(self, vehicle: str | None, order: int) -> str:
@@ -131,7 +131,7 @@ class StudyPlan:
         innovations of each Kalman-filter fit), as PNG and SVG."""
         has_k, keys = self.figure_signature(vehicle)
         stems = (["kvalue"] if has_k else []) + [f"fit_{key}" for key in keys]
-        stems += [f"innovations_{key}" for key in keys if key.endswith(identify.KALMAN_SUFFIX)]
+        stems += [f"innovations_{key}" for key in keys if key.endswith(fitsettings.KALMAN_SUFFIX)]
         return [f"results/vehicles/{vehicle}/{s}.{ext}" for s in stems for ext in FIGURE_FORMATS]
 
     # -- the study -------------------------------------------------------------------------

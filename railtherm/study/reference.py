@@ -29,7 +29,7 @@ import pandas as pd
 from railtherm import structures
 from railtherm.errors import ConfigError
 from railtherm.estimation import pem
-from railtherm.study import identifiability, identify, quality
+from railtherm.study import fitsettings, identifiability, quality
 from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_schema
 
 __all__ = [
@@ -64,7 +64,7 @@ def load_reference(path: str | Path, display: str | None = None) -> dict[str, An
     data = read_yaml(path, display=name)
     validate_schema(name, data, packaged_schema("reference"))
     check_finite(name, data)
-    structure = identify.model_structure(data["model"])
+    structure = fitsettings.model_structure(data["model"])
     params = published_parameters(data)
     known = {*structure.parameters, "kA"}
     unknown = sorted(p for p in params if p not in known and not p.startswith("a_"))
@@ -156,12 +156,12 @@ def simulate_published(
     (quality.summary) of the simulated T, and the overall kA of those parameters. None when
     the reference does not publish every parameter of the vehicle's structure (e.g. kA alone,
     or a model without the vehicle's irradiance inputs): there is nothing to simulate."""
-    structure = identify.model_structure(reference["model"], vehicle_data)
+    structure = fitsettings.model_structure(reference["model"], vehicle_data)
     theta = published_parameters(reference)
     if any(p not in theta for p in structure.parameters):
         return None
     theta = {p: theta[p] for p in structure.parameters}
-    exps = identify.experiments(structure, tables, identify.input_hold(vehicle_data))
+    exps = fitsettings.experiments(structure, tables, fitsettings.input_hold(vehicle_data))
     result = pem.fit(structure, exps, fixed=theta, outputs=("T",), x0="estimated")
     y = np.concatenate([e.y[:, 0] for e in exps])
     yhat = np.concatenate([x[:, 0] for x in result.simulated])
@@ -285,7 +285,7 @@ def _number(value: float, quantity: str) -> str:
 
 def outlier_text(fit: Mapping[str, Any]) -> str:
     """The record's outlying samples as a fit file gives them (``outliers``, by
-    :func:`railtherm.study.identify.outlying_samples`), one sentence."""
+    :func:`railtherm.study.quality.outlying_samples`), one sentence."""
     parts = []
     for state, found in (fit.get("outliers") or {}).items():
         head = (

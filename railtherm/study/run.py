@@ -22,8 +22,9 @@ from railtherm.config import Vehicle
 from railtherm.data import ingest
 from railtherm.errors import ConfigError
 from railtherm.estimation import kvalue
-from railtherm.study import identify
+from railtherm.study import fitsettings, identify, quality
 from railtherm.study.fit import Fit, write_yaml
+from railtherm.study.storage import storage_corrected_k
 
 
 @dataclass
@@ -54,18 +55,18 @@ def fit_vehicle(
     workdir: str | os.PathLike[str] = ".",
 ) -> VehicleResult:
     """Clean, static k, fit and check ``models`` (default: every model the config asks for,
-    :func:`railtherm.study.identify.model_keys`). ``out``: a results directory to write the rules'
-    files into (``vehicles/<id>/clean/<window>.csv``, ``kvalue.yaml``,
+    :func:`railtherm.study.fitsettings.model_keys`). ``out``: a results directory to write the
+    rules' files into (``vehicles/<id>/clean/<window>.csv``, ``kvalue.yaml``,
     ``identify/<model>.yaml`` and ``_series.csv``, ``fit_<model>.yaml``)."""
-    keys = list(models) if models else identify.model_keys(vehicle.data)
+    keys = list(models) if models else fitsettings.model_keys(vehicle.data)
     for key in keys:  # a refused structure module stops here, naming its file and the fix
-        for refused in structures.refused(identify.split_key(key)[0]):
+        for refused in structures.refused(fitsettings.split_key(key)[0]):
             raise refused.error()
-    unknown = [k for k in keys if identify.split_key(k)[0] not in structures.keys()]
+    unknown = [k for k in keys if fitsettings.split_key(k)[0] not in structures.keys()]
     if unknown:
         raise ValueError(
             f"unknown model {unknown[0]!r}; known: {', '.join(structures.keys())}, each "
-            f"also with the suffix {identify.KALMAN_SUFFIX} (the Kalman-filter estimator)"
+            f"also with the suffix {fitsettings.KALMAN_SUFFIX} (the Kalman-filter estimator)"
         )
     tables = tidy_tables(vehicle, workdir)
     base = None if out is None else os.path.join(str(out), "vehicles", vehicle.id)
@@ -82,16 +83,16 @@ def fit_vehicle(
     windows = {w["name"]: tables[w["name"]] for w in vehicle.windows["identification"]}
     result = VehicleResult(vehicle=vehicle, tables=tables, kvalue=k)
     k_stage = None if k is None else k.to_dict()
-    storage = identify.storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k_stage)
+    storage = storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k_stage)
     for key in keys:
-        model = identify.model_key(key)
+        model = fitsettings.model_key(key)
         try:
             estimate, series = identify.identify(windows, vehicle.data, k_stage, model, storage)
         except ConfigError as err:
             if err.file != f"vehicle {vehicle.id}":
                 raise
             raise ConfigError(vehicle.path, err.key, err.value, err.reason) from None
-        checked = identify.check(estimate, series, vehicle.data["check"])
+        checked = quality.check(estimate, series, vehicle.data["check"])
         fit = Fit(checked, series)
         if base is not None:
             write_yaml(estimate, os.path.join(base, "identify", f"{model}.yaml"))

@@ -36,7 +36,7 @@ some draws do not reach within the duration has an open upper band ("> duration"
 **Physical limits of the draws.** A drawn parameter set is a vehicle only if every capacity
 and conductance is finite and positive and the air node's capacity (C of eqs. 7-8, C_bar of
 eq. 9) is at least that of the air it holds, rho c_p V (V the vehicle's ``volume_m3``,
-rho c_p = :data:`railtherm.study.identify.RHO_CP_AIR`). With C >= rho c_p V no draw heats up
+rho c_p = :data:`railtherm.study.quality.RHO_CP_AIR`). With C >= rho c_p V no draw heats up
 faster than the air alone would: C dT/dt <= Q_H while T lies above T_o and T_veh, so a rise
 by Delta T at power P takes at least rho c_p V Delta T / P. Draws beyond the limits are
 rejected and replaced by further draws from the same generator (rejection sampling: the
@@ -374,8 +374,8 @@ def parameter_set(params: Any) -> ParameterSet:
 
 
 def air_capacity(volume_m3: float | None, label: str = "volume_m3") -> float | None:
-    """rho c_p V (J/K) of ``volume_m3``: :func:`railtherm.study.identify.air_capacity`."""
-    from railtherm.study.identify import air_capacity as capacity
+    """rho c_p V (J/K) of ``volume_m3``: :func:`railtherm.study.fitsettings.air_capacity`."""
+    from railtherm.study.fitsettings import air_capacity as capacity
 
     return capacity(volume_m3, label)
 

@@ -12,7 +12,7 @@ from railtherm.config import load_study
 from railtherm.data.datacheck import check_study_values
 from railtherm.data.rawfile import DigestCache
 from railtherm.errors import RailthermError
-from railtherm.study import identify as rt_identify
+from railtherm.study import fitsettings
 from railtherm.study import reference as rt_reference
 from railtherm.study.plan import STUDY_TABLES, VEHICLE_ID, StudyPlan
 from railtherm.study.scenario import load_scenario

@@ -10,7 +10,7 @@
 # `vehicle_figures_2`, ... (StudyPlan.rule_groups, railtherm.study.plan). study.figures: false
 # plans none.
 for _rule, (_has_k, _keys), _constraint in rule_groups("vehicle_figures", figure_signature):
-    _kalman = [key for key in _keys if key.endswith(rt_identify.KALMAN_SUFFIX)]
+    _kalman = [key for key in _keys if key.endswith(fitsettings.KALMAN_SUFFIX)]
 
     rule:
         name: _rule

@@ -4,6 +4,7 @@ from railtherm import io as rt_io
 from railtherm import logs
 from railtherm.data import ingest
 from railtherm.study import identify
+from railtherm.study.storage import storage_corrected_k
 
 log = logs.to_file(snakemake.log[0])
 tables = {
@@ -15,7 +16,7 @@ if snakemake.input.kvalue:
     kvalue = rt_io.read_result(snakemake.input.kvalue)
     k_window = ingest.read_tidy(snakemake.input.k_window)
 # the storage-corrected kA (eqs. 7-8 over the k window), once for every model of the vehicle
-storage = identify.storage_corrected_k(tables, k_window, snakemake.params.vehicle, kvalue)
+storage = storage_corrected_k(tables, k_window, snakemake.params.vehicle, kvalue)
 if storage and storage["applied"]:
     log.info(
         "kA %.6g W/K (eq. 10) -> %.6g +- %.2g W/K storage-corrected, %d iterations",
