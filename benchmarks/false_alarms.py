@@ -13,7 +13,7 @@ every error source is declared: a verdict "assumptions in doubt" on such a recor
 alarm.
 
 Each record is fitted as the study fits it (railtherm.study.run.tidy_tables ->
-kvalue.for_vehicle -> identify.storage_corrected_k -> identify.identify) and judged as the
+kvalue.for_vehicle -> storage.storage_corrected_k -> identify.identify) and judged as the
 rule ``check`` judges it (quality.check with the vehicle's ``check`` section, here the
 defaults), once per setting (estimator/mode/surface sensors, as in calibration.py). Printed
 per setting and criterion family (quality.CRITERIA): the fits the criterion applies to,
