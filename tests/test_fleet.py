@@ -13,8 +13,8 @@ import pytest
 import yaml
 from snakemake_run import job_counts, make_study, snakemake
 
-from railtherm import config as rt_config
 from railtherm.config import VehicleCache, load_study, read_yaml
+from railtherm.data import recordcheck
 from railtherm.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -36,13 +36,13 @@ def reads(monkeypatch):
     """Raw files read by the validation of a vehicle config (header and time column)."""
     seen: list[str] = []
     for name in ("read_columns", "read_layout"):
-        original = getattr(rt_config, name)
+        original = getattr(recordcheck, name)
 
         def counting(path, *args, _original=original, **kwargs):
             seen.append(os.path.basename(path))
             return _original(path, *args, **kwargs)
 
-        monkeypatch.setattr(rt_config, name, counting)
+        monkeypatch.setattr(recordcheck, name, counting)
     return seen
 
 
