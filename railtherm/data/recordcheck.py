@@ -12,6 +12,7 @@ from __future__ import annotations
 import difflib
 import os
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import pandas as pd
@@ -110,16 +111,7 @@ def source_layout(
         raise ConfigError(
             file, *which, f"{normalised} column '{exc.key}' {exc.reason}: {exc.value!r}{fix}"
         ) from None
-    return RawLayout(
-        path=normalised,
-        columns=layout.columns,
-        time_column=layout.time_column,
-        time_format=layout.time_format,
-        t_first=layout.t_first,
-        t_last=layout.t_last,
-        step_s=layout.step_s,
-        gap_s=layout.gap_s,
-    )
+    return replace(layout, path=normalised)  # the path as the config names it
 
 
 def _missing_column(
