@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from snakemake_run import cores
 
 from railtherm.codedigest import code_digest, code_files
 
@@ -103,7 +104,7 @@ def _snakemake(repo: Path, study: Path, *args: str) -> subprocess.CompletedProce
     directory first on ``sys.path``, so the workflow imports the railtherm beside it."""
     return subprocess.run(
         [sys.executable, "-m", "snakemake", "--snakefile", str(repo / "Snakefile")]
-        + ["--directory", str(study), "--cores", "2", *args],
+        + ["--directory", str(study), "--cores", str(cores()), *args],
         capture_output=True,
         text=True,
         check=False,

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from snakemake_run import cores
 
 from railtherm import structures
 from railtherm.yamlio import packaged_schema
@@ -161,7 +162,9 @@ def test_a_structure_added_as_one_file_is_fitted_by_the_cli_and_the_workflow(tmp
     assert f"{RENAMED[1]} = " in fit.stdout, fit.stdout
 
     workflow = run(
-        ["-m", "snakemake", "--snakefile", str(root / "Snakefile"), "--cores", "2"], study, root
+        ["-m", "snakemake", "--snakefile", str(root / "Snakefile"), "--cores", str(cores())],
+        study,
+        root,
     )
     assert workflow.returncode == 0, workflow.stderr[-3000:]
     table = (study / "results" / "tables" / "models.md").read_text()

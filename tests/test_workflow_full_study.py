@@ -116,14 +116,16 @@ def test_a_vehicle_and_every_study_output_regenerated_are_the_same_bytes(full_ru
     """Same inputs, same outputs: Tram2's raw files and results and every table, figure and
     audit file of the study deleted and made again by new processes (its synthesis, cleaning,
     k test, fits, checks and figures, the SINDy job and every study-wide rule) give every file
-    of the study byte for byte, raw data, figures and all."""
+    of the study byte for byte, raw data, figures and all. Two jobs at a time here, whatever
+    the first run took: a parallel run gives the bytes of a serial one (in `pytest -n auto`,
+    whose workers take every CPU, the study itself runs one job at a time)."""
     study = copy_of(full_run, tmp_path)
     written = outputs(study)
     for gone in ("resources/campaign/Tram2", "results/vehicles/Tram2", "results/tables"):
         shutil.rmtree(study / gone)
     for gone in ("results/figures", "results/audit"):
         shutil.rmtree(study / gone)
-    run = snakemake(study)
+    run = snakemake(study, jobs=2)
     assert run.returncode == 0, run.stderr[-3000:]
     counts = job_counts(run.stdout + run.stderr)
     for rule in ("synthesize", "clean", "kvalue", "identify", "check", "vehicle_figures"):
