@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from railtherm.estimation import kalman, models, pem
+from railtherm.estimation import filtering, kalman, models, pem
 
 S2 = models.STRUCTURES["second_order"]
 # a tram of the campaign's size (W/K, J/K)
@@ -56,7 +56,7 @@ def without_information(monkeypatch, from_call: int = 0):
     """The filter's second-order pass fails (no Fisher information) from its ``from_call``-th
     evaluation on, as a failing derivative solve makes it; the likelihood and its gradient
     stay."""
-    raw = kalman._Likelihood._raw
+    raw = filtering.Likelihood._raw
     calls = {"n": 0}
 
     def failing(self, v, order, steady=True):
@@ -66,7 +66,7 @@ def without_information(monkeypatch, from_call: int = 0):
                 return (math.inf, np.zeros(self.n_unknowns), None)
         return raw(self, v, order, steady)
 
-    monkeypatch.setattr(kalman._Likelihood, "_raw", failing)
+    monkeypatch.setattr(filtering.Likelihood, "_raw", failing)
     return calls
 
 
@@ -92,17 +92,17 @@ def test_information_lost_after_the_search_leaves_the_estimate_and_its_interval(
     point (the fit's last call): the covariance falls back to the observed information."""
     record_ = record()
     counter = {"n": 0}
-    raw = kalman._Likelihood._raw
+    raw = filtering.Likelihood._raw
 
     def count(self, v, order, steady=True):
         if order >= 2:
             counter["n"] += 1
         return raw(self, v, order, steady)
 
-    monkeypatch.setattr(kalman._Likelihood, "_raw", count)
+    monkeypatch.setattr(filtering.Likelihood, "_raw", count)
     kalman.fit(S2, [record_], **OPTIONS)
     calls = counter["n"]
-    monkeypatch.setattr(kalman._Likelihood, "_raw", raw)
+    monkeypatch.setattr(filtering.Likelihood, "_raw", raw)
     without_information(monkeypatch, from_call=calls - 1)
     result = kalman.fit(S2, [record_], **OPTIONS)
     for p in ("C", "K_veh", "C_veh"):

@@ -12,7 +12,7 @@ from records import noisy_power_record
 from scipy.integrate import quad_vec
 from scipy.linalg import expm
 
-from railtherm.estimation import kalman, models, pem
+from railtherm.estimation import filtering, kalman, models, pem
 from railtherm.study import fitsettings, identify
 
 REPO = Path(__file__).resolve().parents[1]
@@ -68,7 +68,7 @@ def likelihood(experiments, x0="estimated", outputs=(0, 1), fixed=None):
     fixed = {"kA": TRAM2["kA"]} if fixed is None else fixed
     free = tuple(p for p in S2.parameters if p not in fixed)
     n_out = len(outputs)
-    return kalman._Likelihood(
+    return filtering.Likelihood(
         S2,
         experiments,
         fixed,
@@ -144,12 +144,14 @@ def test_modal_recursion_equals_a_loop(F):
     x[:, :, 0] = x0
     for j in range(L - 1):
         x[:, :, j + 1] = F @ x[:, :, j] + np.einsum("ick,k->ic", H, Z[:, j])
-    modes = kalman._Modes(F)
+    modes = filtering._Modes(F)
     assert (modes.schur is not None) == (F[0, 1] == 1.0)
     M = np.array([[1.0, -1.0], [0.5, 2.0], [1.0, 0.0]])
-    got = kalman._states(modes.run(H, Z, x0), M)
+    got = filtering._states(modes.run(H, Z, x0), M)
     np.testing.assert_allclose(got, np.einsum("ri,icl->rcl", M, x), rtol=0, atol=1e-10)
-    np.testing.assert_allclose(kalman._column(modes.run(H, Z, x0), L - 1), x[:, :, -1], atol=1e-10)
+    np.testing.assert_allclose(
+        filtering._column(modes.run(H, Z, x0), L - 1), x[:, :, -1], atol=1e-10
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -223,9 +225,9 @@ def test_stationary_switch_leaves_the_estimate_unchanged(monkeypatch):
     intervals."""
     e = sde_experiment(n=500, seed=8)
     fast = kalman.fit(S2, [e], fixed={"kA": TRAM2["kA"]}, x0="measured")
-    monkeypatch.setattr(kalman, "STEADY_TOL", -1.0)
-    monkeypatch.setattr(kalman, "PRIOR_CORRECTION", False)
-    monkeypatch.setattr(kalman, "FREEZE_TOL", -1.0)
+    monkeypatch.setattr(filtering, "STEADY_TOL", -1.0)
+    monkeypatch.setattr(filtering, "PRIOR_CORRECTION", False)
+    monkeypatch.setattr(filtering, "FREEZE_TOL", -1.0)
     slow = kalman.fit(S2, [e], fixed={"kA": TRAM2["kA"]}, x0="measured")
     assert fast.cost == pytest.approx(slow.cost, rel=1e-10)
     for p in fast.free:
@@ -573,7 +575,7 @@ def test_input_noise_term_is_the_expected_excess_of_the_likelihood(sigma_T):
         noise = np.random.default_rng(100 + seed).normal(0.0, 1000.0, len(u0))
         excess.append(nll(u0 + np.column_stack([np.zeros(len(u0)), noise])) - clean)
     e = pem.Experiment(name="e", dt=60.0, u=u0, y=y)
-    lik = kalman._Likelihood(
+    lik = filtering.Likelihood(
         S2, [e], dict(theta), (), np.array([sigma_T, 0.0]), (), np.array([4e-4]), (), (0,),
         "estimated",
     )  # fmt: skip

@@ -1,6 +1,6 @@
 """The compiled row recursions (railtherm.estimation.loops) against the numpy implementations
 they replace in a Kalman fit: the filter's likelihood, gradient, Fisher information and series
-(against the numpy filter run row by row, time-varying, in kalman._filter), and the
+(against the numpy filter run row by row, time-varying, in filtering._filter), and the
 output-error start's cost with its best initial states (against the numpy one and a direct
 solve from models.simulate)."""
 
@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from test_kalman import SIE, likelihood, random_point, sde_experiment
 
-from railtherm.estimation import common, kalman, models, pem
+from railtherm.estimation import common, filtering, models, pem
 
 
 def _numpy_reference(lik, v, order, monkeypatch):
     with monkeypatch.context() as m:
-        m.setattr(kalman, "COMPILED", False)
+        m.setattr(filtering, "COMPILED", False)
         return lik.evaluate(np.asarray(v) + 0.0, order, steady=False)
 
 
@@ -58,7 +58,7 @@ def test_compiled_filter_series_equal_the_numpy_filter(monkeypatch):
     v = random_point(lik, [e])
     got = lik.passes(v, 0, series=True)[0]
     with monkeypatch.context() as m:
-        m.setattr(kalman, "COMPILED", False)
+        m.setattr(filtering, "COMPILED", False)
         ref = lik.passes(v, 0, steady=False, series=True)[0]
     for a, b in ((got.xp, ref.xp), (got.eps, ref.eps), (got.rvar, ref.rvar)):
         np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
