@@ -424,7 +424,7 @@ def test_an_order_that_only_poor_fits_hold_up_is_a_warning(ranges):
 
 
 def test_every_threshold_limit_and_range_names_the_kind_of_its_source(ranges):
-    entries = audit._sourced_entries(ranges)
+    entries = audit.sourced_entries(ranges)
     assert len(entries) >= 10
     for key, entry in entries:
         assert audit.source_kind(entry) in audit.SOURCE_KINDS, key

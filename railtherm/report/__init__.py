@@ -3,5 +3,7 @@
 - :mod:`~railtherm.report.plots`: every figure;
 - :mod:`~railtherm.report.tables`, :mod:`~railtherm.report.tableformat`: the tables (CSV and
   Markdown at stated precision);
-- :mod:`~railtherm.report.audit`: the audit of the paper's published values.
+- :mod:`~railtherm.report.audit`: the audit of the paper's published values (its checks in
+  :mod:`~railtherm.report.auditclaims` and :mod:`~railtherm.report.auditvalues`, on
+  :mod:`~railtherm.report.auditbase`).
 """
