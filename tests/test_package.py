@@ -2,6 +2,9 @@
 
 import subprocess
 import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def test_library_does_not_import_snakemake():
@@ -144,3 +147,27 @@ def test_the_layers_of_the_architecture_hold_and_the_doc_lists_the_contracts_exc
         )
     }
     assert shown == ignored
+
+
+MODULE_LINES_MAX = 1200  # lines of one module of the package
+
+
+def test_no_module_of_the_package_is_longer_than_one_concern_needs():
+    """Every module of railtherm/ holds at most MODULE_LINES_MAX lines: one that grows past
+    it has taken on a second concern (docs/architecture.md lists each module's)."""
+    long = {
+        str(path.relative_to(REPO)): n
+        for path in sorted((REPO / "railtherm").rglob("*.py"))
+        if (n := len(path.read_text(encoding="utf-8").splitlines())) > MODULE_LINES_MAX
+    }
+    assert not long, long
+
+
+def test_every_module_of_the_package_is_in_the_architecture_doc():
+    doc = (REPO / "docs" / "architecture.md").read_text(encoding="utf-8")
+    missing = [
+        str(path.relative_to(REPO))
+        for path in sorted((REPO / "railtherm").rglob("*.py"))
+        if path.name != "__init__.py" and path.parent.name != "structures" and path.name not in doc
+    ]
+    assert not missing, missing
