@@ -30,6 +30,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -141,82 +142,89 @@ def load_programme(path: str | Path) -> Programme:
     validate_schema(file, data, packaged_schema("programme"))
     check_finite(file, data)
     limits = {k: float(v) for k, v in data["limits"].items()}
-    phases = []
-    for i, ph in enumerate(data["phases"]):
-        key = f"phases[{i}]"
-        if "prbs" in ph:
-            prbs = ph["prbs"]
-            if prbs["low_W"] >= prbs["high_W"]:
-                raise ConfigError(file, f"{key}.prbs.low_W", prbs["low_W"], "below high_W")
-            if 2 * prbs["hold_h"] > ph["hours"]:
-                # one bit fills the phase: a held power, not a sequence that excites
-                raise ConfigError(
-                    file,
-                    f"{key}.prbs.hold_h",
-                    prbs["hold_h"],
-                    f"a bit held this long leaves the {ph['hours']:g} h phase at most one "
-                    f"switch, no pseudo-random sequence: give hold_h of at most "
-                    f"{ph['hours'] / 2:g} h (e.g. 1), or power_W / steps for a held power",
-                )
-            ph = {**ph, "steps": prbs_steps(ph["hours"], **prbs)}
-        identify = ph.get("identify", True)
-        if not isinstance(identify, bool) and identify > ph["hours"]:
-            raise ConfigError(
-                file,
-                f"{key}.identify",
-                identify,
-                f"more hours than the phase's {ph['hours']:g}: the fit compares at most the "
-                f"whole phase; give identify of at most {ph['hours']:g}, or true",
-            )
-        steps = (
-            [(0.0, ph["power_W"])]
-            if "power_W" in ph
-            else ph.get("steps", [(0.0, limits.get("max_power_W", 0.0))])
-        )
-        if "set_point_C" in ph and "max_power_W" not in limits:
-            raise ConfigError(
-                file,
-                f"{key}.set_point_C",
-                ph["set_point_C"],
-                "a thermostat needs limits.max_power_W",
-            )
-        for j, (at, _) in enumerate(steps):
-            if (j == 0 and at != 0) or (j and at <= steps[j - 1][0]) or at >= ph["hours"]:
-                raise ConfigError(
-                    file,
-                    f"{key}.steps[{j}][0]",
-                    at,
-                    "steps start at 0 and rise strictly within the phase's hours",
-                )
-        top = max(w for _, w in steps)
-        if top > limits.get("max_power_W", math.inf):
-            raise ConfigError(
-                file, key, top, f"more power than limits.max_power_W {limits['max_power_W']:g} W"
-            )
-        if (
-            not limits.get("min_T_o_C", -math.inf)
-            <= ph["T_o_C"]
-            <= limits.get("max_T_o_C", math.inf)
-        ):
-            raise ConfigError(
-                file, f"{key}.T_o_C", ph["T_o_C"], "outside the tunnel's limits.min/max_T_o_C"
-            )
-        thermostat = "set_point_C" in ph
-        steps = () if thermostat else tuple((float(at), float(w)) for at, w in steps)
-        phases.append(
-            Phase(
-                str(ph.get("name", f"phase {i + 1}")),
-                float(ph["hours"]),
-                float(ph["T_o_C"]),
-                steps,
-                float(ph["set_point_C"]) if thermostat else None,
-                ph.get("identify", True),
-                str(ph.get("window", "record")),
-            )
-        )
+    phases = [_phase(file, i, ph, limits) for i, ph in enumerate(data["phases"])]
     if not any(ph.identify for ph in phases):
         raise ConfigError(file, "phases", "identify: false", "no phase is compared by the fit")
     _check_step(file, float(data["step_s"]), phases)
+    _check_windows(file, phases)
+    noise, systematic = _noise_and_offsets(file, data, given)
+    name = str(data.get("name", Path(file).stem))
+    start = str(data.get("start", "soaked"))
+    return Programme(name, tuple(phases), float(data["step_s"]), noise, systematic, limits, start)
+
+
+def _phase(file: str, i: int, ph: Mapping[str, Any], limits: Mapping[str, float]) -> Phase:
+    """Phase ``i`` of a programme file checked against the tunnel's ``limits``: a held power,
+    steps or a pseudo-random sequence (``prbs``, turned into steps), or a thermostat."""
+    key = f"phases[{i}]"
+    if "prbs" in ph:
+        prbs = ph["prbs"]
+        if prbs["low_W"] >= prbs["high_W"]:
+            raise ConfigError(file, f"{key}.prbs.low_W", prbs["low_W"], "below high_W")
+        if 2 * prbs["hold_h"] > ph["hours"]:
+            # one bit fills the phase: a held power, not a sequence that excites
+            raise ConfigError(
+                file,
+                f"{key}.prbs.hold_h",
+                prbs["hold_h"],
+                f"a bit held this long leaves the {ph['hours']:g} h phase at most one "
+                f"switch, no pseudo-random sequence: give hold_h of at most "
+                f"{ph['hours'] / 2:g} h (e.g. 1), or power_W / steps for a held power",
+            )
+        ph = {**ph, "steps": prbs_steps(ph["hours"], **prbs)}
+    identify = ph.get("identify", True)
+    if not isinstance(identify, bool) and identify > ph["hours"]:
+        raise ConfigError(
+            file,
+            f"{key}.identify",
+            identify,
+            f"more hours than the phase's {ph['hours']:g}: the fit compares at most the "
+            f"whole phase; give identify of at most {ph['hours']:g}, or true",
+        )
+    steps = (
+        [(0.0, ph["power_W"])]
+        if "power_W" in ph
+        else ph.get("steps", [(0.0, limits.get("max_power_W", 0.0))])
+    )
+    if "set_point_C" in ph and "max_power_W" not in limits:
+        raise ConfigError(
+            file,
+            f"{key}.set_point_C",
+            ph["set_point_C"],
+            "a thermostat needs limits.max_power_W",
+        )
+    for j, (at, _) in enumerate(steps):
+        if (j == 0 and at != 0) or (j and at <= steps[j - 1][0]) or at >= ph["hours"]:
+            raise ConfigError(
+                file,
+                f"{key}.steps[{j}][0]",
+                at,
+                "steps start at 0 and rise strictly within the phase's hours",
+            )
+    top = max(w for _, w in steps)
+    if top > limits.get("max_power_W", math.inf):
+        raise ConfigError(
+            file, key, top, f"more power than limits.max_power_W {limits['max_power_W']:g} W"
+        )
+    if not limits.get("min_T_o_C", -math.inf) <= ph["T_o_C"] <= limits.get("max_T_o_C", math.inf):
+        raise ConfigError(
+            file, f"{key}.T_o_C", ph["T_o_C"], "outside the tunnel's limits.min/max_T_o_C"
+        )
+    thermostat = "set_point_C" in ph
+    steps = () if thermostat else tuple((float(at), float(w)) for at, w in steps)
+    return Phase(
+        str(ph.get("name", f"phase {i + 1}")),
+        float(ph["hours"]),
+        float(ph["T_o_C"]),
+        steps,
+        float(ph["set_point_C"]) if thermostat else None,
+        ph.get("identify", True),
+        str(ph.get("window", "record")),
+    )
+
+
+def _check_windows(file: str, phases: Sequence[Phase]) -> None:
+    """The compared phases of one window follow each other."""
     seen: list[str] = []
     for i, ph in enumerate(phases):
         if ph.identify and seen and ph.window != seen[-1] and ph.window in seen:
@@ -225,6 +233,14 @@ def load_programme(path: str | Path) -> Programme:
             )
         if ph.identify and (not seen or ph.window != seen[-1]):
             seen.append(ph.window)
+
+
+def _noise_and_offsets(
+    file: str, data: Mapping[str, Any], given: set[str]
+) -> tuple[dict[str, float], dict[str, float]]:
+    """``noise_K`` and ``systematic`` of a programme file, with each ``sensors`` group's noise
+    and offset per sensor divided by the square root of its count (one reading averages
+    them); a state given both ways is refused."""
     noise = {str(s): float(v) for s, v in data["noise_K"].items()}
     systematic = {str(k): float(v) for k, v in data["systematic"].items()}
     if "sensors" in data:
@@ -245,9 +261,7 @@ def load_programme(path: str | Path) -> Programme:
                 found[state] = float(value) / math.sqrt(n)
         if not noise:
             raise ConfigError(file, "sensors", data["sensors"], "no group with a noise_K")
-    name = str(data.get("name", Path(file).stem))
-    start = str(data.get("start", "soaked"))
-    return Programme(name, tuple(phases), float(data["step_s"]), noise, systematic, limits, start)
+    return noise, systematic
 
 
 def _check_step(file: str, step_s: float, phases: Sequence[Phase]) -> None:
