@@ -303,7 +303,6 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
     upper bound (C <= C_total)."""
     thresholds = check_thresholds(thresholds)
     par = estimate["fit"]["parameters"]
-    out = []
 
     def value(p):
         entry = par.get(p)
@@ -311,8 +310,22 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
             return None
         return float(entry["value"])
 
+    total = (estimate["fit"].get("totals") or {}).get("C_total")
+    if total is not None and not identifiability.parameter_identification(total)["identified"]:
+        total = None
+    return [
+        *_against_surface(value, par, estimate.get("A"), thresholds),
+        *_against_mass(value, par, total, estimate.get("mass_kg"), thresholds),
+        *_against_air(value, par, total, estimate.get("volume_m3"), thresholds),
+        *(estimate.get("unit_checks") or ()),
+    ]
+
+
+def _against_surface(value, par, A, thresholds) -> list[str]:
+    """k = kA / A in its range, each solar aperture within A, each conductance per area below
+    the ceiling (:func:`plausibility`)."""
+    out = []
     kA = value("kA")
-    A = estimate.get("A")
     lo, hi = (float(x) for x in thresholds["k_range_W_m2K"])
     if kA is not None and A is not None and not lo <= kA / A <= hi:
         out.append(
@@ -341,14 +354,17 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 "surface): a unit mistake, or a fast dynamic the logger step cannot resolve "
                 "taken up by the conductance"
             )
-    total = (estimate["fit"].get("totals") or {}).get("C_total")
-    if total is not None and not identifiability.parameter_identification(total)["identified"]:
-        total = None
+    return out
+
+
+def _against_mass(value, par, total, mass_kg, thresholds) -> list[str]:
+    """The stored heat per kg between its floor and ceiling (:func:`plausibility`)."""
+    out = []
     capacities = [value(p) for p in structures.of_kind("capacities") if p in par]
     if None in capacities and total is not None:  # the split unknown, the sum determined
         capacities = [float(total["value"])]
-    if capacities and None not in capacities and estimate.get("mass_kg"):
-        per_kg = sum(capacities) / estimate["mass_kg"]
+    if capacities and None not in capacities and mass_kg:
+        per_kg = sum(capacities) / mass_kg
         ceiling = float(thresholds["max_capacity_per_kg_J_kgK"])
         if per_kg > ceiling:
             than = (
@@ -357,23 +373,30 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
                 else f"{ceiling:g} J/(kg K) (check.max_capacity_per_kg_J_kgK)"
             )
             out.append(
-                f"the capacities store {per_kg:.4g} J/(kg K) of the mass {estimate['mass_kg']:g} "
+                f"the capacities store {per_kg:.4g} J/(kg K) of the mass {mass_kg:g} "
                 f"kg, more than {than}: a unit mistake (power in W declared kW?) or the wrong mass"
             )
         floor = float(thresholds["min_capacity_per_kg_J_kgK"])
         if per_kg < floor:
             out.append(
                 f"the capacities store only {per_kg:.4g} J/(kg K) of the mass "
-                f"{estimate['mass_kg']:g} kg, below {floor:g} J/(kg K) "
+                f"{mass_kg:g} kg, below {floor:g} J/(kg K) "
                 "(check.min_capacity_per_kg_J_kgK): is the time column's unit right (minutes "
                 "declared seconds divides every capacity by 60), or the mass?"
             )
+    return out
+
+
+def _against_air(value, par, total, volume_m3, thresholds) -> list[str]:
+    """The air node's capacity (or the total, an upper bound of it) against the air of the
+    volume (:func:`plausibility`)."""
+    out = []
     air_name = "C" if "C" in par else "C_bar"
     reason = str((par.get(air_name) or {}).get("reason", ""))
-    if reason.startswith("at its physical lower bound") and estimate.get("volume_m3"):
+    if reason.startswith("at its physical lower bound") and volume_m3:
         out.append(
             f"the air node's capacity {air_name} sits {reason}: the data "
-            f"ask for less than the air in {estimate['volume_m3']:g} m³ holds - a unit mistake "
+            f"ask for less than the air in {volume_m3:g} m³ holds - a unit mistake "
             "(power in kW declared W, time in minutes declared seconds?), the wrong volume, or "
             "a dynamic the model lacks"
         )
@@ -381,17 +404,16 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
     what = "the air node's capacity"
     if air is None and total is not None:  # C <= C + C_veh: a total below the air's is too
         air, what = float(total["value"]), "the total capacity C_total (at least the air node's)"
-    if air is not None and estimate.get("volume_m3"):
+    if air is not None and volume_m3:
         ratio = float(thresholds["min_air_capacity_ratio"])
-        floor = ratio * RHO_CP_AIR * estimate["volume_m3"]
+        floor = ratio * RHO_CP_AIR * volume_m3
         if air < floor:
             share = "half" if ratio == 0.5 else f"{ratio:g} times (check.min_air_capacity_ratio)"
             out.append(
                 f"{what} {air:.4g} J/K is below {share} that of the air in "
-                f"{estimate['volume_m3']:g} m³ ({floor:.4g} J/K): a unit mistake (power in kW "
+                f"{volume_m3:g} m³ ({floor:.4g} J/K): a unit mistake (power in kW "
                 "declared W, time in minutes declared seconds?) or the wrong volume"
             )
-    out.extend(estimate.get("unit_checks") or ())
     return out
 
 
