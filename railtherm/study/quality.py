@@ -489,14 +489,7 @@ def check(
     thresholds = check_thresholds(thresholds)
     fit = estimate["fit"]
     p = int(fit["n_unknowns"])  # every estimated quantity, whatever the estimator
-    measures: dict[str, Any] = {}
-    for state in estimate["outputs"]:
-        overall = summary(series[state], series[f"{state}_sim"], p)
-        windows = {
-            name: summary(w[state], w[f"{state}_sim"], p)
-            for name, w in series.groupby("window", sort=False)
-        }
-        measures[state] = {"overall": overall, "windows": windows}
+    measures = _measures(estimate, series, p)
     kalman = estimate.get("estimator") == "kalman"
     criteria: list[dict[str, Any]] = []
     reasons: list[str] = []
@@ -508,38 +501,10 @@ def check(
     r2 = {"T": measures["T"]["overall"]["r2"]}
     r2 |= {f"{cv['train']} -> {cv['test']}": cv["r2_T"] for cv in estimate["cross_validation"]}
     judge("r2", verdict(r2, thresholds={"r2_min": thresholds["r2_min"]})[1])
-    missed = []
-    for state, m in measures.items():
-        rmse = m["overall"]["rmse"]
-        if rmse > thresholds["max_rmse_K"]:
-            limit = thresholds["max_rmse_K"]
-            why = "twice a sensor's accuracy" if limit == RMSE_DEFAULT_K else "check.max_rmse_K"
-            # as many digits as show the RMSE above its limit (0.2002, not "0.2 ... more than 0.2")
-            digits = next((d for d in range(3, 9) if float(f"{rmse:.{d}g}") > limit), 9)
-            missed.append(
-                f"The simulated {state} misses the measurement by RMSE {rmse:.{digits}g} K "
-                f"(more than {limit:g} K, {why}): the model lacks a dynamic or a heat path."
-            )
-            missed += verdict(
-                1.0,
-                whiteness={f"{state}, {w}": v for w, v in m["windows"].items()},
-                thresholds={"min_effective_samples": thresholds["min_effective_samples"]},
-            )[1]
-    judge("rmse", missed)
+    judge("rmse", _rmse_reasons(measures, thresholds))
     judge("innovations_white", innovation_reasons(estimate, thresholds) if kalman else [], kalman)
     white = not kalman and bool(thresholds["require_white"])
-    not_white = []
-    if white:  # the colour alone, not the effective samples
-        not_white = verdict(
-            1.0,
-            whiteness={state: m["overall"] for state, m in measures.items()},
-            thresholds={
-                "require_white": True,
-                "whiteness_alpha": thresholds["whiteness_alpha"],
-                "min_effective_samples": 0.0,
-            },
-        )[1]
-    judge("residuals_white", not_white, white)
+    judge("residuals_white", _colour_reasons(measures, thresholds) if white else [], white)
     severe = [f for f in fit["flags"] if f["code"] not in NOTE_ONLY_FLAGS]
     judge("flags", verdict(1.0, severe)[1])
     judge("plausibility", plausibility(estimate, thresholds))
@@ -557,7 +522,77 @@ def check(
     outlying = outlying_samples(estimate, series, thresholds)
     for found in outlying.values():
         notes += found.texts()
+    head, tail = _record(estimate, measures, kalman)
     return {
+        **head,
+        "verdict": IN_DOUBT if reasons else ACCEPTABLE,
+        "reasons": reasons,
+        "criteria": criteria,
+        "judged_by": judged_by(criteria),
+        "notes": notes,
+        **tail,
+        "outliers": {state: found.to_dict() for state, found in outlying.items()},
+        **({"clocks": estimate["clocks"]} if "clocks" in estimate else {}),
+    }
+
+
+def _measures(estimate: Mapping[str, Any], series: pd.DataFrame, p: int) -> dict[str, Any]:
+    """:func:`summary` of each compared output, overall and per window (``p`` unknowns)."""
+    measures: dict[str, Any] = {}
+    for state in estimate["outputs"]:
+        overall = summary(series[state], series[f"{state}_sim"], p)
+        windows = {
+            name: summary(w[state], w[f"{state}_sim"], p)
+            for name, w in series.groupby("window", sort=False)
+        }
+        measures[state] = {"overall": overall, "windows": windows}
+    return measures
+
+
+def _rmse_reasons(measures: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
+    """Criterion ``rmse`` of :func:`check`: each simulated temperature that misses its
+    measurement by more than ``max_rmse_K``, with its windows' too few effective samples."""
+    missed = []
+    for state, m in measures.items():
+        rmse = m["overall"]["rmse"]
+        if rmse > thresholds["max_rmse_K"]:
+            limit = thresholds["max_rmse_K"]
+            why = "twice a sensor's accuracy" if limit == RMSE_DEFAULT_K else "check.max_rmse_K"
+            # as many digits as show the RMSE above its limit (0.2002, not "0.2 ... more than 0.2")
+            digits = next((d for d in range(3, 9) if float(f"{rmse:.{d}g}") > limit), 9)
+            missed.append(
+                f"The simulated {state} misses the measurement by RMSE {rmse:.{digits}g} K "
+                f"(more than {limit:g} K, {why}): the model lacks a dynamic or a heat path."
+            )
+            missed += verdict(
+                1.0,
+                whiteness={f"{state}, {w}": v for w, v in m["windows"].items()},
+                thresholds={"min_effective_samples": thresholds["min_effective_samples"]},
+            )[1]
+    return missed
+
+
+def _colour_reasons(measures: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
+    """Criterion ``residuals_white`` of :func:`check`: the colour alone, not the effective
+    samples."""
+    return verdict(
+        1.0,
+        whiteness={state: m["overall"] for state, m in measures.items()},
+        thresholds={
+            "require_white": True,
+            "whiteness_alpha": thresholds["whiteness_alpha"],
+            "min_effective_samples": 0.0,
+        },
+    )[1]
+
+
+def _record(
+    estimate: Mapping[str, Any], measures: Mapping[str, Any], kalman: bool
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """What a fit file records of the estimate and its measures besides the verdict: the
+    entries before the verdict's, and those after them (the fit file's order)."""
+    fit = estimate["fit"]
+    head = {
         "vehicle": estimate["vehicle"],
         "synthetic": estimate["synthetic"],
         "order": estimate["order"],
@@ -567,11 +602,8 @@ def check(
         "input_hold": estimate.get("input_hold", "zero_order"),
         "k_source": estimate["k_source"],
         **{key: estimate.get(key) for key in K_STAGE_FIELDS},
-        "verdict": IN_DOUBT if reasons else ACCEPTABLE,
-        "reasons": reasons,
-        "criteria": criteria,
-        "judged_by": judged_by(criteria),
-        "notes": notes,
+    }
+    tail = {
         "parameters": fit["parameters"],
         # combinations the data determine however the capacity splits (C_total = C + C_veh)
         **({"totals": fit["totals"]} if fit.get("totals") else {}),
@@ -591,6 +623,5 @@ def check(
         **({key: fit[key] for key in ("loglik", "n_params", "n_obs")} if kalman else {}),
         **({"innovations": estimate["innovations"]} if kalman else {}),
         **({"noise": fit["noise"]} if kalman and "noise" in fit else {}),
-        "outliers": {state: found.to_dict() for state, found in outlying.items()},
-        **({"clocks": estimate["clocks"]} if "clocks" in estimate else {}),
     }
+    return head, tail
