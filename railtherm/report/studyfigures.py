@@ -416,94 +416,8 @@ def sindy_figure(results: Mapping[str, Mapping[str, Any]], *, synthetic: bool = 
         grid = fig.add_gridspec(3, 1, height_ratios=[1.0, 0.8, 0.13])
         ax_a, ax_b = fig.add_subplot(grid[0]), fig.add_subplot(grid[1])
         x = np.arange(len(names), dtype=float)
-        lo_lim, hi_lim = _RATIO_LIMITS
-        handles = []
-        for k, (eq, feat, label) in enumerate(_EQ14_TERMS):
-            dx = (k - 2.5) * 0.11
-            for n, vid in enumerate(names):
-                data = results[vid]
-                term = _term(data, eq, feat)
-                gb = term.get("grey_box")
-                if gb is None or gb == 0:
-                    continue
-                poor = data["verdict"] == "data too poor to say"
-                r = term["least_squares"] / gb
-                lo, hi = sorted(np.array(term["ci95"]) / gb)
-                ax_a.vlines(
-                    x[n] + dx,
-                    max(lo, lo_lim),
-                    min(hi, hi_lim),
-                    color=_TERM_COLORS[k],
-                    lw=0.7,
-                    alpha=0.4 if poor else 0.9,
-                )
-                clipped = r < lo_lim or r > hi_lim
-                marker = ("v" if r < lo_lim else "^") if clipped else "o"
-                ax_a.plot(
-                    [x[n] + dx],
-                    [min(max(r, lo_lim), hi_lim)],
-                    ls="none",
-                    marker=marker,
-                    ms=3.2,
-                    mew=0.8,
-                    mec="0.55" if poor else _TERM_COLORS[k],
-                    mfc="none" if poor else _TERM_COLORS[k],
-                )
-            handles.append(
-                Line2D(
-                    [],
-                    [],
-                    ls="none",
-                    marker="o",
-                    ms=3.2,
-                    color=_TERM_COLORS[k],
-                    label=f"{eq}, {feat}: {label}",
-                )
-            )
-        ax_a.axhline(1.0, color="0.3", lw=0.6, ls=(0, (4, 2)))
-        ax_a.set_ylim(lo_lim - 0.1, hi_lim + 0.1)
-        ax_a.set_ylabel("SINDy / PEM-implied (1)")
-        ax_a.set_title("(a) terms of eq. 14: SINDy against the grey box", loc="left")
-        for k, (eq, feat) in enumerate(_EXTRA_TERMS):
-            dx = (k - 0.5) * 0.2
-            color = (COLORS["T_o"], COLORS["Q_H"])[k]
-            for n, vid in enumerate(names):
-                data = results[vid]
-                term = _term(data, eq, feat)
-                row = [t["least_squares"] for t in data["terms"] if t["equation"] == eq]
-                scale = max(abs(v) for v in row) or 1.0
-                poor = data["verdict"] == "data too poor to say"
-                lo, hi = np.array(term["ci95"]) / scale
-                ax_b.vlines(x[n] + dx, lo, hi, color=color, lw=0.7, alpha=0.4 if poor else 0.9)
-                ax_b.plot(
-                    [x[n] + dx],
-                    [term["least_squares"] / scale],
-                    ls="none",
-                    marker="s",
-                    ms=3.4,
-                    mew=0.8,
-                    mec="0.55" if poor else color,
-                    mfc=color if term["kept"] and not poor else "none",
-                )
-            handles.append(
-                Line2D(
-                    [],
-                    [],
-                    ls="none",
-                    marker="s",
-                    ms=3.4,
-                    color=color,
-                    label=f"{eq}, {feat} (not in eq. 14; filled: kept by STLSQ)",
-                )
-            )
-        threshold = results[names[0]]["method"]["threshold"]
-        for y in (threshold, -threshold):
-            ax_b.axhline(y, color="0.3", lw=0.6, ls=(0, (4, 2)))
-        ax_b.axhline(0.0, color="0.6", lw=0.4)
-        ax_b.set_ylabel("coefficient / largest\nin dT_veh/dt (1)")
-        ax_b.set_title(
-            f"(b) terms eq. 14 lacks (dashed: STLSQ threshold ±{threshold:g})", loc="left"
-        )
+        handles = _eq14_terms(ax_a, results, names, x)
+        handles += _extra_terms(ax_b, results, names, x)
         short = {
             "structure confirmed": "confirmed",
             "structure contradicted": "contradicted",
@@ -523,6 +437,103 @@ def sindy_figure(results: Mapping[str, Mapping[str, Any]], *, synthetic: bool = 
         )
         legend_row(fig, grid[2], handles, ncols=2, handlelength=1.0)
     return finish_figure(fig, synthetic)
+
+
+def _eq14_terms(ax: Any, results: Mapping[str, Mapping[str, Any]], names, x) -> list[Line2D]:
+    """Panel (a) of :func:`sindy_figure`: each term of eq. 14, SINDy over the grey box."""
+    handles = []
+    lo_lim, hi_lim = _RATIO_LIMITS
+    for k, (eq, feat, label) in enumerate(_EQ14_TERMS):
+        dx = (k - 2.5) * 0.11
+        for n, vid in enumerate(names):
+            data = results[vid]
+            term = _term(data, eq, feat)
+            gb = term.get("grey_box")
+            if gb is None or gb == 0:
+                continue
+            poor = data["verdict"] == "data too poor to say"
+            r = term["least_squares"] / gb
+            lo, hi = sorted(np.array(term["ci95"]) / gb)
+            ax.vlines(
+                x[n] + dx,
+                max(lo, lo_lim),
+                min(hi, hi_lim),
+                color=_TERM_COLORS[k],
+                lw=0.7,
+                alpha=0.4 if poor else 0.9,
+            )
+            clipped = r < lo_lim or r > hi_lim
+            marker = ("v" if r < lo_lim else "^") if clipped else "o"
+            ax.plot(
+                [x[n] + dx],
+                [min(max(r, lo_lim), hi_lim)],
+                ls="none",
+                marker=marker,
+                ms=3.2,
+                mew=0.8,
+                mec="0.55" if poor else _TERM_COLORS[k],
+                mfc="none" if poor else _TERM_COLORS[k],
+            )
+        handles.append(
+            Line2D(
+                [],
+                [],
+                ls="none",
+                marker="o",
+                ms=3.2,
+                color=_TERM_COLORS[k],
+                label=f"{eq}, {feat}: {label}",
+            )
+        )
+    ax.axhline(1.0, color="0.3", lw=0.6, ls=(0, (4, 2)))
+    ax.set_ylim(lo_lim - 0.1, hi_lim + 0.1)
+    ax.set_ylabel("SINDy / PEM-implied (1)")
+    ax.set_title("(a) terms of eq. 14: SINDy against the grey box", loc="left")
+    return handles
+
+
+def _extra_terms(ax: Any, results: Mapping[str, Mapping[str, Any]], names, x) -> list[Line2D]:
+    """Panel (b) of :func:`sindy_figure`: the terms eq. 14 lacks, over the equation's largest."""
+    handles = []
+    for k, (eq, feat) in enumerate(_EXTRA_TERMS):
+        dx = (k - 0.5) * 0.2
+        color = (COLORS["T_o"], COLORS["Q_H"])[k]
+        for n, vid in enumerate(names):
+            data = results[vid]
+            term = _term(data, eq, feat)
+            row = [t["least_squares"] for t in data["terms"] if t["equation"] == eq]
+            scale = max(abs(v) for v in row) or 1.0
+            poor = data["verdict"] == "data too poor to say"
+            lo, hi = np.array(term["ci95"]) / scale
+            ax.vlines(x[n] + dx, lo, hi, color=color, lw=0.7, alpha=0.4 if poor else 0.9)
+            ax.plot(
+                [x[n] + dx],
+                [term["least_squares"] / scale],
+                ls="none",
+                marker="s",
+                ms=3.4,
+                mew=0.8,
+                mec="0.55" if poor else color,
+                mfc=color if term["kept"] and not poor else "none",
+            )
+        handles.append(
+            Line2D(
+                [],
+                [],
+                ls="none",
+                marker="s",
+                ms=3.4,
+                color=color,
+                label=f"{eq}, {feat} (not in eq. 14; filled: kept by STLSQ)",
+            )
+        )
+    threshold = results[names[0]]["method"]["threshold"]
+    for y in (threshold, -threshold):
+        ax.axhline(y, color="0.3", lw=0.6, ls=(0, (4, 2)))
+    ax.axhline(0.0, color="0.6", lw=0.4)
+    ax.set_ylabel("coefficient / largest\nin dT_veh/dt (1)")
+    ax.set_title(f"(b) terms eq. 14 lacks (dashed: STLSQ threshold ±{threshold:g})", loc="left")
+    return handles
 
 
 def _term(data: Mapping[str, Any], equation: str, feature: str) -> Mapping[str, Any]:
