@@ -420,45 +420,8 @@ def innovation_figure(
             ax_t.set_xlim(hours[0], hours[-1] if hours[-1] > hours[0] else hours[0] + 1.0)
             ax_t.set_ylabel(ylabel)
 
-            lags = max(1, min(40, m // 4) if max_lag is None else int(max_lag))
-            rho = autocorrelation(eps, lags)[1:]
-            k = np.arange(1, rho.size + 1)
-            ax_a.vlines(k, 0.0, rho, color=_INNOVATION_COLOR, lw=0.8)
-            ax_a.plot(k, rho, ls="none", marker="o", ms=2.0, color=_INNOVATION_COLOR)
-            if m > 0:
-                for y in (z / math.sqrt(m), -z / math.sqrt(m)):
-                    ax_a.axhline(y, **_BAND)
-            ax_a.axhline(0.0, color="0.5", lw=0.5)
-            ax_a.set_xlim(0.0, lags + 0.5)
-            if m >= 3:  # the lags of the verdict's test (metrics.ljung_box's default)
-                lb = ljung_box(eps)
-                ax_a.text(
-                    0.97,
-                    0.95,
-                    f"Ljung-Box p = {lb.p_value:.2g}",
-                    transform=ax_a.transAxes,
-                    ha="right",
-                    va="top",
-                    fontsize=7,
-                )
-
-            if m >= 5:
-                cpg = cumulated_periodogram(eps, alpha)
-                nu = np.r_[0.0, cpg.frequencies]
-                lo, hi = cpg.band()
-                ax_c.plot(nu, np.r_[0.0, cpg.expected], color="0.6", lw=0.5)
-                ax_c.plot(nu, np.r_[0.0, lo], **_BAND)
-                ax_c.plot(nu, np.r_[min(cpg.half_width, 1.0), hi], **_BAND)
-                ax_c.plot(nu, np.r_[0.0, cpg.cumulated], color=_INNOVATION_COLOR, lw=0.9)
-                ax_c.text(
-                    0.97,
-                    0.05,
-                    f"KS p = {cpg.p_value:.2g}",
-                    transform=ax_c.transAxes,
-                    ha="right",
-                    va="bottom",
-                    fontsize=7,
-                )
+            _acf_panel(ax_a, eps, z, m, max_lag)
+            _periodogram_panel(ax_c, eps, alpha, m)
             ax_c.set_xlim(0.0, 0.5)
             ax_c.set_ylim(0.0, 1.0)
             for ax in (ax_t, ax_a, ax_c):
@@ -477,6 +440,54 @@ def innovation_figure(
         stem = Path(path)
         save_figure(fig, stem.with_suffix("") if stem.suffix in (".png", ".svg") else stem)
     return fig
+
+
+def _acf_panel(ax: Any, eps: np.ndarray, z: float, m: int, max_lag: int | None) -> None:
+    """The middle panel of :func:`innovation_figure`: autocorrelation, white-noise band and
+    the Ljung-Box p-value."""
+    lags = max(1, min(40, m // 4) if max_lag is None else int(max_lag))
+    rho = autocorrelation(eps, lags)[1:]
+    k = np.arange(1, rho.size + 1)
+    ax.vlines(k, 0.0, rho, color=_INNOVATION_COLOR, lw=0.8)
+    ax.plot(k, rho, ls="none", marker="o", ms=2.0, color=_INNOVATION_COLOR)
+    if m > 0:
+        for y in (z / math.sqrt(m), -z / math.sqrt(m)):
+            ax.axhline(y, **_BAND)
+    ax.axhline(0.0, color="0.5", lw=0.5)
+    ax.set_xlim(0.0, lags + 0.5)
+    if m >= 3:  # the lags of the verdict's test (metrics.ljung_box's default)
+        lb = ljung_box(eps)
+        ax.text(
+            0.97,
+            0.95,
+            f"Ljung-Box p = {lb.p_value:.2g}",
+            transform=ax.transAxes,
+            ha="right",
+            va="top",
+            fontsize=7,
+        )
+
+
+def _periodogram_panel(ax: Any, eps: np.ndarray, alpha: float, m: int) -> None:
+    """The right panel of :func:`innovation_figure`: the cumulated periodogram with its
+    Kolmogorov-Smirnov band and p-value."""
+    if m >= 5:
+        cpg = cumulated_periodogram(eps, alpha)
+        nu = np.r_[0.0, cpg.frequencies]
+        lo, hi = cpg.band()
+        ax.plot(nu, np.r_[0.0, cpg.expected], color="0.6", lw=0.5)
+        ax.plot(nu, np.r_[0.0, lo], **_BAND)
+        ax.plot(nu, np.r_[min(cpg.half_width, 1.0), hi], **_BAND)
+        ax.plot(nu, np.r_[0.0, cpg.cumulated], color=_INNOVATION_COLOR, lw=0.9)
+        ax.text(
+            0.97,
+            0.05,
+            f"KS p = {cpg.p_value:.2g}",
+            transform=ax.transAxes,
+            ha="right",
+            va="bottom",
+            fontsize=7,
+        )
 
 
 # ---------------------------------------------------------------------------------------------
