@@ -280,22 +280,8 @@ def _class_figure(
                 else:
                     kind = str(kinds[in_class].iloc[i])
                     open_kinds.add("limit" if kind in ("upper", "lower") else "none")
-                    if kind in ("upper", "lower"):
-                        edge = ylim[1] if kind == "lower" else ylim[0]
-                        ax.annotate(
-                            "",
-                            xy=(x, edge),
-                            xytext=(x, y),
-                            arrowprops={**OPEN_ARROW},
-                            zorder=3,
-                        )
-                        marker = OPEN[kind]
-                        lim = float(limits[in_class].iloc[i])
-                        name += f" ({'≥' if kind == 'lower' else '≤'} {lim:.3g})"
-                    else:
-                        ax.vlines(x, *ylim, zorder=2, **OPEN_BAND)
-                        marker = OPEN["none"]
-                    (point,) = ax.plot([x], [y], ls="none", zorder=5, **marker)
+                    lim = float(limits[in_class].iloc[i])
+                    point, name = _not_identified(ax, x, y, kind, lim, ylim, name)
                 point.set_gid(f"vehicle-{row['vehicle']}")
                 ax.text(
                     x,
@@ -311,47 +297,70 @@ def _class_figure(
                     bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.7},
                 )
         positions = list(range(1, len(classes) + 1))
-        grey = {"color": "0.35", "lw": 0.8}
-        # a box of fewer than BOX_MIN values would draw quartiles that are not there
-        boxed = [
-            (pos, box) for pos, box in zip(positions, boxes, strict=True) if box.size >= BOX_MIN
-        ]
-        for pos, box in boxed:  # one call per class: a list of equal-length arrays is 2-D
-            ax.boxplot(
-                [box],
-                positions=[pos],
-                widths=0.62,
-                showfliers=False,
-                manage_ticks=False,
-                boxprops=grey,
-                whiskerprops=grey,
-                capprops=grey,
-                medianprops={"color": "0.1", "lw": 1.2},
-                zorder=1,
-            )
+        _boxes(ax, positions, boxes)
         ax.set_xticks(positions, labels)
         ax.set_xlim(0.45, len(classes) + 0.75)
         ax.set_ylabel(ylabel)
         ax.set_title(title, loc="left")
         ax.grid(True, axis="y", lw=0.4, alpha=0.5)
-        verdicts = table3.loc[ok, "verdict"].astype(str)
-        handles = [
-            Line2D([], [], ls="none", label=label, **POINT[doubt])
-            for doubt, label in ((False, ACCEPTABLE), (True, IN_DOUBT))
-            if ((verdicts == IN_DOUBT) == doubt).any()
-        ]
-        bar = {"marker": "|", "ms": 9, "mew": 0.6, "color": COLORS["T_veh"]}
-        handles.append(Line2D([], [], ls="none", label="95 % interval", **bar))
-        if "limit" in open_kinds:
-            handles.append(
-                Line2D([], [], ls="none", label="not identified: limit", **OPEN["lower"])
-            )
-        if "none" in open_kinds:  # no limit the data give: anywhere on the axis
-            handles.append(Line2D([], [], ls="none", label="not identified", **OPEN["none"]))
-        if skipped:  # its own line: the names may be long
-            handles.append(Line2D([], [], ls="none", label=f"not shown: {skipped}"))
+        handles = _class_legend(table3.loc[ok, "verdict"].astype(str), open_kinds, skipped)
         legend_row(fig, grid[1], handles, ncols=1 if skipped else 2, handlelength=1.2)
     return fig
+
+
+def _not_identified(ax: Any, x: float, y: float, kind: str, lim: float, ylim, name: str):
+    """A value the data do not determine (:func:`_class_figure`): an open triangle at its
+    one-sided limit with an arrow to the axis edge, or a dotted line over the axis where the
+    data give no limit. Returns the point and the name with its limit."""
+    if kind in ("upper", "lower"):
+        edge = ylim[1] if kind == "lower" else ylim[0]
+        ax.annotate("", xy=(x, edge), xytext=(x, y), arrowprops={**OPEN_ARROW}, zorder=3)
+        marker = OPEN[kind]
+        name += f" ({'≥' if kind == 'lower' else '≤'} {lim:.3g})"
+    else:
+        ax.vlines(x, *ylim, zorder=2, **OPEN_BAND)
+        marker = OPEN["none"]
+    (point,) = ax.plot([x], [y], ls="none", zorder=5, **marker)
+    return point, name
+
+
+def _boxes(ax: Any, positions: list[int], boxes: list[np.ndarray]) -> None:
+    """A box per class of at least BOX_MIN values (:func:`_class_figure`)."""
+    grey = {"color": "0.35", "lw": 0.8}
+    # a box of fewer than BOX_MIN values would draw quartiles that are not there
+    boxed = [(pos, box) for pos, box in zip(positions, boxes, strict=True) if box.size >= BOX_MIN]
+    for pos, box in boxed:  # one call per class: a list of equal-length arrays is 2-D
+        ax.boxplot(
+            [box],
+            positions=[pos],
+            widths=0.62,
+            showfliers=False,
+            manage_ticks=False,
+            boxprops=grey,
+            whiskerprops=grey,
+            capprops=grey,
+            medianprops={"color": "0.1", "lw": 1.2},
+            zorder=1,
+        )
+
+
+def _class_legend(verdicts: pd.Series, open_kinds: set[str], skipped: str | None) -> list:
+    """The legend of :func:`_class_figure`: the verdicts shown, the interval, the values not
+    identified and those not given."""
+    handles = [
+        Line2D([], [], ls="none", label=label, **POINT[doubt])
+        for doubt, label in ((False, ACCEPTABLE), (True, IN_DOUBT))
+        if ((verdicts == IN_DOUBT) == doubt).any()
+    ]
+    bar = {"marker": "|", "ms": 9, "mew": 0.6, "color": COLORS["T_veh"]}
+    handles.append(Line2D([], [], ls="none", label="95 % interval", **bar))
+    if "limit" in open_kinds:
+        handles.append(Line2D([], [], ls="none", label="not identified: limit", **OPEN["lower"]))
+    if "none" in open_kinds:  # no limit the data give: anywhere on the axis
+        handles.append(Line2D([], [], ls="none", label="not identified", **OPEN["none"]))
+    if skipped:  # its own line: the names may be long
+        handles.append(Line2D([], [], ls="none", label=f"not shown: {skipped}"))
+    return handles
 
 
 def figure5(
