@@ -522,121 +522,146 @@ def check_without_poor_fits(pub: Published, ranges: Mapping[str, Any]) -> list[F
     out = []
     where = f"without R^2 < {entry['value']}"
     for st in pub.data.get("statements") or []:
-        kind, q, subject = st["statistic"], st["quantity"], st["id"]
+        recompute = _WITHOUT_POOR_FITS.get(st["statistic"])
         location = f"{st['location']} {where}"
-        if kind == "mean":
-            full = _class_rows(pub, q, st["class"])
-            reduced = _class_rows(pub, q, st["class"], poor)
-            if not full:
-                continue
-            dropped = [f"{v} (R^2 = {poor[v].text})" for v, _ in full if v in poor]
-            m_full = statistics.fmean(p.value for _, p in full)
-            stated = Printed.parse(st["printed"], subject)
-            unit = f" {st['unit']}" if st.get("unit", "1") != "1" else ""
-            if not dropped:
-                message = f"unchanged: no {st['class']} fit below R^2 = {entry['value']}"
-                recomputed = fmt_g(m_full)
-            elif not reduced:
-                message = f"no {st['class']} vehicle left without {', '.join(dropped)}"
-                recomputed = "-"
-            else:
-                values = [p.value for _, p in reduced]
-                m_red = statistics.fmean(values)
-                shift = m_red - m_full
-                message = (
-                    f"without {', '.join(dropped)}: mean {q} of the {len(reduced)} remaining "
-                    f"{st['class']} rows = ({' + '.join(p.text for _, p in reduced)}) / "
-                    f"{len(reduced)} = {fmt_g(m_red)}; with all {len(full)} rows {fmt_g(m_full)}, "
-                    f"stated {stated.text}; shift {shift:+.4g}{unit} ({shift / m_full:+.0%})"
-                )
-                if len(values) >= 2:
-                    s = statistics.stdev(values)
-                    se = s / math.sqrt(len(values))
-                    message += (
-                        f", beside the standard error of the reduced mean s / √n = "
-                        f"{fmt_g(s)} / √{len(values)} = {fmt_g(se)}"
-                    )
-                recomputed = fmt_g(m_red)
-            out.append(
-                finding(
-                    "claims",
-                    "without_poor_fits",
-                    subject,
-                    "info",
-                    location,
-                    stated.text,
-                    recomputed,
-                    message,
-                )
-            )
-        elif kind == "increasing":
-            full = _order(pub, q, st["classes"])
-            reduced = _order(pub, q, st["classes"], poor)
-            dropped = sorted(
-                v for v in poor if any(v == r for _, _, rows in full.means for r, _ in rows)
-            )
-            verdicts = {
-                "increase": "the class means still increase",
-                "overlap": "neighbouring class means overlap within rounding",
-                "decrease": "the class means decrease at "
-                + ", ".join(f"{a} -> {b}" for a, b in reduced.broken),
-            }
-            single = [cls for cls, _, rows in reduced.means if len(rows) == 1]
-            severity = (
-                capped("warning", entry)
-                if reduced.state == "decrease" and full.state != "decrease"
-                else "info"
-            )
-            message = (
-                f"without {', '.join(dropped) or 'no fit'}: {verdicts[reduced.state]}; "
-                f"{reduced.listing()}; with every row: {full.listing()}"
-            )
-            if single:
-                message += f"; only one vehicle left in {', '.join(single)}"
-            out.append(
-                finding(
-                    "claims",
-                    "without_poor_fits",
-                    subject,
-                    severity,
-                    location,
-                    " < ".join(st["classes"]),
-                    reduced.recomputed(),
-                    message,
-                )
-            )
-        elif kind == "not_significant":
-            alpha = threshold(ranges, "alpha")
-            rows_a, rows_b = _groups(pub, st, poor)
-            full_a, full_b = _groups(pub, st)
-            if not full_a or not full_b:
-                continue
-            dropped = [v for v, _ in full_a + full_b if v in poor]
-            names = tuple(st["classes"])
-            test = class_test(
-                [p.value for _, p in rows_a], [p.value for _, p in rows_b], names, alpha["value"]
-            )
-            before = class_test(
-                [p.value for _, p in full_a], [p.value for _, p in full_b], names, alpha["value"]
-            )
-            severity = (
-                capped("warning", alpha)
-                if test.verdict == CONTRADICTED and before.verdict != CONTRADICTED
-                else "info"
-            )
-            out.append(
-                finding(
-                    "claims",
-                    "without_poor_fits",
-                    subject,
-                    severity,
-                    location,
-                    "not significant",
-                    test.recomputed(),
-                    f"{test.verdict} without {', '.join(dropped) or 'no fit'}: {q} of "
-                    f"{_describe(names[0], rows_a)} against {_describe(names[1], rows_b)}; "
-                    f"{test.text}; {_class_test_message(test, alpha)}; with every row: "
-                    f"{before.verdict} ({before.recomputed()})",
-                )
-            )
+        found = recompute(pub, ranges, st, poor, location) if recompute else None
+        if found is not None:
+            out.append(found)
     return out
+
+
+def _mean_without(
+    pub: Published, ranges: Mapping[str, Any], st: Mapping[str, Any], poor, location: str
+) -> Finding | None:
+    """A stated class mean without the poor fits (:func:`check_without_poor_fits`)."""
+    q, subject = st["quantity"], st["id"]
+    entry = threshold(ranges, "r2_min")
+    full = _class_rows(pub, q, st["class"])
+    reduced = _class_rows(pub, q, st["class"], poor)
+    if not full:
+        return None
+    dropped = [f"{v} (R^2 = {poor[v].text})" for v, _ in full if v in poor]
+    m_full = statistics.fmean(p.value for _, p in full)
+    stated = Printed.parse(st["printed"], subject)
+    unit = f" {st['unit']}" if st.get("unit", "1") != "1" else ""
+    if not dropped:
+        message = f"unchanged: no {st['class']} fit below R^2 = {entry['value']}"
+        recomputed = fmt_g(m_full)
+    elif not reduced:
+        message = f"no {st['class']} vehicle left without {', '.join(dropped)}"
+        recomputed = "-"
+    else:
+        values = [p.value for _, p in reduced]
+        m_red = statistics.fmean(values)
+        shift = m_red - m_full
+        message = (
+            f"without {', '.join(dropped)}: mean {q} of the {len(reduced)} remaining "
+            f"{st['class']} rows = ({' + '.join(p.text for _, p in reduced)}) / "
+            f"{len(reduced)} = {fmt_g(m_red)}; with all {len(full)} rows {fmt_g(m_full)}, "
+            f"stated {stated.text}; shift {shift:+.4g}{unit} ({shift / m_full:+.0%})"
+        )
+        if len(values) >= 2:
+            s = statistics.stdev(values)
+            se = s / math.sqrt(len(values))
+            message += (
+                f", beside the standard error of the reduced mean s / √n = "
+                f"{fmt_g(s)} / √{len(values)} = {fmt_g(se)}"
+            )
+        recomputed = fmt_g(m_red)
+    return finding(
+        "claims",
+        "without_poor_fits",
+        subject,
+        "info",
+        location,
+        stated.text,
+        recomputed,
+        message,
+    )
+
+
+def _order_without(
+    pub: Published, ranges: Mapping[str, Any], st: Mapping[str, Any], poor, location: str
+) -> Finding | None:
+    """The stated order of class means without the poor fits
+    (:func:`check_without_poor_fits`)."""
+    q, subject = st["quantity"], st["id"]
+    entry = threshold(ranges, "r2_min")
+    full = _order(pub, q, st["classes"])
+    reduced = _order(pub, q, st["classes"], poor)
+    dropped = sorted(v for v in poor if any(v == r for _, _, rows in full.means for r, _ in rows))
+    verdicts = {
+        "increase": "the class means still increase",
+        "overlap": "neighbouring class means overlap within rounding",
+        "decrease": "the class means decrease at "
+        + ", ".join(f"{a} -> {b}" for a, b in reduced.broken),
+    }
+    single = [cls for cls, _, rows in reduced.means if len(rows) == 1]
+    severity = (
+        capped("warning", entry)
+        if reduced.state == "decrease" and full.state != "decrease"
+        else "info"
+    )
+    message = (
+        f"without {', '.join(dropped) or 'no fit'}: {verdicts[reduced.state]}; "
+        f"{reduced.listing()}; with every row: {full.listing()}"
+    )
+    if single:
+        message += f"; only one vehicle left in {', '.join(single)}"
+    return finding(
+        "claims",
+        "without_poor_fits",
+        subject,
+        severity,
+        location,
+        " < ".join(st["classes"]),
+        reduced.recomputed(),
+        message,
+    )
+
+
+def _test_without(
+    pub: Published, ranges: Mapping[str, Any], st: Mapping[str, Any], poor, location: str
+) -> Finding | None:
+    """The class test of the text without the poor fits
+    (:func:`check_without_poor_fits`)."""
+    q, subject = st["quantity"], st["id"]
+    alpha = threshold(ranges, "alpha")
+    rows_a, rows_b = _groups(pub, st, poor)
+    full_a, full_b = _groups(pub, st)
+    if not full_a or not full_b:
+        return None
+    dropped = [v for v, _ in full_a + full_b if v in poor]
+    names = tuple(st["classes"])
+    test = class_test(
+        [p.value for _, p in rows_a], [p.value for _, p in rows_b], names, alpha["value"]
+    )
+    before = class_test(
+        [p.value for _, p in full_a], [p.value for _, p in full_b], names, alpha["value"]
+    )
+    severity = (
+        capped("warning", alpha)
+        if test.verdict == CONTRADICTED and before.verdict != CONTRADICTED
+        else "info"
+    )
+    return finding(
+        "claims",
+        "without_poor_fits",
+        subject,
+        severity,
+        location,
+        "not significant",
+        test.recomputed(),
+        f"{test.verdict} without {', '.join(dropped) or 'no fit'}: {q} of "
+        f"{_describe(names[0], rows_a)} against {_describe(names[1], rows_b)}; "
+        f"{test.text}; {_class_test_message(test, alpha)}; with every row: "
+        f"{before.verdict} ({before.recomputed()})",
+    )
+
+
+# a statement of the text by its statistic, recomputed without the poor fits
+_WITHOUT_POOR_FITS = {
+    "mean": _mean_without,
+    "increasing": _order_without,
+    "not_significant": _test_without,
+}
