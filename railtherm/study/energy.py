@@ -382,14 +382,7 @@ def annual_energy(
     thetas, rejected, unbounded = sim.parameter_draws(ps, 0 if withheld else draws, rng, floor)
     notes = [n for n in (withheld, unbounded) if n]
     t, T_o, ghi_grid = on_grid(weather, dt_s, hold)
-    if len(structure.inputs) > 2:
-        notes.append(
-            f"irradiance inputs {list(structure.inputs[2:])}: the weather's global horizontal "
-            "irradiance for each"
-            if ghi_grid is not None
-            else f"irradiance inputs {list(structure.inputs[2:])} taken as 0 W/m² (the "
-            "weather has none)"
-        )
+    notes += _irradiance_notes(structure, ghi_grid)
     variants = [WhatIf("base"), *what_ifs]
     variant_profiles = [replace(profile, **w.profile) for w in variants]
     grids = [profile_on_grid(p, t) for p in variant_profiles]
@@ -427,17 +420,7 @@ def annual_energy(
     until = np.stack([g.until_service for g in grids])
     horizon = int(until.max()) if any(p.preheat_mode == "ready_by" for p in variant_profiles) else 0
     R = V * S
-    Am = np.zeros((1, R, n, n))
-    x_per_T_o = x_per_W = np.zeros((R, n))
-    if horizon:
-        powers = [np.broadcast_to(np.eye(n), (R, n, n))]
-        for _ in range(horizon):
-            powers.append(np.einsum("sij,sjk->sik", Ad[0], powers[-1]))
-        Am = np.array(powers)  # (horizon + 1, runs, n, n)
-        A_cont = steps.A[0]
-        B_cont = steps.B[0]
-        x_per_T_o = -np.linalg.solve(A_cont, B_cont[:, :, 0:1])[:, :, 0]
-        x_per_W = -np.linalg.solve(A_cont, B_cont[:, :, 1:2])[:, :, 0]
+    Am, x_per_T_o, x_per_W = _ready_by(steps, horizon, R, n)
     # a what-if's own set-back while waiting (none: heating off)
     back = np.array([math.nan if p.set_back_C is None else p.set_back_C for p in variant_profiles])
     energy = np.zeros((R, 12))
@@ -492,6 +475,34 @@ def annual_energy(
         rejected=rejected,
         notes=notes,
     )
+
+
+def _irradiance_notes(structure: Any, ghi_grid: np.ndarray | None) -> list[str]:
+    """What an energy year takes for a structure's irradiance inputs (:func:`annual_energy`)."""
+    if len(structure.inputs) <= 2:
+        return []
+    names = list(structure.inputs[2:])
+    if ghi_grid is not None:
+        return [f"irradiance inputs {names}: the weather's global horizontal irradiance for each"]
+    return [f"irradiance inputs {names} taken as 0 W/m² (the weather has none)"]
+
+
+def _ready_by(steps: Any, horizon: int, R: int, n: int):
+    """ "Ready by" pre-heating (:func:`annual_energy`): A^m of the stabled step for m = 0 ..
+    ``horizon`` per run (R x n x n each), and the full-power equilibrium per kelvin of T_o and
+    per watt (R x n); without a horizon, zeros in their place."""
+    if not horizon:
+        return np.zeros((1, R, n, n)), np.zeros((R, n)), np.zeros((R, n))
+    Ad = steps.Ad
+    powers = [np.broadcast_to(np.eye(n), (R, n, n))]
+    for _ in range(horizon):
+        powers.append(np.einsum("sij,sjk->sik", Ad[0], powers[-1]))
+    Am = np.array(powers)  # (horizon + 1, runs, n, n)
+    A_cont = steps.A[0]
+    B_cont = steps.B[0]
+    x_per_T_o = -np.linalg.solve(A_cont, B_cont[:, :, 0:1])[:, :, 0]
+    x_per_W = -np.linalg.solve(A_cont, B_cont[:, :, 1:2])[:, :, 0]
+    return Am, x_per_T_o, x_per_W
 
 
 MONTHS = ("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec")
