@@ -868,24 +868,7 @@ def simulate(
         notes.append(f"irradiance {zero_irradiance} not in the scenario: taken as 0 W/m²")
 
     # the controller: is the set point within the power limit?
-    status_heat = "ok"
-    ctl = scenario.controller
-    if ctl is not None:
-        load, worst = _loads(steps, g_index, u, ctl.setpoint_C)
-        r = int(worst[0])
-        if load[0, r] > ctl.power_max_W:
-            message = (
-                f"below the steady-state load of {ps.label}: {load[0, r]:,.0f} W hold "
-                f"{ctl.setpoint_C:g} °C at T_o = {u[r, 0]:g} °C (t = {scenario.t_s[r] / 3600:g} h; "
-                f"kA = {models.steady_state_kA(structure, ps.theta):,.0f} W/K): the set point is "
-                "unreachable"
-            )
-            if not allow_unreachable:
-                raise UnreachableSetpoint(
-                    scenario.file, "heating.controller.power_max_W", ctl.power_max_W, message
-                )
-            status_heat = "unreachable"
-            notes.append(f"heating.controller.power_max_W = {ctl.power_max_W:g} W is {message}")
+    status_heat = _controller_status(ps, scenario, steps, u, g_index, allow_unreachable, notes)
 
     x0, power0 = _initial(structure, scenario, steps, u, g_index)
     noise = None
@@ -934,26 +917,8 @@ def simulate(
         "peak_power_W": scalar("peak_power_W", "W", peak),
         "final_T_C": scalar("final_T_C", "°C", final),
     }
-    hottest, coldest = float(np.max(T[0])), float(np.min(T[0]))
-    lo_C, hi_C = PLAUSIBLE_AIR_C
-    if hottest > hi_C or coldest < lo_C:
-        notes.append(
-            f"the predicted air temperature runs from {coldest:.4g} to {hottest:.4g} °C, beyond "
-            f"what a vehicle's interior reaches ({lo_C:g} to {hi_C:g} °C): is the scenario's "
-            "heating power in W (not kW or mW), and its outdoor temperature in °C?"
-        )
-    series = pd.DataFrame({"time_h": t / 3600.0, "T_o": scenario.T_o})
-    for i, state in enumerate(structure.states):
-        series[state] = X[0, :, i]
-    series["heating_W"] = P[0]
-    series["gains_W"] = scenario.gains_W
-    series["air_exchange_W_K"] = scenario.air_exchange_W_K
-    if has_band:
-        for i, state in enumerate(structure.states):
-            lo, hi = np.quantile(X[1:, :, i], [0.025, 0.975], axis=0)
-            series[f"{state}_lo"], series[f"{state}_hi"] = lo, hi
-        lo, hi = np.quantile(P[1:], [0.025, 0.975], axis=0)
-        series["heating_W_lo"], series["heating_W_hi"] = lo, hi
+    notes += _air_range_notes(T[0])
+    series = _series(scenario, structure, X, P, has_band)
     return SimulationResult(
         scenario=scenario,
         label=ps.label,
@@ -967,3 +932,61 @@ def simulate(
         rejected=rejected,
         limits=limits,
     )
+
+
+def _controller_status(ps, scenario, steps, u, g_index, allow_unreachable, notes) -> str:
+    """The heating's status, "ok" or "unreachable": the latter when the controller's power
+    limit is below the steady-state load at the scenario's most demanding row (with
+    ``allow_unreachable``, a note; else :class:`UnreachableSetpoint`) (:func:`simulate`)."""
+    status_heat = "ok"
+    ctl = scenario.controller
+    if ctl is not None:
+        load, worst = _loads(steps, g_index, u, ctl.setpoint_C)
+        r = int(worst[0])
+        if load[0, r] > ctl.power_max_W:
+            message = (
+                f"below the steady-state load of {ps.label}: {load[0, r]:,.0f} W hold "
+                f"{ctl.setpoint_C:g} °C at T_o = {u[r, 0]:g} °C (t = {scenario.t_s[r] / 3600:g} h; "
+                f"kA = {models.steady_state_kA(ps.structure, ps.theta):,.0f} W/K): the set point "
+                "is unreachable"
+            )
+            if not allow_unreachable:
+                raise UnreachableSetpoint(
+                    scenario.file, "heating.controller.power_max_W", ctl.power_max_W, message
+                )
+            status_heat = "unreachable"
+            notes.append(f"heating.controller.power_max_W = {ctl.power_max_W:g} W is {message}")
+    return status_heat
+
+
+def _air_range_notes(T: np.ndarray) -> list[str]:
+    """A note when the predicted air temperature ``T`` leaves what a vehicle's interior
+    reaches (:data:`PLAUSIBLE_AIR_C`) (:func:`simulate`)."""
+    hottest, coldest = float(np.max(T)), float(np.min(T))
+    lo_C, hi_C = PLAUSIBLE_AIR_C
+    if hottest > hi_C or coldest < lo_C:
+        return [
+            f"the predicted air temperature runs from {coldest:.4g} to {hottest:.4g} °C, beyond "
+            f"what a vehicle's interior reaches ({lo_C:g} to {hi_C:g} °C): is the scenario's "
+            "heating power in W (not kW or mW), and its outdoor temperature in °C?"
+        ]
+    return []
+
+
+def _series(scenario, structure, X: np.ndarray, P: np.ndarray, has_band: bool) -> pd.DataFrame:
+    """The central run's states, heating and inputs over time, with the 95 % bands of the
+    draws (:func:`simulate`)."""
+    t = scenario.t_s
+    series = pd.DataFrame({"time_h": t / 3600.0, "T_o": scenario.T_o})
+    for i, state in enumerate(structure.states):
+        series[state] = X[0, :, i]
+    series["heating_W"] = P[0]
+    series["gains_W"] = scenario.gains_W
+    series["air_exchange_W_K"] = scenario.air_exchange_W_K
+    if has_band:
+        for i, state in enumerate(structure.states):
+            lo, hi = np.quantile(X[1:, :, i], [0.025, 0.975], axis=0)
+            series[f"{state}_lo"], series[f"{state}_hi"] = lo, hi
+        lo, hi = np.quantile(P[1:], [0.025, 0.975], axis=0)
+        series["heating_W_lo"], series["heating_W_hi"] = lo, hi
+    return series
