@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -116,68 +117,18 @@ def storage_corrected_k(
     options["input_noise"] = input_noise(structure, vehicle_data, exps)
     fit_options = {**options, "fixed": dict(options["fixed"])}
 
-    def balance(kA: float, initial: Mapping[str, float] | None) -> _StorageStep:
-        """Stage two with kA fixed (warm-started from ``initial``), then the k window's
-        balance under its C, K_veh, C_veh."""
-        fit_options["fixed"]["kA"] = kA
-        if initial:
-            fit_options["initial"] = dict(initial)
-            fit_options["start"] = "initial"
-        result = pem.fit(structure, exps, **fit_options)
-        theta = {p: float(result.theta[p]) for p in ("C", "K_veh", "C_veh")}
-        bounded = sorted(
-            {q for f in result.flags if f.code == "at_bound" for q in f.parameters} & set(theta)
-        )
-        if bounded:  # a balance under a capacity the search bound holds means nothing
-            raise ValueError(
-                f"stage two at kA = {kA:.4g} W/K leaves {', '.join(bounded)} at a search bound"
-            )
-        correction = storage_corrected_kA(k_window, **theta)
-        u_model = _storage_model_u(k_window, theta, result)
-        u_storage = math.hypot(correction.u_kA, u_model)
-        if not (math.isfinite(correction.kA) and correction.kA > 0):
-            raise ValueError(f"the k window's balance gives kA = {correction.kA:.4g} W/K")
-        if not math.isfinite(u_storage):
-            raise ValueError("the second-order fit does not determine C, K_veh and C_veh")
-        other = sum((r * correction.kA) ** 2 for r in relative.values())
-        return _StorageStep(
-            kA=kA,
-            kA_balance=float(correction.kA),
-            u_kA=math.sqrt(other + u_storage**2),
-            u_storage=u_storage,
-            u_model=u_model,
-            correction=correction,
-            theta=theta,
-            warm={p: float(result.theta[p]) for p in result.free},
-        )
+    balance = partial(
+        _balance,
+        structure=structure,
+        exps=exps,
+        fit_options=fit_options,
+        k_window=k_window,
+        relative=relative,
+    )
 
     history: list[float] = []
-    method = "alternation"
     try:
-        # the capacities of the first balance come from the joint fit (kA free, started at
-        # eq. 10's): with kA held at eq. 10's biased value, a fit of T alone can settle in a
-        # far optimum of C, K_veh, C_veh whose balance then moves kA away from the truth;
-        # the joint fit's optimum does not depend on that bias
-        joint = pem.fit(structure, exps, **kA_estimated(options, kA_eq10))
-        joint_theta = {p: float(joint.theta[p]) for p in ("C", "K_veh", "C_veh")}
-        kA, initial = kA_eq10, None
-        if all(math.isfinite(v) and v > 0 for v in joint_theta.values()):
-            start = storage_corrected_kA(k_window, **joint_theta).kA
-            if math.isfinite(start) and start > 0:
-                kA, initial = start, joint_theta
-        unusable = None  # why the alternation's step could not be used, if it could not
-        try:
-            step = _storage_alternation(balance, kA, initial, history)
-        except ValueError as err:
-            step, unusable = None, err
-        if step is None and initial is not None:
-            # the alternation runs away where stage two's capacities follow kA steeply (the
-            # balance's kA moves more than the kA it was given): solve kA = balance(kA) by
-            # the secant method from the joint fit instead, each fit warm-started there
-            method = "secant"
-            step = _storage_secant(balance, float(joint.theta["kA"]), kA, joint_theta, history)
-        if step is None:
-            raise ValueError(_unsettled(history, kA, unusable))
+        step, method = _solve(balance, structure, exps, options, kA_eq10, k_window, history)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:
         record["reason"] = f"the correction failed ({err}); eq. 10's kA is fixed"
         return record
@@ -207,6 +158,84 @@ def storage_corrected_k(
         history_kA=[float(v) for v in history],
     )
     return record
+
+
+def _balance(
+    kA: float,
+    initial: Mapping[str, float] | None,
+    *,
+    structure: Any,
+    exps: Any,
+    fit_options: dict[str, Any],
+    k_window: pd.DataFrame,
+    relative: Mapping[str, float],
+) -> _StorageStep:
+    """Stage two with kA fixed (warm-started from ``initial``), then the k window's balance
+    under its C, K_veh, C_veh (:func:`storage_corrected_k`; ``relative``: the components of
+    u(kA) that stay, relative to kA)."""
+    fit_options["fixed"]["kA"] = kA
+    if initial:
+        fit_options["initial"] = dict(initial)
+        fit_options["start"] = "initial"
+    result = pem.fit(structure, exps, **fit_options)
+    theta = {p: float(result.theta[p]) for p in ("C", "K_veh", "C_veh")}
+    bounded = sorted(
+        {q for f in result.flags if f.code == "at_bound" for q in f.parameters} & set(theta)
+    )
+    if bounded:  # a balance under a capacity the search bound holds means nothing
+        raise ValueError(
+            f"stage two at kA = {kA:.4g} W/K leaves {', '.join(bounded)} at a search bound"
+        )
+    correction = storage_corrected_kA(k_window, **theta)
+    u_model = _storage_model_u(k_window, theta, result)
+    u_storage = math.hypot(correction.u_kA, u_model)
+    if not (math.isfinite(correction.kA) and correction.kA > 0):
+        raise ValueError(f"the k window's balance gives kA = {correction.kA:.4g} W/K")
+    if not math.isfinite(u_storage):
+        raise ValueError("the second-order fit does not determine C, K_veh and C_veh")
+    other = sum((r * correction.kA) ** 2 for r in relative.values())
+    return _StorageStep(
+        kA=kA,
+        kA_balance=float(correction.kA),
+        u_kA=math.sqrt(other + u_storage**2),
+        u_storage=u_storage,
+        u_model=u_model,
+        correction=correction,
+        theta=theta,
+        warm={p: float(result.theta[p]) for p in result.free},
+    )
+
+
+def _solve(balance, structure, exps, options, kA_eq10, k_window, history) -> tuple:
+    """The storage-corrected kA, kA = balance(kA) (:func:`storage_corrected_k`): alternation
+    from the joint fit's balance, else the secant method; the step found and the method. A
+    step that does not settle raises ValueError."""
+    method = "alternation"
+    # the capacities of the first balance come from the joint fit (kA free, started at
+    # eq. 10's): with kA held at eq. 10's biased value, a fit of T alone can settle in a
+    # far optimum of C, K_veh, C_veh whose balance then moves kA away from the truth;
+    # the joint fit's optimum does not depend on that bias
+    joint = pem.fit(structure, exps, **kA_estimated(options, kA_eq10))
+    joint_theta = {p: float(joint.theta[p]) for p in ("C", "K_veh", "C_veh")}
+    kA, initial = kA_eq10, None
+    if all(math.isfinite(v) and v > 0 for v in joint_theta.values()):
+        start = storage_corrected_kA(k_window, **joint_theta).kA
+        if math.isfinite(start) and start > 0:
+            kA, initial = start, joint_theta
+    unusable = None  # why the alternation's step could not be used, if it could not
+    try:
+        step = _storage_alternation(balance, kA, initial, history)
+    except ValueError as err:
+        step, unusable = None, err
+    if step is None and initial is not None:
+        # the alternation runs away where stage two's capacities follow kA steeply (the
+        # balance's kA moves more than the kA it was given): solve kA = balance(kA) by
+        # the secant method from the joint fit instead, each fit warm-started there
+        method = "secant"
+        step = _storage_secant(balance, float(joint.theta["kA"]), kA, joint_theta, history)
+    if step is None:
+        raise ValueError(_unsettled(history, kA, unusable))
+    return step, method
 
 
 def _unsettled(history: Sequence[float], kA: float, unusable: Exception | None) -> str:
