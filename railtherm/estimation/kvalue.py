@@ -361,14 +361,7 @@ def static_k(
     rows, a non-increasing time, mean(T - T_o) <= 0 or mean(Q_H) <= 0 (no k exists then)."""
     if len(window) < 3:
         raise DataError(source, "time", len(window), "the k window needs at least 3 rows")
-    t = _column(window, "time", source)
-    if np.any(np.diff(t) <= 0):
-        i = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
-        raise DataError(source, "time", float(t[i]), f"not increasing at row {i}")
-    T = _column(window, "T", source)
-    T_o = _column(window, "T_o", source)
-    Q_H = _column(window, "Q_H", source)
-    T_veh = _column(window, "T_veh", source, required=False)
+    t, T, T_o, Q_H, T_veh = _window_columns(window, source)
     if (A is not None and not A > 0) or (mass_kg is not None and not mass_kg > 0):
         raise ValueError(f"A and mass_kg must be > 0 or None, got A={A}, mass_kg={mass_kg}")
     per = 1.0 if A is None else A  # the budget's unit: that of k, or of kA without a surface
@@ -378,24 +371,7 @@ def static_k(
     T_o_mean = _trapezoid_mean(t, T_o)
     delta_T = T_mean - T_o_mean
     Q_mean = _zoh_mean(t, Q_H)
-    if not delta_T > 0:
-        raise DataError(
-            source,
-            "T - T_o",
-            round(delta_T, 6),
-            f"the mean T - T_o must be > 0 for eq. 10 (mean T {T_mean:.4g} degC, mean T_o "
-            f"{T_o_mean:.4g} degC, mean Q_H {Q_mean:.4g} W): are channels.indoor_air and "
-            "outdoor_air, or a power and a temperature channel, swapped? Is the k window where "
-            "the vehicle is heated?",
-        )
-    if not Q_mean > 0:
-        raise DataError(
-            source,
-            "Q_H",
-            round(Q_mean, 6),
-            f"the mean Q_H must be > 0 for eq. 10 (mean T - T_o {delta_T:.4g} K): is a power "
-            "channel's sign or column wrong, or the k window outside the heated test?",
-        )
+    _check_means(source, T_mean, T_o_mean, Q_mean)
     kA = Q_mean / delta_T
     k = kA / per
 
@@ -408,32 +384,10 @@ def static_k(
     duration_h = duration / 3600.0
 
     lim = {key: float(settings[key]) for key in _LIMITS}
-    reasons = []
-    # A drift fails the window when it exceeds its limit by more than twice its own standard
-    # uncertainty: a trend that cycling or noise cannot tell from the limit is no evidence.
-    if abs(drift_T) - 2 * u_drift_T > lim["max_drift_T_K"]:
-        reasons.append(
-            f"T drifts by {drift_T:+.2f} +- {u_drift_T:.2f} K across the window "
-            f"(limit {_fmt(lim['max_drift_T_K'])} K)"
-        )
-    if abs(drift_T_o) - 2 * u_drift_T_o > lim["max_drift_T_o_K"]:
-        reasons.append(
-            f"T_o drifts by {drift_T_o:+.2f} +- {u_drift_T_o:.2f} K across the window "
-            f"(limit {_fmt(lim['max_drift_T_o_K'])} K)"
-        )
-    if abs(drift_Q_rel) - 2 * u_drift_Q_rel > lim["max_drift_Q_H_rel"]:
-        reasons.append(
-            f"Q_H drifts by {100 * drift_Q_rel:+.1f} +- {100 * u_drift_Q_rel:.1f} % of its mean "
-            f"across the window (limit {_fmt(100 * lim['max_drift_Q_H_rel'])} %)"
-        )
-    if delta_T < lim["min_delta_T_K"]:
-        reasons.append(
-            f"the mean T - T_o is {delta_T:.2f} K (minimum {_fmt(lim['min_delta_T_K'])} K)"
-        )
-    if duration_h < lim["min_duration_h"]:
-        reasons.append(
-            f"the window lasts {duration_h:.2f} h (minimum {_fmt(lim['min_duration_h'])} h)"
-        )
+    reasons = _unsteady_reasons(
+        lim, (drift_T, u_drift_T), (drift_T_o, u_drift_T_o), (drift_Q_rel, u_drift_Q_rel),
+        delta_T, duration_h,
+    )  # fmt: skip
     steady = not reasons
     forced = bool(settings.get("force", False)) and not steady
     usable = steady or forced
@@ -447,34 +401,16 @@ def static_k(
     u_temp = k * math.sqrt(u_in_K**2 / n_in + u_out_K**2 / n_out) / delta_T
     u_surface = k * float(instruments["surface_u_rel"]) if A is not None else 0.0
 
-    dT_step = (T[:-1] - T_o[:-1] + T[1:] - T_o[1:]) / 2.0  # over the step Q_H[n] covers
-    _, balance = _line(t_q, Q_H[:-1] - kA * dT_step)
-    stored = np.cumsum(balance * np.diff(t))  # E(t): heat into storage since the start, J
-    u_stored = math.sqrt(2.0) * float(np.std(stored, ddof=1)) / duration
-    u_noise = math.sqrt(float(np.mean(np.diff(balance) ** 2)) / 2.0 / balance.size)
-    u_scatter = math.hypot(u_stored, u_noise) / (per * delta_T)
+    u_scatter = _scatter_W(t, t_q, T, T_o, Q_H, kA) / (per * delta_T)
 
-    finite_veh = np.isfinite(T_veh)
-    if np.count_nonzero(finite_veh) >= 2:
-        rate, storage_from = _line(t[finite_veh], T_veh[finite_veh])[0], "T_veh"
-    else:
-        rate, storage_from = drift_T / duration, "T"
+    rate, storage_from = _storage_rate(t, T_veh, drift_T / duration)
     notes = []
     if A is None:
         notes.append("k = kA / A not given: no surface_m2 (the budget is that of kA, in W/K)")
-    if mass_kg is None:
-        bound_W = bound_k = None
-        u_storage = 0.0
-        storage_from = "not bounded: no mass_kg"
-        notes.append(
-            "the heat still going into storage is not bounded: no mass_kg (u(k) has no "
-            "storage term)"
-        )
-    else:
-        bound_W = mass_kg * float(settings["storage_c_J_per_kgK"]) * abs(rate)
-        bound_k = bound_W / (per * delta_T)
-        u_storage = bound_k / SQRT3
-
+    bound_W, bound_k, u_storage, storage_from, note = _storage_bound(
+        mass_kg, settings, rate, per * delta_T, storage_from
+    )
+    notes += note
     budget = Budget(
         power=u_power,
         temperature=u_temp,
@@ -518,6 +454,120 @@ def static_k(
         window_end=stamps.iloc[-1],
         notes=tuple(notes),
     )
+
+
+def _window_columns(window: pd.DataFrame, source: str) -> tuple[np.ndarray, ...]:
+    """time (increasing), T, T_o, Q_H and T_veh (NaN where not measured) of a k window
+    (:func:`static_k`)."""
+    t = _column(window, "time", source)
+    if np.any(np.diff(t) <= 0):
+        i = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
+        raise DataError(source, "time", float(t[i]), f"not increasing at row {i}")
+    T = _column(window, "T", source)
+    T_o = _column(window, "T_o", source)
+    Q_H = _column(window, "Q_H", source)
+    return t, T, T_o, Q_H, _column(window, "T_veh", source, required=False)
+
+
+def _check_means(source: str, T_mean: float, T_o_mean: float, Q_mean: float) -> None:
+    """Eq. 10 needs mean(T - T_o) > 0 and mean(Q_H) > 0 (:func:`static_k`): else a
+    :class:`~railtherm.errors.DataError` that names what to check."""
+    delta_T = T_mean - T_o_mean
+    if not delta_T > 0:
+        raise DataError(
+            source,
+            "T - T_o",
+            round(delta_T, 6),
+            f"the mean T - T_o must be > 0 for eq. 10 (mean T {T_mean:.4g} degC, mean T_o "
+            f"{T_o_mean:.4g} degC, mean Q_H {Q_mean:.4g} W): are channels.indoor_air and "
+            "outdoor_air, or a power and a temperature channel, swapped? Is the k window where "
+            "the vehicle is heated?",
+        )
+    if not Q_mean > 0:
+        raise DataError(
+            source,
+            "Q_H",
+            round(Q_mean, 6),
+            f"the mean Q_H must be > 0 for eq. 10 (mean T - T_o {delta_T:.4g} K): is a power "
+            "channel's sign or column wrong, or the k window outside the heated test?",
+        )
+
+
+def _unsteady_reasons(lim, T, T_o, Q_rel, delta_T: float, duration_h: float) -> list[str]:
+    """Why a k window is not steady (:func:`static_k`): each drift (value, standard
+    uncertainty) beyond its limit, a small mean T - T_o, a short window."""
+    drift_T, u_drift_T = T
+    drift_T_o, u_drift_T_o = T_o
+    drift_Q_rel, u_drift_Q_rel = Q_rel
+    reasons = []
+    # A drift fails the window when it exceeds its limit by more than twice its own standard
+    # uncertainty: a trend that cycling or noise cannot tell from the limit is no evidence.
+    if abs(drift_T) - 2 * u_drift_T > lim["max_drift_T_K"]:
+        reasons.append(
+            f"T drifts by {drift_T:+.2f} +- {u_drift_T:.2f} K across the window "
+            f"(limit {_fmt(lim['max_drift_T_K'])} K)"
+        )
+    if abs(drift_T_o) - 2 * u_drift_T_o > lim["max_drift_T_o_K"]:
+        reasons.append(
+            f"T_o drifts by {drift_T_o:+.2f} +- {u_drift_T_o:.2f} K across the window "
+            f"(limit {_fmt(lim['max_drift_T_o_K'])} K)"
+        )
+    if abs(drift_Q_rel) - 2 * u_drift_Q_rel > lim["max_drift_Q_H_rel"]:
+        reasons.append(
+            f"Q_H drifts by {100 * drift_Q_rel:+.1f} +- {100 * u_drift_Q_rel:.1f} % of its mean "
+            f"across the window (limit {_fmt(100 * lim['max_drift_Q_H_rel'])} %)"
+        )
+    if delta_T < lim["min_delta_T_K"]:
+        reasons.append(
+            f"the mean T - T_o is {delta_T:.2f} K (minimum {_fmt(lim['min_delta_T_K'])} K)"
+        )
+    if duration_h < lim["min_duration_h"]:
+        reasons.append(
+            f"the window lasts {duration_h:.2f} h (minimum {_fmt(lim['min_duration_h'])} h)"
+        )
+    return reasons
+
+
+def _scatter_W(t, t_q, T, T_o, Q_H, kA: float) -> float:
+    """The scatter of eq. 10's balance (:func:`static_k`), in W: the swing of the heat going
+    into storage (E(t), the balance Q_H - kA (T - T_o) about its line, integrated) at the
+    window's ends, and the balance's noise, in quadrature."""
+    duration = float(t[-1] - t[0])
+    dT_step = (T[:-1] - T_o[:-1] + T[1:] - T_o[1:]) / 2.0  # over the step Q_H[n] covers
+    _, balance = _line(t_q, Q_H[:-1] - kA * dT_step)
+    stored = np.cumsum(balance * np.diff(t))  # E(t): heat into storage since the start, J
+    u_stored = math.sqrt(2.0) * float(np.std(stored, ddof=1)) / duration
+    u_noise = math.sqrt(float(np.mean(np.diff(balance) ** 2)) / 2.0 / balance.size)
+    return math.hypot(u_stored, u_noise)
+
+
+def _storage_rate(t: np.ndarray, T_veh: np.ndarray, drift_rate: float) -> tuple[float, str]:
+    """The rate (K/s) at which heat still goes into storage: T_veh's slope where it is
+    measured, else T's drift rate (:func:`static_k`)."""
+    finite_veh = np.isfinite(T_veh)
+    if np.count_nonzero(finite_veh) >= 2:
+        return _line(t[finite_veh], T_veh[finite_veh])[0], "T_veh"
+    return drift_rate, "T"
+
+
+def _storage_bound(mass_kg, settings, rate: float, per_delta_T: float, storage_from: str):
+    """The storage term of u(k) (:func:`static_k`): the bound m c |rate| in W and in k's
+    unit (``per_delta_T``: A mean(T - T_o)), its standard uncertainty (uniform), where the
+    rate comes from, and a note where no mass bounds it."""
+    if mass_kg is None:
+        return (
+            None,
+            None,
+            0.0,
+            "not bounded: no mass_kg",
+            [
+                "the heat still going into storage is not bounded: no mass_kg (u(k) has no "
+                "storage term)"
+            ],
+        )
+    bound_W = mass_kg * float(settings["storage_c_J_per_kgK"]) * abs(rate)
+    bound_k = bound_W / per_delta_T
+    return bound_W, bound_k, bound_k / SQRT3, storage_from, []
 
 
 _LIMITS = (
