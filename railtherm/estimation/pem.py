@@ -957,48 +957,13 @@ def _result(
     P, m = prob.P, prob.m
     p_all = J.shape[1]
     ssr = float(r @ r)
-    # singular values and right vectors of J
-    if p_all:
-        s, Vt = solver.svd_tall(J)
-    else:  # nothing estimated
-        s, Vt = np.zeros(0), np.zeros((0, 0))
-    smax = float(s[0]) if s.size else 0.0
-    null = s <= NULL_REL * smax if smax > 0 else np.ones_like(s, dtype=bool)
-    # condition of the parameter block only (log-parameter columns)
-    if P and p_all == P:
-        cond = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
-    elif P:
-        sp = solver.svd_tall(J[:, :P])[0]
-        cond = float(sp[0] / sp[-1]) if sp[-1] > 0 else math.inf
-    else:
-        cond = 1.0
-    with np.errstate(divide="ignore"):
-        inv_s = np.where(null, 0.0, 1.0 / np.where(null, 1.0, s))
+    s, Vt, null, inv_s, cond = _singular(J, P)
     bandwidths, capped = [], []
     if covariance == "iid":
         s2 = ssr / max(m - p_all, 1)
         cov = s2 * ((Vt.T * inv_s**2) @ Vt)  # s^2 (J^T J)^+
     else:
-        meat = np.zeros((p_all, p_all))
-        JT = np.ascontiguousarray(J.T)  # no copy: J is the transpose of a C-ordered array
-        row = 0
-        for e, rows in zip(prob.exps, prob.rows, strict=True):
-            for rr in rows:
-                N_i = len(e.u) if rr is None else len(rr)
-                ri, JTi = r[row : row + N_i], JT[:, row : row + N_i]
-                if rr is None:
-                    gT, res_full = JTi * ri, ri
-                else:
-                    gT = np.zeros((p_all, len(e.u)))
-                    gT[:, rr] = JTi * ri
-                    res_full = np.zeros(len(e.u))
-                    res_full[rr] = ri
-                L = hac.andrews_bandwidth(res_full)
-                bandwidths.append(L)
-                if len(res_full) >= 8 and L >= len(res_full) // 2:
-                    capped.append(f"{e.name} (L = {L} of {len(res_full)} rows)")
-                meat += hac.bartlett(gT, L)
-                row += N_i
+        meat, bandwidths, capped = _hac_meat(prob, r, J)
         cov = hac.sandwich(Vt, inv_s, meat)
     input_sd = [dict(level) for level in noisy] if any(noisy) else []
     if input_sd:
@@ -1023,56 +988,12 @@ def _result(
     ]
     var[[free.index(p) for p in degenerate]] = np.inf
     sd = np.sqrt(np.maximum(var, 0.0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        d = np.sqrt(np.maximum(np.diag(cov)[:P], 0.0))
-        corr = cov[:P, :P] / np.outer(d, d)
-    corr[~np.isfinite(corr)] = np.nan
-    for i in range(P):
-        if np.isfinite(sd[i]) and sd[i] > 0:
-            corr[i, i] = 1.0
-        if not np.isfinite(sd[i]):
-            corr[i, :] = np.nan
-            corr[:, i] = np.nan
-    ci = {}
-    sd_log = {}
-    for i, p in enumerate(free):
-        lv = math.log(th[p])
-        with np.errstate(over="ignore"):
-            ci[p] = (float(np.exp(lv - Z95 * sd[i])), float(np.exp(lv + Z95 * sd[i])))
-        sd_log[p] = float(sd[i])
+    corr, ci, sd_log = _intervals(cov, sd, th, free)
     flags = fit_flags(sol, v, th, free, ci, corr, cond, bnds)
     flags += x0_flags(prob, sol, v)
-    if capped:
-        flags.append(
-            Flag(
-                "hac_bandwidth_capped",
-                tuple(free),
-                "the residuals are so persistent that the HAC bandwidth reached half the "
-                f"window in {', '.join(dict.fromkeys(capped))}: the intervals rest on a few "
-                "effective samples and may understate the uncertainty (a slow dynamic the "
-                "model lacks?)",
-            )
-        )
-    if degenerate:
-        flags.append(
-            Flag(
-                "degenerate_covariance",
-                tuple(degenerate),
-                f"the {covariance} covariance gives no positive variance for "
-                f"{', '.join(degenerate)}: the estimator breaks down on these data, so the "
-                "parameters are taken as not identified",
-            )
-        )
-    sims = prob._evaluate(v, derivatives=True)[1]
+    flags += _covariance_flags(capped, degenerate, covariance, free)
+    simulated, residuals = _simulated(prob, v)
     x0s = prob.x0s(v)
-    simulated, residuals = [], []
-    for e, (_, xT) in zip(prob.exps, sims, strict=True):
-        x = xT.T.copy()
-        simulated.append(x)
-        res = np.full_like(x, np.nan)
-        for i in prob.out_idx:
-            res[:, i] = e.y[:, i] - x[:, i]
-        residuals.append(res)
     return FitResult(
         structure=structure.name,
         theta={p: float(th[p]) for p in structure.parameters},
@@ -1104,3 +1025,121 @@ def _result(
         bandwidths=bandwidths,
         input_noise_sd=input_sd,
     )
+
+
+def _singular(J: np.ndarray, P: int):
+    """The singular values s and right vectors Vt of J, the null directions (s below
+    NULL_REL of the largest), the pseudo-inverse's 1/s (0 on them) and the condition of the
+    parameter block (its first P columns) (:func:`_result`)."""
+    p_all = J.shape[1]
+    if p_all:
+        s, Vt = solver.svd_tall(J)
+    else:  # nothing estimated
+        s, Vt = np.zeros(0), np.zeros((0, 0))
+    smax = float(s[0]) if s.size else 0.0
+    null = s <= NULL_REL * smax if smax > 0 else np.ones_like(s, dtype=bool)
+    # condition of the parameter block only (log-parameter columns)
+    if P and p_all == P:
+        cond = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
+    elif P:
+        sp = solver.svd_tall(J[:, :P])[0]
+        cond = float(sp[0] / sp[-1]) if sp[-1] > 0 else math.inf
+    else:
+        cond = 1.0
+    with np.errstate(divide="ignore"):
+        inv_s = np.where(null, 0.0, 1.0 / np.where(null, 1.0, s))
+    return s, Vt, null, inv_s, cond
+
+
+def _hac_meat(prob, r: np.ndarray, J: np.ndarray):
+    """The HAC meat of the sandwich (Bartlett kernel, Andrews' bandwidth per record), the
+    bandwidths and the records whose bandwidth reached half their rows (:func:`_result`)."""
+    p_all = J.shape[1]
+    bandwidths, capped = [], []
+    meat = np.zeros((p_all, p_all))
+    JT = np.ascontiguousarray(J.T)  # no copy: J is the transpose of a C-ordered array
+    row = 0
+    for e, rows in zip(prob.exps, prob.rows, strict=True):
+        for rr in rows:
+            N_i = len(e.u) if rr is None else len(rr)
+            ri, JTi = r[row : row + N_i], JT[:, row : row + N_i]
+            if rr is None:
+                gT, res_full = JTi * ri, ri
+            else:
+                gT = np.zeros((p_all, len(e.u)))
+                gT[:, rr] = JTi * ri
+                res_full = np.zeros(len(e.u))
+                res_full[rr] = ri
+            L = hac.andrews_bandwidth(res_full)
+            bandwidths.append(L)
+            if len(res_full) >= 8 and L >= len(res_full) // 2:
+                capped.append(f"{e.name} (L = {L} of {len(res_full)} rows)")
+            meat += hac.bartlett(gT, L)
+            row += N_i
+    return meat, bandwidths, capped
+
+
+def _intervals(cov: np.ndarray, sd: np.ndarray, th, free):
+    """The correlation of the free log parameters (NaN where a variance is infinite), their
+    95 % intervals and sd in log units (:func:`_result`)."""
+    P = len(free)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = np.sqrt(np.maximum(np.diag(cov)[:P], 0.0))
+        corr = cov[:P, :P] / np.outer(d, d)
+    corr[~np.isfinite(corr)] = np.nan
+    for i in range(P):
+        if np.isfinite(sd[i]) and sd[i] > 0:
+            corr[i, i] = 1.0
+        if not np.isfinite(sd[i]):
+            corr[i, :] = np.nan
+            corr[:, i] = np.nan
+    ci = {}
+    sd_log = {}
+    for i, p in enumerate(free):
+        lv = math.log(th[p])
+        with np.errstate(over="ignore"):
+            ci[p] = (float(np.exp(lv - Z95 * sd[i])), float(np.exp(lv + Z95 * sd[i])))
+        sd_log[p] = float(sd[i])
+    return corr, ci, sd_log
+
+
+def _covariance_flags(capped, degenerate, covariance: str, free) -> list[Flag]:
+    """The flags of a covariance that rests on a capped HAC bandwidth or gives no positive
+    variance (:func:`_result`)."""
+    flags = []
+    if capped:
+        flags.append(
+            Flag(
+                "hac_bandwidth_capped",
+                tuple(free),
+                "the residuals are so persistent that the HAC bandwidth reached half the "
+                f"window in {', '.join(dict.fromkeys(capped))}: the intervals rest on a few "
+                "effective samples and may understate the uncertainty (a slow dynamic the "
+                "model lacks?)",
+            )
+        )
+    if degenerate:
+        flags.append(
+            Flag(
+                "degenerate_covariance",
+                tuple(degenerate),
+                f"the {covariance} covariance gives no positive variance for "
+                f"{', '.join(degenerate)}: the estimator breaks down on these data, so the "
+                "parameters are taken as not identified",
+            )
+        )
+    return flags
+
+
+def _simulated(prob, v: np.ndarray):
+    """Each record's simulated states and residuals at ``v`` (:func:`_result`)."""
+    sims = prob._evaluate(v, derivatives=True)[1]
+    simulated, residuals = [], []
+    for e, (_, xT) in zip(prob.exps, sims, strict=True):
+        x = xT.T.copy()
+        simulated.append(x)
+        res = np.full_like(x, np.nan)
+        for i in prob.out_idx:
+            res[:, i] = e.y[:, i] - x[:, i]
+        residuals.append(res)
+    return simulated, residuals
