@@ -366,15 +366,7 @@ def annual_energy(
     through one compiled loop (:func:`railtherm.estimation.loops.heated_steps`)."""
     from railtherm.estimation import loops  # numba: imported only to simulate
 
-    for w in what_ifs:
-        reason = contradiction(profile, w)
-        if reason is not None:
-            raise ConfigError("--what-if", "what_if", w.label, reason)
-    ps = params if isinstance(params, sim.ParameterSet) else sim.parameter_set(params)
-    if ps.not_identified:
-        raise sim.NotPredictable(
-            ps.label, "parameters", list(ps.not_identified), "not identified by the data"
-        )
+    ps = _predictable(params, profile, what_ifs)
     structure = ps.structure
     floor = sim.air_capacity(volume_m3, ps.label)
     withheld = ps.band_withheld
@@ -423,10 +415,7 @@ def annual_energy(
     Am, x_per_T_o, x_per_W = _ready_by(steps, horizon, R, n)
     # a what-if's own set-back while waiting (none: heating off)
     back = np.array([math.nan if p.set_back_C is None else p.set_back_C for p in variant_profiles])
-    energy = np.zeros((R, 12))
-    pre_J = np.zeros(R)
-    peak = np.zeros(R)
-    unmet = np.zeros(R)
+    energy, pre_J, peak, unmet = np.zeros((R, 12)), np.zeros(R), np.zeros(R), np.zeros(R)
     started = np.zeros(R, dtype=bool)
     fixed = tuple(
         np.ascontiguousarray(a) for a in (Ad, BdT, BdQ, BdI, gain_Q, door, T_o, gains, ghi)
@@ -475,6 +464,21 @@ def annual_energy(
         rejected=rejected,
         notes=notes,
     )
+
+
+def _predictable(params: Any, profile: Profile, what_ifs: Sequence[WhatIf]) -> Any:
+    """The parameter set of ``params`` for :func:`annual_energy`, refused where a what-if
+    contradicts the profile or a parameter is not identified."""
+    for w in what_ifs:
+        reason = contradiction(profile, w)
+        if reason is not None:
+            raise ConfigError("--what-if", "what_if", w.label, reason)
+    ps = params if isinstance(params, sim.ParameterSet) else sim.parameter_set(params)
+    if ps.not_identified:
+        raise sim.NotPredictable(
+            ps.label, "parameters", list(ps.not_identified), "not identified by the data"
+        )
+    return ps
 
 
 def _irradiance_notes(structure: Any, ghi_grid: np.ndarray | None) -> list[str]:
