@@ -654,27 +654,11 @@ def fit(
     alone need not pay; the Kalman fit, which loads it anyway, asks for it); the same costs.
     """
     fixed = {p: float(v) for p, v in (fixed or {}).items()}
-    unknown = [p for p in fixed if p not in structure.parameters]
-    if unknown:
-        raise ValueError(f"fixed parameters {unknown} not in {structure.parameters}")
-    if x0 not in ("measured", "estimated"):
-        raise ValueError(f"x0 must be 'measured' or 'estimated', got {x0!r}")
-    if covariance not in ("hac", "iid"):
-        raise ValueError(f"covariance must be 'hac' or 'iid', got {covariance!r}")
-    if start not in ("initial", "auto"):
-        raise ValueError(f"start must be 'initial' or 'auto', got {start!r}")
     experiments = list(experiments)
-    if not experiments:
-        raise ValueError("fit needs at least one experiment")
+    _check_arguments(structure, experiments, fixed, x0, covariance, start)
     one_hold(experiments)
     noisy = noise_levels(structure, input_noise or {}, experiments)
-    m_in = len(structure.inputs)
-    wrong = [f"{e.name!r} ({e.u.shape[1]})" for e in experiments if e.u.shape[1] != m_in]
-    if wrong:
-        raise ValueError(
-            f"structure {structure.name!r} has {m_in} inputs {structure.inputs}, but the u of "
-            f"experiments {', '.join(wrong)} has a different number of columns"
-        )
+    _check_input_columns(structure, experiments)
     free = tuple(p for p in structure.parameters if p not in fixed)
     init = dict(structure.initial)
     init.update({p: float(v) for p, v in (initial or {}).items() if p in structure.parameters})
@@ -682,17 +666,7 @@ def fit(
     bnds.update({p: (float(b[0]), float(b[1])) for p, b in (bounds or {}).items()})
     lb = np.array([math.log(bnds[p][0]) if bnds[p][0] > 0 else -np.inf for p in free])
     ub = np.array([math.log(bnds[p][1]) if np.isfinite(bnds[p][1]) else np.inf for p in free])
-    n = len(structure.states)
-    if outputs is None:
-        outputs = tuple(
-            s
-            for i, s in enumerate(structure.states)
-            if any(np.isfinite(e.y[:, i]).any() for e in experiments if e.y.shape[1] == n)
-        )
-    outputs = tuple(outputs)
-    bad = [s for s in outputs if s not in structure.states]
-    if bad or not outputs:
-        raise ValueError(f"outputs {outputs} must be states of {structure.name}")
+    outputs = _compared_outputs(structure, experiments, outputs)
     out_idx = [structure.states.index(s) for s in outputs]
     prob = _Problem(structure, experiments, fixed, free, out_idx, x0, compiled)
     if prob.m <= len(free) + prob.n_x0:
@@ -753,6 +727,62 @@ def fit(
             structure, prob, sol, v0, r, J, covariance, start_used, costs, outputs, bnds, noisy,
             (lo, hi),
         )  # fmt: skip
+    sol = _minimise(prob, v0, lo, hi, max_nfev)
+    v = sol.x
+    r = prob.residuals(v)
+    J = prob.jacobian(v)  # cached: the solver evaluated it at sol.x
+    return _result(
+        structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy,
+        (lo, hi),
+    )  # fmt: skip
+
+
+def _check_arguments(structure, experiments, fixed, x0: str, covariance: str, start: str) -> None:
+    """:func:`fit`'s arguments: fixed parameters of the structure, the options' values, at
+    least one experiment."""
+    unknown = [p for p in fixed if p not in structure.parameters]
+    if unknown:
+        raise ValueError(f"fixed parameters {unknown} not in {structure.parameters}")
+    if x0 not in ("measured", "estimated"):
+        raise ValueError(f"x0 must be 'measured' or 'estimated', got {x0!r}")
+    if covariance not in ("hac", "iid"):
+        raise ValueError(f"covariance must be 'hac' or 'iid', got {covariance!r}")
+    if start not in ("initial", "auto"):
+        raise ValueError(f"start must be 'initial' or 'auto', got {start!r}")
+    if not experiments:
+        raise ValueError("fit needs at least one experiment")
+
+
+def _check_input_columns(structure, experiments) -> None:
+    """Each experiment's u has a column per input of the structure (:func:`fit`)."""
+    m_in = len(structure.inputs)
+    wrong = [f"{e.name!r} ({e.u.shape[1]})" for e in experiments if e.u.shape[1] != m_in]
+    if wrong:
+        raise ValueError(
+            f"structure {structure.name!r} has {m_in} inputs {structure.inputs}, but the u of "
+            f"experiments {', '.join(wrong)} has a different number of columns"
+        )
+
+
+def _compared_outputs(structure, experiments, outputs: Sequence[str] | None) -> tuple[str, ...]:
+    """The states compared: ``outputs``, or every state with a finite measurement in some
+    experiment; each a state of the structure."""
+    n = len(structure.states)
+    if outputs is None:
+        outputs = tuple(
+            s
+            for i, s in enumerate(structure.states)
+            if any(np.isfinite(e.y[:, i]).any() for e in experiments if e.y.shape[1] == n)
+        )
+    outputs = tuple(outputs)
+    bad = [s for s in outputs if s not in structure.states]
+    if bad or not outputs:
+        raise ValueError(f"outputs {outputs} must be states of {structure.name}")
+    return outputs
+
+
+def _minimise(prob, v0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int | None):
+    """The least-squares solve of :func:`fit` from ``v0`` within [lo, hi]."""
     # Levenberg-Marquardt without bounds first: an optimum strictly inside the bounds (of the
     # parameters and of the estimated initial states) is a local optimum of the bounded
     # problem too. Otherwise (the search left the box or failed) scipy's bounded trust-region
@@ -777,13 +807,7 @@ def fit(
         )
         sol.nfev += first.nfev
         sol.njev = (sol.njev or 0) + (first.njev or 0)
-    v = sol.x
-    r = prob.residuals(v)
-    J = prob.jacobian(v)  # cached: the solver evaluated it at sol.x
-    return _result(
-        structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy,
-        (lo, hi),
-    )  # fmt: skip
+    return sol
 
 
 def heat_balance_kA(experiments: Sequence[Experiment]) -> float:
