@@ -303,29 +303,9 @@ def fit(
     free = oe.free
     bnds = dict(structure.bounds)
     bnds.update({p: (float(b[0]), float(b[1])) for p, b in bounds_p.items()})
-    n, n_out = len(structure.states), len(outputs)
-    resid = np.concatenate([r[:, out_idx] for r in oe.residuals])
-    s_start = np.array([float(np.nanmean(resid[:, j] ** 2)) for j in range(n_out)])
-    s_start = np.where(np.isfinite(s_start) & (s_start > 0), s_start, 1e-2)
     dt = float(np.median([e.dt for e in experiments]))
-    if sigma_initial is None:
-        sig_start = np.full(n, SIGMA_START * math.sqrt(float(s_start.mean()) / dt))
-    elif isinstance(sigma_initial, Mapping):
-        default = SIGMA_START * math.sqrt(float(s_start.mean()) / dt)
-        sig_start = np.array([float(sigma_initial.get(s, default)) for s in structure.states])
-    else:
-        sig_start = np.full(n, float(sigma_initial))
-    sigma = np.array(
-        [
-            float(fixed_n.get(f"sigma_{s}", initial_n.get(f"sigma_{s}", sig_start[i])))
-            for i, s in enumerate(structure.states)
-        ]
-    )
-    meas_var = np.array(
-        [
-            float(fixed_n.get(f"s_{o}", initial_n.get(f"s_{o}", s_start[j])))
-            for j, o in enumerate(outputs)
-        ]
+    sigma, meas_var = _noise_start(
+        structure, outputs, oe, out_idx, dt, sigma_initial, fixed_n, initial_n
     )
     sigma_free = tuple(i for i, s in enumerate(structure.states) if f"sigma_{s}" not in fixed_n)
     meas_var_free = tuple(j for j, o in enumerate(outputs) if f"s_{o}" not in fixed_n)
@@ -342,29 +322,7 @@ def fit(
         x0,
         {outputs.index(o): float(sd) for o, sd in offsets.items()},
     )
-    names = (
-        list(free)
-        + [f"sigma_{structure.states[i]}" for i in sigma_free]
-        + [f"s_{outputs[j]}" for j in meas_var_free]
-        + [f"b_{outputs[j]}" for j in lik.offset_out]
-    )
-    for d, e in zip(lik.data, experiments, strict=True):
-        names += [f"x0_{structure.states[i]}[{e.name}]" for i in d.x0_free]
-    # bounds of the unknowns (log parameters, log noise, initial states in K)
-    noise_bounds = {f"sigma_{s}": SIGMA_BOUNDS for s in structure.states}
-    noise_bounds |= {f"s_{o}": MEAS_VAR_BOUNDS for o in outputs}
-    noise_bounds |= {k: (float(b[0]), float(b[1])) for k, b in bounds_n.items()}
-    lo, hi = [], []
-    for name in names[: lik.Qn]:
-        b = bnds[name] if name in bnds else noise_bounds[name]
-        lo.append(math.log(b[0]) if b[0] > 0 else -np.inf)
-        hi.append(math.log(b[1]) if np.isfinite(b[1]) else np.inf)
-    lo += [OFFSET_BOUNDS[0]] * len(lik.offset_out)
-    hi += [OFFSET_BOUNDS[1]] * len(lik.offset_out)
-    for d in lik.data:
-        lo += [d.x0_range[0]] * len(d.x0_free)
-        hi += [d.x0_range[1]] * len(d.x0_free)
-    lo, hi = np.array(lo), np.array(hi)
+    names, lo, hi = _unknowns(structure, outputs, experiments, lik, free, bnds, bounds_n)
     span = hi - lo
     margin = np.where(np.isfinite(span), 1e-6 * span, 0.0)
 
@@ -390,22 +348,87 @@ def fit(
     levels = common.noise_levels(structure, input_noise or {}, experiments)
     meat = None
     if any(levels):
-        v = _input_noise_terms(lik, v, levels, lo, hi)
-        sol = SimpleNamespace(
-            **{
-                **vars(sol),
-                "x": v,
-                "fun": float(lik.evaluate(v, 0)[0]),
-                "active_mask": _active_mask(v, lo, hi),
-            }
-        )
-        # the Fisher information: the compensated point is no stationary point of the NLL, so
-        # its observed information holds the residuals' second-order terms
-        H = _information(lik, v)
-        meat = _input_noise_meat(lik, v, _kept(lik, sol, v, lo, hi), levels)
+        v, sol, H, meat = _compensated(lik, v, sol, levels, lo, hi)
     result = _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost, meat)
     result.input_noise_sd = [dict(level) for level in levels] if any(levels) else []
     return result
+
+
+def _noise_start(structure, outputs, oe, out_idx, dt: float, sigma_initial, fixed_n, initial_n):
+    """The noise parameters' start (:func:`fit`): measurement variances from the output-error
+    residuals, diffusions SIGMA_START times their scale per step unless given; a fixed or
+    initial value wins. Returns (sigma per state, measurement variance per output)."""
+    n, n_out = len(structure.states), len(outputs)
+    resid = np.concatenate([r[:, out_idx] for r in oe.residuals])
+    s_start = np.array([float(np.nanmean(resid[:, j] ** 2)) for j in range(n_out)])
+    s_start = np.where(np.isfinite(s_start) & (s_start > 0), s_start, 1e-2)
+    if sigma_initial is None:
+        sig_start = np.full(n, SIGMA_START * math.sqrt(float(s_start.mean()) / dt))
+    elif isinstance(sigma_initial, Mapping):
+        default = SIGMA_START * math.sqrt(float(s_start.mean()) / dt)
+        sig_start = np.array([float(sigma_initial.get(s, default)) for s in structure.states])
+    else:
+        sig_start = np.full(n, float(sigma_initial))
+    sigma = np.array(
+        [
+            float(fixed_n.get(f"sigma_{s}", initial_n.get(f"sigma_{s}", sig_start[i])))
+            for i, s in enumerate(structure.states)
+        ]
+    )
+    meas_var = np.array(
+        [
+            float(fixed_n.get(f"s_{o}", initial_n.get(f"s_{o}", s_start[j])))
+            for j, o in enumerate(outputs)
+        ]
+    )
+    return sigma, meas_var
+
+
+def _unknowns(structure, outputs, experiments, lik, free, bnds, bounds_n):
+    """The unknowns' names (log parameters, log noise, offsets, initial states in K) and
+    their bounds (:func:`fit`)."""
+    names = (
+        list(free)
+        + [f"sigma_{structure.states[i]}" for i in lik.sigma_free]
+        + [f"s_{outputs[j]}" for j in lik.meas_var_free]
+        + [f"b_{outputs[j]}" for j in lik.offset_out]
+    )
+    for d, e in zip(lik.data, experiments, strict=True):
+        names += [f"x0_{structure.states[i]}[{e.name}]" for i in d.x0_free]
+    # bounds of the unknowns (log parameters, log noise, initial states in K)
+    noise_bounds = {f"sigma_{s}": SIGMA_BOUNDS for s in structure.states}
+    noise_bounds |= {f"s_{o}": MEAS_VAR_BOUNDS for o in outputs}
+    noise_bounds |= {k: (float(b[0]), float(b[1])) for k, b in bounds_n.items()}
+    lo, hi = [], []
+    for name in names[: lik.Qn]:
+        b = bnds[name] if name in bnds else noise_bounds[name]
+        lo.append(math.log(b[0]) if b[0] > 0 else -np.inf)
+        hi.append(math.log(b[1]) if np.isfinite(b[1]) else np.inf)
+    lo += [OFFSET_BOUNDS[0]] * len(lik.offset_out)
+    hi += [OFFSET_BOUNDS[1]] * len(lik.offset_out)
+    for d in lik.data:
+        lo += [d.x0_range[0]] * len(d.x0_free)
+        hi += [d.x0_range[1]] * len(d.x0_free)
+    return names, np.array(lo), np.array(hi)
+
+
+def _compensated(lik, v, sol, levels, lo, hi):
+    """The input-noise compensation of an optimum (:func:`fit`): the moved point, the
+    solution there, its Fisher information and the sandwich's meat."""
+    v = _input_noise_terms(lik, v, levels, lo, hi)
+    sol = SimpleNamespace(
+        **{
+            **vars(sol),
+            "x": v,
+            "fun": float(lik.evaluate(v, 0)[0]),
+            "active_mask": _active_mask(v, lo, hi),
+        }
+    )
+    # the Fisher information: the compensated point is no stationary point of the NLL, so
+    # its observed information holds the residuals' second-order terms
+    H = _information(lik, v)
+    meat = _input_noise_meat(lik, v, _kept(lik, sol, v, lo, hi), levels)
+    return v, sol, H, meat
 
 
 def _optimise(lik: Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace:
