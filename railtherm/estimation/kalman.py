@@ -788,21 +788,7 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
     U = len(v)
     keep = _kept(lik, sol, v, lo, hi)
     held = [i for i in range(U) if i not in set(keep.tolist())]
-    cov = np.full((U, U), np.nan)
-    var = np.full(U, np.inf)
-    if len(keep):
-        Hk, bad = _finite_information(H[np.ix_(keep, keep)])
-        ck, unresolved = _pinv_sym(Hk)
-        if meat is not None:
-            # an unknown whose input-noise term cannot be evaluated is not resolved either
-            Mk = meat[np.ix_(keep, keep)]
-            bad = bad | ~np.isfinite(Mk).all(axis=0)
-            ck = ck + ck @ np.nan_to_num(Mk) @ ck
-        unresolved = unresolved | bad
-        vk = np.diag(ck).copy()
-        vk[unresolved] = np.inf
-        cov[np.ix_(keep, keep)] = ck
-        var[keep] = vk
+    cov, var = _covariance(H, keep, U, meat)
     sd = np.sqrt(np.maximum(var, 0.0))
     th = lik.theta(v)
     free = lik.free
@@ -829,16 +815,7 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         cond = math.inf
     else:
         cond = 1.0
-    noise_ci, noise_sd = {}, {}
-    for i in range(P, lik.Qn):
-        if i in held:
-            continue
-        with np.errstate(over="ignore"):
-            noise_ci[names[i]] = (
-                float(np.exp(v[i] - common.Z95 * sd[i])),
-                float(np.exp(v[i] + common.Z95 * sd[i])),
-            )
-        noise_sd[names[i]] = float(sd[i])
+    noise_ci, noise_sd = _noise_intervals(v, sd, names, range(P, lik.Qn), held)
     flags = common.fit_flags(sol, v, th, free, ci, corr, cond, bnds)
     prob = SimpleNamespace(
         P=Qg,
@@ -848,26 +825,11 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         s=structure,
     )
     flags += common.x0_flags(prob, sol, v)
-    bound_of = {fl.parameters[0]: fl for fl in flags if fl.code == "at_bound"}
-    identified = {}
-    for i, p in enumerate(free):
-        at = None
-        if p in bound_of:
-            side = "lower" if abs(v[i] - lo[i]) <= abs(hi[i] - v[i]) else "upper"
-            at = (side, bnds[p][0] if side == "lower" else bnds[p][1])
-        identified[p] = common.identification(th[p], ci[p], at)
+    identified = _identified(flags, free, th, ci, v, lo, hi, bnds)
     # the series at the optimum
     runs = lik.passes(v, 0, series=True)
     x0s = lik.x0s(v)
-    simulated, residuals = [], []
-    b = lik.offsets_of(v)
-    for d, x0 in zip(lik.data, x0s, strict=True):
-        sim = models.simulate(structure, th, d.e.u, d.e.dt, x0, lik.hold)
-        res = np.full_like(sim, np.nan)
-        for j, i in enumerate(lik.out_idx):
-            res[:, i] = d.e.y[:, i] - b[j] - sim[:, i]
-        simulated.append(sim)
-        residuals.append(res)
+    simulated, residuals = _simulated(structure, lik, th, v, x0s)
     sigma, svar = lik.sigma(v), lik.meas_var(v)
     nll = float(sol.fun)
     offsets = {
@@ -922,3 +884,68 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         nfev=int(sol.nfev),
         njev=int(sol.njev),
     )
+
+
+def _covariance(H: np.ndarray, keep: np.ndarray, U: int, meat: np.ndarray | None):
+    """The covariance of the unknowns kept off their bounds (:func:`_result`): the inverse
+    of the information (its unresolved directions with infinite variance), in a sandwich
+    with the input-noise ``meat`` when there is one; NaN and infinite variance elsewhere."""
+    cov = np.full((U, U), np.nan)
+    var = np.full(U, np.inf)
+    if len(keep):
+        Hk, bad = _finite_information(H[np.ix_(keep, keep)])
+        ck, unresolved = _pinv_sym(Hk)
+        if meat is not None:
+            # an unknown whose input-noise term cannot be evaluated is not resolved either
+            Mk = meat[np.ix_(keep, keep)]
+            bad = bad | ~np.isfinite(Mk).all(axis=0)
+            ck = ck + ck @ np.nan_to_num(Mk) @ ck
+        unresolved = unresolved | bad
+        vk = np.diag(ck).copy()
+        vk[unresolved] = np.inf
+        cov[np.ix_(keep, keep)] = ck
+        var[keep] = vk
+    return cov, var
+
+
+def _noise_intervals(v, sd, names, indices, held):
+    """95 % intervals and log sd of the noise parameters not held at a bound (:func:`_result`)."""
+    noise_ci, noise_sd = {}, {}
+    for i in indices:
+        if i in held:
+            continue
+        with np.errstate(over="ignore"):
+            noise_ci[names[i]] = (
+                float(np.exp(v[i] - common.Z95 * sd[i])),
+                float(np.exp(v[i] + common.Z95 * sd[i])),
+            )
+        noise_sd[names[i]] = float(sd[i])
+    return noise_ci, noise_sd
+
+
+def _identified(flags, free, th, ci, v, lo, hi, bnds):
+    """Each free parameter's identification, with the bound it sits at (:func:`_result`)."""
+    bound_of = {fl.parameters[0]: fl for fl in flags if fl.code == "at_bound"}
+    identified = {}
+    for i, p in enumerate(free):
+        at = None
+        if p in bound_of:
+            side = "lower" if abs(v[i] - lo[i]) <= abs(hi[i] - v[i]) else "upper"
+            at = (side, bnds[p][0] if side == "lower" else bnds[p][1])
+        identified[p] = common.identification(th[p], ci[p], at)
+    return identified
+
+
+def _simulated(structure, lik, th, v, x0s):
+    """Each record simulated at the optimum and its residuals, offsets removed
+    (:func:`_result`)."""
+    simulated, residuals = [], []
+    b = lik.offsets_of(v)
+    for d, x0 in zip(lik.data, x0s, strict=True):
+        sim = models.simulate(structure, th, d.e.u, d.e.dt, x0, lik.hold)
+        res = np.full_like(sim, np.nan)
+        for j, i in enumerate(lik.out_idx):
+            res[:, i] = d.e.y[:, i] - b[j] - sim[:, i]
+        simulated.append(sim)
+        residuals.append(res)
+    return simulated, residuals
