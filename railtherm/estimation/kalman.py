@@ -447,42 +447,8 @@ def _optimise(lik: Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace:
     message, success = "", False
     for _ in range(2 * U + 2):
         idx = np.array([i for i in range(U) if i not in held], dtype=int)
-        base = v.copy()
-
-        def full(w, base=base, idx=idx):
-            x = base.copy()
-            x[idx] = w
-            return x
-
-        def fun(w, full=full, idx=idx):
-            counts["nfev"] += 1
-            nll, g, _ = lik.evaluate(full(w), 2)
-            return nll, g[idx]
-
-        def hess(w, full=full, idx=idx):
-            F = lik.evaluate(full(w), 2)[2]
-            if F is None:  # a point the model cannot be evaluated at: a stiff stand-in
-                return np.eye(len(idx)) * scale
-            return F[np.ix_(idx, idx)]
-
-        def leave(w, idx=idx):
-            if np.any(w < lo[idx]) or np.any(w > hi[idx]):
-                raise StopIteration
-
         if len(idx):
-            res = minimize(
-                fun,
-                v[idx],
-                jac=True,
-                hess=hess,
-                method="trust-exact",
-                callback=leave,
-                options={"gtol": 1e-7 * scale, "maxiter": 200},
-            )
-            w = full(res.x)
-            if lik.evaluate(w, 0)[0] <= lik.evaluate(v, 0)[0]:
-                v = w
-            message = str(res.message)
+            v, message = _scoring(lik, v, idx, lo, hi, scale, counts)
         outside = [i for i in idx if v[i] < lo[i] or v[i] > hi[i]]
         if outside:
             for i in outside:
@@ -506,17 +472,7 @@ def _optimise(lik: Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace:
             continue
         # a noise parameter left in the flat region near zero (its effect below the solver's
         # resolution) is taken at its bound when that changes the NLL by nothing
-        snapped = False
-        for i in idx:
-            if lik.P <= i < lik.Qn and v[i] - lo[i] < SNAP_LOG:
-                w = v.copy()
-                w[i] = lo[i]
-                nll_w, g_w, _ = lik.evaluate(w, 1)
-                if (
-                    nll_w <= nll + 1e-8 * scale
-                    and _pull(lik, i, lo[i], w, v0, g_w, lo, hi) <= KKT_TOL
-                ):
-                    v, nll, held[i], snapped = w, nll_w, lo[i], True
+        v, nll, snapped = _snap(lik, v, nll, idx, held, v0, lo, hi, scale)
         if snapped:
             continue
         # converged when the scoring step left is negligible: the Newton decrement
@@ -537,24 +493,7 @@ def _optimise(lik: Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace:
         )
         break
     if not success:  # the bounded quasi-Newton solve from the best point reached
-
-        def fun1(w):
-            counts["nfev"] += 1
-            nll, g, _ = lik.evaluate(w, 1)
-            return nll, g
-
-        res = minimize(
-            fun1,
-            clip(v) if not held else np.clip(v, lo, hi),
-            jac=True,
-            method="L-BFGS-B",
-            bounds=list(zip(lo, hi, strict=True)),
-            options={"maxiter": 2000, "ftol": 1e-14, "gtol": 1e-9 * scale},
-        )
-        if res.fun <= lik.evaluate(v, 0)[0]:
-            v = res.x
-        success = bool(res.success)
-        message = f"trust-exact did not converge, then L-BFGS-B: {res.message}"
+        v, success, message = _quasi_newton(lik, v, held, lo, hi, clip, scale, counts)
     return SimpleNamespace(
         x=v,
         fun=float(lik.evaluate(v, 0)[0]),
@@ -565,6 +504,87 @@ def _optimise(lik: Likelihood, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace:
         nfev=counts["nfev"],
         njev=counts["nfev"],
     )
+
+
+def _scoring(lik, v, idx, lo, hi, scale: float, counts: dict):
+    """One trust-exact Fisher-scoring solve over the unknowns ``idx`` (the others held),
+    stopped when a step leaves the bounds (:func:`_optimise`): the better of the point
+    reached and ``v``, and scipy's message."""
+    base = v.copy()
+
+    def full(w, base=base, idx=idx):
+        x = base.copy()
+        x[idx] = w
+        return x
+
+    def fun(w, full=full, idx=idx):
+        counts["nfev"] += 1
+        nll, g, _ = lik.evaluate(full(w), 2)
+        return nll, g[idx]
+
+    def hess(w, full=full, idx=idx):
+        F = lik.evaluate(full(w), 2)[2]
+        if F is None:  # a point the model cannot be evaluated at: a stiff stand-in
+            return np.eye(len(idx)) * scale
+        return F[np.ix_(idx, idx)]
+
+    def leave(w, idx=idx):
+        if np.any(w < lo[idx]) or np.any(w > hi[idx]):
+            raise StopIteration
+
+    res = minimize(
+        fun,
+        v[idx],
+        jac=True,
+        hess=hess,
+        method="trust-exact",
+        callback=leave,
+        options={"gtol": 1e-7 * scale, "maxiter": 200},
+    )
+    w = full(res.x)
+    if lik.evaluate(w, 0)[0] <= lik.evaluate(v, 0)[0]:
+        v = w
+    message = str(res.message)
+    return v, message
+
+
+def _snap(lik, v, nll, idx, held, v0, lo, hi, scale: float):
+    """A noise parameter left in the flat region near zero (its effect below the solver's
+    resolution) taken at its bound when that changes the NLL by nothing (:func:`_optimise`;
+    ``held`` gains it). Returns the point, its NLL and whether one snapped."""
+    snapped = False
+    for i in idx:
+        if lik.P <= i < lik.Qn and v[i] - lo[i] < SNAP_LOG:
+            w = v.copy()
+            w[i] = lo[i]
+            nll_w, g_w, _ = lik.evaluate(w, 1)
+            if nll_w <= nll + 1e-8 * scale and _pull(lik, i, lo[i], w, v0, g_w, lo, hi) <= KKT_TOL:
+                v, nll, held[i], snapped = w, nll_w, lo[i], True
+    return v, nll, snapped
+
+
+def _quasi_newton(lik, v, held, lo, hi, clip, scale: float, counts: dict):
+    """L-BFGS-B with the bounds from the best point reached (:func:`_optimise`): the point,
+    whether it converged and the message."""
+
+    def fun1(w):
+        counts["nfev"] += 1
+        nll, g, _ = lik.evaluate(w, 1)
+        return nll, g
+
+    res = minimize(
+        fun1,
+        clip(v) if not held else np.clip(v, lo, hi),
+        jac=True,
+        method="L-BFGS-B",
+        bounds=list(zip(lo, hi, strict=True)),
+        options={"maxiter": 2000, "ftol": 1e-14, "gtol": 1e-9 * scale},
+    )
+    if res.fun <= lik.evaluate(v, 0)[0]:
+        v = res.x
+    success = bool(res.success)
+    message = f"trust-exact did not converge, then L-BFGS-B: {res.message}"
+    return v, success, message
 
 
 def _active_mask(v: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
