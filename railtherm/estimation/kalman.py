@@ -276,11 +276,7 @@ def fit(
         raise ValueError(f"outputs {outputs} must be states of {structure.name}")
     out_idx = tuple(structure.states.index(s) for s in outputs)
     noise = noise_names(structure, outputs)
-    offsets = dict(offsets or {})
-    if len(offsets) > 1 or any(o not in outputs for o in offsets):
-        raise ValueError(f"offsets: at most one of the compared outputs {outputs}, got {offsets}")
-    if any(not (float(sd) > 0) for sd in offsets.values()):
-        raise ValueError(f"offsets: the prior sd must be > 0, got {offsets}")
+    offsets = _checked_offsets(offsets, outputs)
     fixed_p, fixed_n = _split(fixed, structure, noise)
     initial_p, initial_n = _split(initial, structure, noise)
     bounds_p, bounds_n = _split(bounds, structure, noise)
@@ -352,6 +348,16 @@ def fit(
     result = _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost, meat)
     result.input_noise_sd = [dict(level) for level in levels] if any(levels) else []
     return result
+
+
+def _checked_offsets(offsets, outputs) -> dict[str, float]:
+    """``offsets`` of :func:`fit`: at most one compared output, with a prior sd > 0."""
+    offsets = dict(offsets or {})
+    if len(offsets) > 1 or any(o not in outputs for o in offsets):
+        raise ValueError(f"offsets: at most one of the compared outputs {outputs}, got {offsets}")
+    if any(not (float(sd) > 0) for sd in offsets.values()):
+        raise ValueError(f"offsets: the prior sd must be > 0, got {offsets}")
+    return offsets
 
 
 def _noise_start(structure, outputs, oe, out_idx, dt: float, sigma_initial, fixed_n, initial_n):
