@@ -523,16 +523,28 @@ def check_without_poor_fits(pub: Published, ranges: Mapping[str, Any]) -> list[F
     where = f"without R^2 < {entry['value']}"
     for st in pub.data.get("statements") or []:
         recompute = _WITHOUT_POOR_FITS.get(st["statistic"])
-        location = f"{st['location']} {where}"
-        found = recompute(pub, ranges, st, poor, location) if recompute else None
-        if found is not None:
-            out.append(found)
+        found = recompute(pub, ranges, st, poor) if recompute else None
+        if found is not None:  # (severity, published, recomputed, message)
+            severity, published, recomputed, message = found
+            location = f"{st['location']} {where}"
+            out.append(
+                finding(
+                    "claims",
+                    "without_poor_fits",
+                    st["id"],
+                    severity,
+                    location,
+                    published,
+                    recomputed,
+                    message,
+                )
+            )
     return out
 
 
 def _mean_without(
-    pub: Published, ranges: Mapping[str, Any], st: Mapping[str, Any], poor, location: str
-) -> Finding | None:
+    pub: Published, ranges: Mapping[str, Any], st: Mapping[str, Any], poor
+) -> tuple[str, str, str, str] | None:
     """A stated class mean without the poor fits (:func:`check_without_poor_fits`)."""
     q, subject = st["quantity"], st["id"]
     entry = threshold(ranges, "r2_min")
@@ -568,24 +580,15 @@ def _mean_without(
                 f"{fmt_g(s)} / √{len(values)} = {fmt_g(se)}"
             )
         recomputed = fmt_g(m_red)
-    return finding(
-        "claims",
-        "without_poor_fits",
-        subject,
-        "info",
-        location,
-        stated.text,
-        recomputed,
-        message,
-    )
+    return "info", stated.text, recomputed, message
 
 
 def _order_without(
-    pub: Published, ranges: Mapping[str, Any], st: Mapping[str, Any], poor, location: str
-) -> Finding | None:
+    pub: Published, ranges: Mapping[str, Any], st: Mapping[str, Any], poor
+) -> tuple[str, str, str, str] | None:
     """The stated order of class means without the poor fits
     (:func:`check_without_poor_fits`)."""
-    q, subject = st["quantity"], st["id"]
+    q = st["quantity"]
     entry = threshold(ranges, "r2_min")
     full = _order(pub, q, st["classes"])
     reduced = _order(pub, q, st["classes"], poor)
@@ -608,24 +611,15 @@ def _order_without(
     )
     if single:
         message += f"; only one vehicle left in {', '.join(single)}"
-    return finding(
-        "claims",
-        "without_poor_fits",
-        subject,
-        severity,
-        location,
-        " < ".join(st["classes"]),
-        reduced.recomputed(),
-        message,
-    )
+    return severity, " < ".join(st["classes"]), reduced.recomputed(), message
 
 
 def _test_without(
-    pub: Published, ranges: Mapping[str, Any], st: Mapping[str, Any], poor, location: str
-) -> Finding | None:
+    pub: Published, ranges: Mapping[str, Any], st: Mapping[str, Any], poor
+) -> tuple[str, str, str, str] | None:
     """The class test of the text without the poor fits
     (:func:`check_without_poor_fits`)."""
-    q, subject = st["quantity"], st["id"]
+    q = st["quantity"]
     alpha = threshold(ranges, "alpha")
     rows_a, rows_b = _groups(pub, st, poor)
     full_a, full_b = _groups(pub, st)
@@ -644,12 +638,8 @@ def _test_without(
         if test.verdict == CONTRADICTED and before.verdict != CONTRADICTED
         else "info"
     )
-    return finding(
-        "claims",
-        "without_poor_fits",
-        subject,
+    return (
         severity,
-        location,
         "not significant",
         test.recomputed(),
         f"{test.verdict} without {', '.join(dropped) or 'no fit'}: {q} of "
