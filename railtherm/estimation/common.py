@@ -122,6 +122,23 @@ def one_hold(experiments: Sequence[Experiment]) -> str:
     return holds[0] if holds else "zero_order"
 
 
+def compared_outputs(structure, experiments: Sequence[Experiment], outputs=None) -> tuple[str, ...]:
+    """The states an estimator compares: ``outputs``, or every state with a finite
+    measurement in some experiment; each a state of the structure (else ValueError)."""
+    n = len(structure.states)
+    if outputs is None:
+        outputs = tuple(
+            s
+            for i, s in enumerate(structure.states)
+            if any(np.isfinite(e.y[:, i]).any() for e in experiments if e.y.shape[1] == n)
+        )
+    outputs = tuple(outputs)
+    bad = [s for s in outputs if s not in structure.states]
+    if bad or not outputs:
+        raise ValueError(f"outputs {outputs} must be states of {structure.name}")
+    return outputs
+
+
 def noise_levels(structure, input_noise, experiments) -> list[dict[str, float]]:
     """Per experiment, {input name: sd} of the declared white input noise (those > 0)."""
     n_experiments = len(experiments)

@@ -60,7 +60,6 @@ __all__ = [
     "LOG_2PI",
     "Likelihood",
     "NotEvaluable",
-    "default_outputs",
     "negative_log_likelihood",
 ]
 
@@ -1091,7 +1090,7 @@ def negative_log_likelihood(
     prior mean of each experiment's initial state (with ``x0_mode="measured"`` only its
     unmeasured entries are read). ``steady=False`` runs the time-varying filter on every row
     (the reference the stationary switch is measured against)."""
-    outputs = default_outputs(structure, experiments) if outputs is None else tuple(outputs)
+    outputs = common.compared_outputs(structure, experiments, outputs)
     out_idx = tuple(structure.states.index(o) for o in outputs)
     lik = Likelihood(
         structure,
@@ -1110,14 +1109,3 @@ def negative_log_likelihood(
         + [np.asarray(x, dtype=float)[d.x0_free] for x, d in zip(x0, lik.data, strict=True)]
     )
     return lik.evaluate(v, 0, steady=steady)[0]
-
-
-def default_outputs(structure: Structure, experiments: Sequence[Experiment]) -> tuple[str, ...]:
-    """Every state with a finite measurement in some experiment (as
-    :func:`railtherm.estimation.pem.fit`)."""
-    n = len(structure.states)
-    return tuple(
-        s
-        for i, s in enumerate(structure.states)
-        if any(np.isfinite(e.y[:, i]).any() for e in experiments if e.y.shape[1] == n)
-    )

@@ -38,7 +38,6 @@ from railtherm.estimation.filtering import (
     LOG_2PI,
     Likelihood,
     NotEvaluable,
-    default_outputs,
     negative_log_likelihood,
 )
 from railtherm.estimation.models import Structure
@@ -270,10 +269,7 @@ def fit(
     experiments = list(experiments)
     if not experiments:
         raise ValueError("fit needs at least one experiment")
-    outputs = default_outputs(structure, experiments) if outputs is None else tuple(outputs)
-    bad = [s for s in outputs if s not in structure.states]
-    if bad or not outputs:
-        raise ValueError(f"outputs {outputs} must be states of {structure.name}")
+    outputs = common.compared_outputs(structure, experiments, outputs)
     out_idx = tuple(structure.states.index(s) for s in outputs)
     noise = noise_names(structure, outputs)
     offsets = _checked_offsets(offsets, outputs)

@@ -49,6 +49,7 @@ from railtherm.estimation.common import (
     NULL_REL,
     Z95,
     Experiment,
+    compared_outputs,
     fit_flags,
     identification,
     measured_range,
@@ -666,7 +667,7 @@ def fit(
     bnds.update({p: (float(b[0]), float(b[1])) for p, b in (bounds or {}).items()})
     lb = np.array([math.log(bnds[p][0]) if bnds[p][0] > 0 else -np.inf for p in free])
     ub = np.array([math.log(bnds[p][1]) if np.isfinite(bnds[p][1]) else np.inf for p in free])
-    outputs = _compared_outputs(structure, experiments, outputs)
+    outputs = compared_outputs(structure, experiments, outputs)
     out_idx = [structure.states.index(s) for s in outputs]
     prob = _Problem(structure, experiments, fixed, free, out_idx, x0, compiled)
     if prob.m <= len(free) + prob.n_x0:
@@ -762,23 +763,6 @@ def _check_input_columns(structure, experiments) -> None:
             f"structure {structure.name!r} has {m_in} inputs {structure.inputs}, but the u of "
             f"experiments {', '.join(wrong)} has a different number of columns"
         )
-
-
-def _compared_outputs(structure, experiments, outputs: Sequence[str] | None) -> tuple[str, ...]:
-    """The states compared: ``outputs``, or every state with a finite measurement in some
-    experiment; each a state of the structure."""
-    n = len(structure.states)
-    if outputs is None:
-        outputs = tuple(
-            s
-            for i, s in enumerate(structure.states)
-            if any(np.isfinite(e.y[:, i]).any() for e in experiments if e.y.shape[1] == n)
-        )
-    outputs = tuple(outputs)
-    bad = [s for s in outputs if s not in structure.states]
-    if bad or not outputs:
-        raise ValueError(f"outputs {outputs} must be states of {structure.name}")
-    return outputs
 
 
 def _minimise(prob, v0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: int | None):
