@@ -17,8 +17,9 @@ REPO = Path(__file__).resolve().parents[1]
 def cores() -> int:
     """The cores a test's Snakemake run is given: 1 where the suite's workers already take every
     CPU (``pytest -n auto``), 2 otherwise. A second job at a time then only competes with the
-    other workers for the same CPUs: on 2 cores the four test files that run whole studies took
-    590 CPU-s (313 s) with 2 and 498 CPU-s (281 s) with 1, the same tests passing."""
+    other workers for the same CPUs: on 2 cores the four test files that run whole studies
+    (`pytest -n 2`, one run each, the same commit, 2 first) took 590 CPU-s (313 s) with 2 and
+    498 CPU-s (281 s) with 1, the same tests passing."""
     workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
     try:
         cpus = len(os.sched_getaffinity(0))
