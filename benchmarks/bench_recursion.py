@@ -1,27 +1,50 @@
-"""The simulator's inner recursion z[n+1] = lam z[n] + w[n] by ``scipy.signal.lfilter`` (what
-railtherm.estimation.models uses) against the one scipy alternative that does not import
-scipy.signal (whose import, with scipy.stats, is 0.4-0.5 s of every job that simulates): LAPACK's
-triangular banded solve ``scipy.linalg.lapack.dtbtrs`` of the bidiagonal system.
+"""The simulator's inner recursion z[n+1] = lam z[n] + w[n]: railtherm's compiled loop
+(``railtherm.estimation.models.recursion``, numba) against ``scipy.signal.lfilter``, which it
+reproduces to the bit, and against the one scipy routine that does the same recursion without
+importing scipy.signal, LAPACK's triangular banded solve ``scipy.linalg.lapack.dtbtrs`` of the
+bidiagonal system; then what each costs a job before it computes: the import, in a fresh
+interpreter that has numpy, pandas and scipy.linalg already (as every simulating job has).
 
-    python benchmarks/bench_recursion.py
+    python benchmarks/bench_recursion.py [--rounds 5]
 
 Prints, per channel count C and length N, the best of 3 rounds of each (time per call) and
-their ratio, and checks that both give the same z (relative 1e-12).
+the ratios to lfilter, after checking that the compiled loop gives lfilter's numbers exactly
+and dtbtrs within 1e-12; then the best of ``--rounds`` start-up times, alternating between the
+two imports.
 """
 
 from __future__ import annotations
 
+import argparse
+import subprocess
+import sys
 import timeit
+from pathlib import Path
 
 import numpy as np
 from scipy.linalg.lapack import dtbtrs
 from scipy.signal import lfilter
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from railtherm.estimation import models  # noqa: E402
+
 LAM = 0.999  # a slow mode: exp(-dt/tau), dt = 60 s, tau ~ 17 h
+START_UP = {
+    "scipy.signal.lfilter": "from scipy.signal import lfilter",
+    "railtherm recursion (numba)": (
+        "import numpy as np; from railtherm.estimation.models import recursion; "
+        "recursion(0.5, np.zeros((1, 2)), np.zeros(1))"
+    ),
+}
+PRELOADED = "import numpy, pandas, scipy.linalg, time; t = time.perf_counter(); "
 
 
 def by_lfilter(w: np.ndarray, z0: np.ndarray) -> np.ndarray:
     return lfilter([0.0, 1.0], [1.0, -LAM], w, axis=-1, zi=z0[:, None])[0]
+
+
+def by_recursion(w: np.ndarray, z0: np.ndarray) -> np.ndarray:
+    return models.recursion(LAM, w, z0)
 
 
 def by_banded_solve(w: np.ndarray, z0: np.ndarray) -> np.ndarray:
@@ -38,23 +61,52 @@ def by_banded_solve(w: np.ndarray, z0: np.ndarray) -> np.ndarray:
     return z.T
 
 
+def start_up(code: str) -> float:
+    """Seconds of ``code`` in a fresh interpreter, after numpy, pandas and scipy.linalg."""
+    statement = PRELOADED + code + "; print(time.perf_counter() - t)"
+    run = subprocess.run(
+        [sys.executable, "-c", statement],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=Path(__file__).resolve().parents[1],
+    )
+    return float(run.stdout)
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--rounds", type=int, default=5)
+    rounds = parser.parse_args().rounds
     rng = np.random.default_rng(1)
-    print("| C | N | lfilter | dtbtrs | dtbtrs / lfilter |")
-    print("|---|---|---|---|---|")
+    by_recursion(np.zeros((1, 2)), np.zeros(1))  # compiled (or loaded) before timing
+    print("| C | N | lfilter | railtherm | dtbtrs | railtherm / lfilter | dtbtrs / lfilter |")
+    print("|---|---|---|---|---|---|---|")
     for C in (1, 4):
         for N in (1_000, 10_000, 100_000):
             w, z0 = rng.normal(size=(C, N)), rng.normal(size=C)
-            a, b = by_lfilter(w, z0), by_banded_solve(w, z0)
+            a = by_lfilter(w, z0)
+            assert np.array_equal(by_recursion(w, z0), a)
+            b = by_banded_solve(w, z0)
             assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(a).max())
             n = max(1, 200_000 // N)
             t = [
                 min(timeit.repeat(lambda f=f, w=w, z0=z0: f(w, z0), number=n, repeat=3)) / n
-                for f in (by_lfilter, by_banded_solve)
+                for f in (by_lfilter, by_recursion, by_banded_solve)
             ]
             print(
-                f"| {C} | {N:.0e} | {t[0] * 1e3:.3f} ms | {t[1] * 1e3:.3f} ms | {t[1] / t[0]:.2f} |"
+                f"| {C} | {N:.0e} | {t[0] * 1e3:.3f} ms | {t[1] * 1e3:.3f} ms "
+                f"| {t[2] * 1e3:.3f} ms | {t[1] / t[0]:.2f} | {t[2] / t[0]:.2f} |"
             )
+    times: dict[str, list[float]] = {name: [] for name in START_UP}
+    for _ in range(rounds):
+        for name, code in START_UP.items():
+            times[name].append(start_up(code))
+    print()
+    print(f"| start-up (best of {rounds}, after numpy, pandas, scipy.linalg) | seconds |")
+    print("|---|---|")
+    for name, seconds in times.items():
+        print(f"| {name} | {min(seconds):.2f} s |")
 
 
 if __name__ == "__main__":

@@ -168,6 +168,22 @@ def test_regression_uncertainty_grows_when_the_body_is_slow_against_the_window()
     assert slow.u_kA > 3 * fast.u_kA
 
 
+@pytest.mark.parametrize("tau_h", [0.05, 2.0, 40.0])
+def test_the_modelled_body_follows_the_cabin_as_scipys_lsim_does(tau_h):
+    """T_veh^0 of eq. 8 driven by the measured T, linear between samples: the same as
+    scipy.signal.lsim with its first-order hold (interp=True), for a body fast, moderate and
+    slow against the 60 s step."""
+    from scipy import signal
+
+    rng = np.random.default_rng(3)
+    s = np.arange(0.0, 6 * 3600.0, 60.0)
+    T = 20.0 + 5.0 * np.tanh(s / 5000.0) + rng.normal(0.0, 0.05, s.size)
+    tau = tau_h * 3600.0
+    lag = signal.StateSpace([[-1.0 / tau]], [[1.0 / tau]], [[1.0]], [[0.0]])
+    _, expected, _ = signal.lsim(lag, T, s, X0=[T[0]], interp=True)
+    assert np.allclose(kvalue._body_response(T, s, tau), expected, rtol=1e-12, atol=0.0)
+
+
 def test_exact_balance_without_noise():
     """Noise-free: the regression returns kA and D0 of the simulation to solver precision."""
     global NOISE_K

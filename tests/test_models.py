@@ -3,7 +3,7 @@ discretisation."""
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from railtherm.estimation import models
@@ -270,3 +270,33 @@ def test_an_unknown_hold_is_refused_by_name():
     with pytest.raises(ValueError, match="hold must be one of zero_order, first_order"):
         models.discretize(models.STRUCTURES["first_order"], {"kA": 1.0, "C_bar": 1.0}, 1.0,
                           hold="linear")  # fmt: skip
+
+
+@settings(deadline=None)  # the first example imports scipy.signal and loads the compiled loop
+@given(
+    n=st.integers(1, 400),
+    channels=st.integers(1, 3),
+    lam_abs=st.floats(0.0, 0.99999),
+    lam_angle=st.sampled_from([0.0, 0.3, -2.0]),
+    seed=st.integers(0, 2**16),
+)
+def test_a_mode_recursion_is_scipys_lfilter_to_the_bit(n, channels, lam_abs, lam_angle, seed):
+    """z[n + 1] = lam z[n] + w[n] from z0: the same numbers as scipy.signal.lfilter([0, 1],
+    [1, -lam], w, zi=z0), real and complex modes alike (one multiply-add per sample, in
+    lfilter's order)."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(seed)
+    w = rng.normal(size=(channels, n)) * 10.0 ** rng.integers(-3, 4)
+    z0 = rng.normal(size=channels)
+    lam = lam_abs * np.exp(1j * lam_angle) if lam_angle else lam_abs
+    if lam_angle:
+        w = w + 1j * rng.normal(size=w.shape)
+        z0 = z0 - 1j * rng.normal(size=channels)
+    dtype = complex if lam_angle else float
+    expected = lfilter(
+        np.array([0.0, 1.0], dtype=dtype), np.array([1.0, -lam], dtype=dtype), w, zi=z0[:, None]
+    )[0]
+    assert np.array_equal(models.recursion(lam, w, z0), expected)
+    one = models.recursion(lam, w[0], z0[0])  # one channel: 1-D in, 1-D out
+    assert one.shape == (n,) and np.array_equal(one, expected[0])

@@ -17,7 +17,7 @@ compiled one against: there, once the predicted covariance P_k has reached the s
 the discrete algebraic Riccati equation of the row's measurement pattern
 (``scipy.linalg.solve_discrete_are``; relative STEADY_TOL), the filter is the time-invariant
 recursion x_{k+1} = F x_k + Bd u_k + L y_k (F = Ad - L C, L = Ad P C^T R^-1), run without a
-Python loop by the modal ``lfilter`` machinery of :mod:`railtherm.estimation.models`.
+Python loop by the modal recursions of :mod:`railtherm.estimation.models`.
 An estimated initial state starts with the stationary prior covariance P_0 = P (no transient at
 all); a measured one with the measurement variances. In the numpy implementation, a run that
 starts off the stationary covariance (a measured initial state, the first rows after a gap) is
@@ -112,11 +112,11 @@ class _Modes:
     """The recursion x[l+1] = F x[l] + w[l] in modal coordinates, F = V diag(lam) V^-1, with
     each complex-conjugate pair of modes run once (for a real forcing the pair's coordinates
     are conjugate, so x = sum over the kept modes of weight Re(v_i z_i), weight 2 for a pair):
-    one ``scipy.signal.lfilter`` per kept mode for all channels. A Kalman predictor's F =
-    Ad - L C often has a complex pair where Ad has none. When V is ill-conditioned or the
-    eigenvalues are repeated, the complex Schur form of
-    :func:`railtherm.estimation.models.modal_form`
-    is used instead (every mode, complex, weight 1: x = Re(sum of Q_i z_i))."""
+    one first-order recursion (:func:`railtherm.estimation.models.recursion`) per kept mode
+    for all channels. A Kalman predictor's F = Ad - L C often has a complex pair where Ad has
+    none. When V is ill-conditioned or the eigenvalues are repeated, the complex Schur form of
+    :func:`railtherm.estimation.models.modal_form` is used instead (every mode, complex,
+    weight 1: x = Re(sum of Q_i z_i))."""
 
     def __init__(self, F: np.ndarray):
         F = np.atleast_2d(F)
@@ -161,7 +161,6 @@ class _Modes:
             z = models.propagate(d, w.reshape(n, C, L), (Qinv @ x0).astype(complex))
             return [(z[i], d.Q[:, i].astype(complex), 1.0) for i in range(n)]
         forced = np.any(H != 0.0, axis=(0, 2))
-        one = np.array([0.0, 1.0])
         out = []
         for lam, v, vinv, weight in self.modes:
             dtype = float if isinstance(lam, float) else complex
@@ -175,9 +174,7 @@ class _Modes:
                     f = np.empty((len(h), L), dtype=complex)
                     f.real = h.real @ Z
                     f.imag = h.imag @ Z
-                z[forced] = models.lfilter(
-                    one.astype(dtype), [1.0, -lam], f, axis=-1, zi=z0[forced][:, None]
-                )[0]
+                z[forced] = models.recursion(dtype(lam), f, z0[forced])
             if not forced.all():
                 r = abs(lam)
                 if r >= 1.0:
@@ -748,7 +745,7 @@ def _steady_run(
     prior: tuple[np.ndarray, np.ndarray | None] | None = None,
 ) -> tuple[float, np.ndarray, np.ndarray]:
     """Rows k..k1-1 with the stationary filter: x_{j+1} = F x_j + Bd u_j + L y_j and its
-    sensitivities dx_{j+1} = F dx_j + dF x_j + dBd u_j + dL y_j, each one modal lfilter per
+    sensitivities dx_{j+1} = F dx_j + dF x_j + dBd u_j + dL y_j, each one modal recursion per
     mode for all channels (:func:`railtherm.estimation.models.propagate`); R is constant, so
 
         NLL = 1/2 (n_rows (log det R + n_o log 2 pi) + sum eps^T R^-1 eps),

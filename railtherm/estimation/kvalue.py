@@ -74,6 +74,7 @@ import pandas as pd
 
 from railtherm.data import plausibility
 from railtherm.errors import DataError
+from railtherm.estimation import models
 from railtherm.estimation.acf import autocorrelation_time
 
 __all__ = [
@@ -641,6 +642,23 @@ class StorageCorrection:
         return {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
 
 
+def _body_response(T: np.ndarray, s: np.ndarray, tau_veh: float) -> np.ndarray:
+    """T_veh^0 of :func:`storage_corrected_kA`: eq. 8's lag tau_veh dT_veh/dt = T - T_veh from
+    T_veh(0) = T(0), driven by T linear between grid points (first-order hold) on the uniform
+    grid s: T_veh[n+1] = a T_veh[n] + (g - a) T[n] + (1 - g) T[n+1], a = exp(-h), g = (1 - a)
+    / h, h = step / tau_veh (the exact integral over the step)."""
+    if s.size < 2:
+        raise ValueError("the k window has fewer than two rows")
+    step = float(s[1] - s[0])
+    if not np.allclose(np.diff(s), step):
+        raise ValueError("the k window's time steps are not equally spaced")
+    h = step / tau_veh
+    a = math.exp(-h)
+    g = -math.expm1(-h) / h
+    forcing = (g - a) * T[:-1] + (1.0 - g) * T[1:]
+    return models.recursion(a, np.append(forcing, 0.0), T[0])
+
+
 def storage_corrected_kA(
     window: pd.DataFrame,
     C: float,
@@ -680,7 +698,7 @@ def storage_corrected_kA(
     """
     if not (C > 0 and K_veh > 0 and C_veh > 0):
         raise ValueError(f"C, K_veh and C_veh must be > 0, got {C}, {K_veh}, {C_veh}")
-    from scipy import integrate, signal
+    from scipy import integrate
 
     t = _column(window, "time", source)
     T = _column(window, "T", source)
@@ -698,9 +716,7 @@ def storage_corrected_kA(
         X = np.column_stack([integral, np.ones_like(s)])
     else:
         T_veh_from = "model (eq. 8)"
-        lag = signal.StateSpace([[-1.0 / tau_veh]], [[1.0 / tau_veh]], [[1.0]], [[0.0]])
-        _, T_veh_0, _ = signal.lsim(lag, T, s, X0=[T[0]], interp=True)
-        y -= C_veh * (np.asarray(T_veh_0, dtype=float) - T[0])
+        y -= C_veh * (_body_response(T, s, tau_veh) - T[0])
         X = np.column_stack([integral, C_veh * -np.expm1(-s / tau_veh), np.ones_like(s)])
     beta, *_ = np.linalg.lstsq(X, y, rcond=None)
     residuals = y - X @ beta

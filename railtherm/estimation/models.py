@@ -28,10 +28,10 @@ so every recursion below serves both holds unchanged.
 Simulation (:func:`simulate`) propagates the recursion without a Python loop over samples:
 Ad = V diag(lambda) V^-1 (the thermal networks here have real, distinct, stable eigenvalues),
 each modal coordinate z_i = (V^-1 x)_i obeys z_i[n+1] = lambda_i z_i[n] + w_i[n], which is
-one first-order ``scipy.signal.lfilter`` per mode. When Ad is not safely diagonalisable (complex
-or repeated eigenvalues, ill-conditioned V) the complex Schur form Ad = Q T Q^H is used
+one first-order recursion per mode (:func:`recursion`). When Ad is not safely diagonalisable
+(complex or repeated eigenvalues, ill-conditioned V) the complex Schur form Ad = Q T Q^H is used
 instead: T is triangular, so the modes are solved from the last one up, each again by one
-lfilter, the coupling entering as an extra input. Both are exact up to rounding.
+recursion, the coupling entering as an extra input. Both are exact up to rounding.
 
 Sensitivities (:func:`sensitivities`) differentiate the discrete recursion, not the ODE::
 
@@ -106,13 +106,19 @@ def schur(a: np.ndarray, output: str = "real") -> tuple[np.ndarray, np.ndarray]:
     return schur_(a, output=output)
 
 
-def lfilter(b, a, x, **kwargs):
-    """``scipy.signal.lfilter``, imported on first use: scipy.signal's import (which pulls in
-    scipy.stats) is the largest share of a job's start-up, and the jobs that only read results
-    (checks, tables) never simulate."""
-    from scipy.signal import lfilter as filter_
+def recursion(lam: complex, w: np.ndarray, z0) -> np.ndarray:
+    """z[..., 0] = z0, z[..., n + 1] = lam z[..., n] + w[..., n] along the last axis of ``w``
+    (w[..., N - 1] is unused): one mode of a modal simulation, or any first-order lag
+    (:func:`railtherm.estimation.loops.first_order`, bit for bit ``scipy.signal.lfilter([0,
+    1], [1, -lam], w, zi=z0)``). Real when ``lam``, ``w`` and ``z0`` are real, else complex."""
+    from railtherm.estimation.loops import first_order  # numba: only where a job simulates
 
-    return filter_(b, a, x, **kwargs)
+    w = np.asarray(w)
+    dtype = np.result_type(w.dtype, np.asarray(lam).dtype, np.asarray(z0).dtype, float)
+    channels = np.ascontiguousarray(w.reshape(-1, w.shape[-1]), dtype=dtype)
+    start = np.ascontiguousarray(np.broadcast_to(z0, w.shape[:-1]).reshape(-1), dtype=dtype)
+    z = first_order(dtype.type(lam), channels, start, np.empty_like(channels))
+    return z.reshape(w.shape)
 
 
 # (A, B) of the paper's models by their usual names (eqs. 13, 14) and of the interior-envelope
@@ -562,8 +568,8 @@ def modal_form(F: np.ndarray) -> Discretisation:
 def propagate(d: Discretisation, w: np.ndarray, z0: np.ndarray) -> np.ndarray:
     """Modal recursion z[n+1] = T z[n] + w[n], z[0] = z0, for channels stacked in w (n_modes,
     C, N), z0 (n_modes, C), in the modal coordinates of ``d`` (w and z0 already multiplied by
-    d.Qinv; complex when ``d.diagonal`` is False). One ``scipy.signal.lfilter`` per mode for
-    all channels; w is overwritten by the result."""
+    d.Qinv; complex when ``d.diagonal`` is False). One :func:`recursion` per mode for all
+    channels; w is overwritten by the result."""
     return _propagate(d, w, z0)
 
 
@@ -574,15 +580,13 @@ def _propagate(d: Discretisation, w: np.ndarray, z0: np.ndarray) -> np.ndarray:
     place: w is overwritten (callers pass a temporary; no second array of that size).
     """
     n = w.shape[0]
-    one = np.array([0.0, 1.0], dtype=w.dtype)
     for i in range(n - 1, -1, -1):
         wi = w[i]
         if not d.diagonal:
             for j in range(i + 1, n):
                 if d.T[i, j] != 0:
                     wi = wi + d.T[i, j] * w[j]  # w[j] holds z_j already
-        a = np.array([1.0, -d.lam[i]], dtype=w.dtype)
-        w[i] = lfilter(one, a, wi, axis=-1, zi=z0[i][:, None].astype(w.dtype))[0]
+        w[i] = recursion(w.dtype.type(d.lam[i]), wi, z0[i].astype(w.dtype))
     return w
 
 
@@ -711,7 +715,7 @@ def parameter_sensitivities(
     from ds[n+1] = Ad ds[n] + dAd x[n] + dBd u[n], ds[0] = 0 (xT (n, N), uT (m, N) the
     simulated states and inputs, state-major).
 
-    In modal coordinates every parameter of a mode shares the mode's filter: one lfilter per
+    In modal coordinates every parameter of a mode shares the mode's filter: one recursion per
     mode for all parameters. ``scale`` (e.g. the parameters themselves, for derivatives with
     respect to log parameters) is folded into the forcing, and the return to states is one
     (P n_out) x (n P) matrix product, so the result is written once, in the layout a

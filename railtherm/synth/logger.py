@@ -21,9 +21,8 @@ import pandas as pd
 
 from railtherm.data.rawfile import RawLayout
 from railtherm.errors import ConfigError
-from railtherm.estimation.models import lfilter
 from railtherm.synth.campaign import _deviation, vehicle_spec
-from railtherm.synth.physics import _interval_mean, _rngs, _run_cached, meter_scale
+from railtherm.synth.physics import _interval_mean, _rngs, _run_cached, lagged, meter_scale
 
 
 # --------------------------------------------------------------------------------------------
@@ -197,7 +196,7 @@ def _logged(spec, r, idx, t_s, m, K) -> pd.DataFrame:
     heat = r["Q_heat"] + r["Q_hvac"]
     # heat-driven stratification and plume respond within response_s (first-order lag)
     a = math.exp(-dt / se.get("response_s", 120.0))
-    q_f, _ = lfilter([1 - a], [1, -a], heat, zi=[a * heat[0]])
+    q_f = lagged(heat, a, 1 - a, before=heat[0])
     qf_kw = q_f[idx] / 1000.0
     T, Tv, To = r["T"][idx], r["T_veh"][idx], r["T_o"][idx]
     Tz = r["T_zone"][idx] if r["T_zone"] is not None else T

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from railtherm.estimation.models import discretize_zoh, lfilter, second_order
+from railtherm.estimation.models import discretize_zoh, recursion, second_order
 from railtherm.synth.campaign import _deviation
 
 
@@ -119,12 +119,19 @@ def _tunnel(spec: dict, n: int, dt: float, rng) -> np.ndarray:
     tu = spec["tunnel"]
     sp = np.full(n, float(spec["programme"]["T_tunnel"]))
     a = math.exp(-dt / tu["lag_s"])
-    lag, _ = lfilter([1 - a], [1, -a], sp, zi=[a * sp[0]])
+    lag = lagged(sp, a, 1 - a, before=sp[0])
     phi = math.exp(-dt / tu["correlation_s"])
     w = rng.normal(0, tu["fluctuation_sd_K"] * math.sqrt(1 - phi**2), n)
     w[0] = rng.normal(0, tu["fluctuation_sd_K"])
-    ar = lfilter([1.0], [1, -phi], w)
+    ar = lagged(w, phi, 1.0)
     return lag + ar
+
+
+def lagged(x: np.ndarray, a: float, gain: float, before: float = 0.0) -> np.ndarray:
+    """y[n] = a y[n-1] + gain x[n] from y[-1] = ``before``: a first-order lag sampled at its
+    step (a = exp(-dt / tau), gain 1 - a) or an AR(1) process (gain 1) driven by ``x``."""
+    forcing = gain * np.asarray(x, dtype=float)
+    return recursion(a, np.append(forcing[1:], 0.0), forcing[0] + a * before)
 
 
 def _run(spec: dict) -> dict:
