@@ -6,6 +6,8 @@ solve from models.simulate)."""
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_kalman import SIE, likelihood, random_point, sde_experiment
 
 from railtherm.estimation import common, filtering, models, pem
@@ -102,3 +104,35 @@ def test_start_cost_with_best_initial_states_equals_a_direct_solve(hold):
         cost, w = prob.cost_x0_projected(v)
         assert w[-1] == pytest.approx(best, rel=1e-9)
         assert cost == pytest.approx(float(np.sum((a + best * b - y[ok, 0]) ** 2)), rel=1e-9)
+
+
+@settings(max_examples=60, deadline=None)  # the first example compiles or loads the loop
+@given(
+    n=st.integers(1, 4),
+    outputs=st.integers(1, 3),
+    seed=st.integers(0, 2**16),
+    slow=st.floats(0.0, 0.99999),
+)
+def test_the_stationary_covariance_is_scipys_riccati_solution(n, outputs, seed, slow):
+    """The doubling solution of the filter's Riccati equation equals scipy's QZ solution
+    (solve_discrete_are) within 1e-8 of the largest entry, and solves the equation to 1e-9
+    (QZ's own residual reached 7e-10 over 2000 such systems), on random stable networks with
+    one slow mode, noise from 1e-8 to 1 and some outputs measured."""
+    from scipy.linalg import solve_discrete_are
+
+    rng = np.random.default_rng(seed)
+    V = rng.normal(size=(n, n)) + 3.0 * np.eye(n)
+    lam = rng.uniform(0.0, 0.95, n)
+    lam[0] = slow
+    Ad = V @ np.diag(lam) @ np.linalg.inv(V)
+    B = rng.normal(size=(n, n))
+    Qd = B @ B.T * 10.0 ** rng.uniform(-8, 0) + 1e-12 * np.eye(n)
+    C = rng.normal(size=(min(outputs, n), n))
+    S = 10.0 ** rng.uniform(-6, 0, len(C))
+    expected = solve_discrete_are(Ad.T, C.T, Qd, np.diag(S))
+    P = filtering.stationary_covariance(Ad, C, Qd, S)
+    scale = np.abs(expected).max()
+    assert np.abs(P - expected).max() <= 1e-8 * scale
+    R = C @ P @ C.T + np.diag(S)
+    residual = Ad @ P @ Ad.T + Qd - Ad @ P @ C.T @ np.linalg.solve(R, C @ P @ Ad.T) - P
+    assert np.abs(residual).max() <= 1e-9 * scale

@@ -15,7 +15,7 @@ leaves P and its derivatives unchanged (relative FREEZE_TOL) until the measureme
 changes. ``COMPILED = False`` runs the numpy implementation instead, which the tests check the
 compiled one against: there, once the predicted covariance P_k has reached the solution P of
 the discrete algebraic Riccati equation of the row's measurement pattern
-(``scipy.linalg.solve_discrete_are``; relative STEADY_TOL), the filter is the time-invariant
+(:func:`stationary_covariance`; relative STEADY_TOL), the filter is the time-invariant
 recursion x_{k+1} = F x_k + Bd u_k + L y_k (F = Ad - L C, L = Ad P C^T R^-1), run without a
 Python loop by the modal recursions of :mod:`railtherm.estimation.models`.
 An estimated initial state starts with the stationary prior covariance P_0 = P (no transient at
@@ -68,6 +68,11 @@ STEADY_TOL = 1e-10  # |P_k - P| / |P| below which the filter switches to the sta
 # the compiled filter holds its gain once |P_k+1 - P_k| <= FREEZE_TOL |P_k+1| (and so for dP)
 FREEZE_TOL = 1e-13
 COMPILED = True  # False: the numpy filter (module docstring), the reference of the tests
+# the stationary filter's Riccati equation by doubling: converged once a doubling moves P by at
+# most RICCATI_TOL relative (the error then is of the order of its square); 100 doublings
+# suffice for any closed-loop spectral radius below 1 - 1e-28, and QZ takes over otherwise
+RICCATI_TOL = 1e-12
+RICCATI_DOUBLINGS = 100
 # a run that starts off the stationary covariance is done by the stationary filter with the
 # exact correction for its prior (:func:`_prior_correction`) instead of row by row when it is
 # the record's last run, or when its transient |F|^rows decays below this before a later run
@@ -227,8 +232,16 @@ class _Steady:
     dL: np.ndarray
     F: np.ndarray
     dF: np.ndarray
-    modes: _Modes
+    _modes: _Modes | None = None
     _modes_T: _Modes | None = None
+
+    @property
+    def modes(self) -> _Modes:
+        """The modes of F (the stationary recursion of the numpy implementation; the compiled
+        filter, which only takes P from here as the prior, never builds them)."""
+        if self._modes is None:
+            self._modes = _Modes(self.F)
+        return self._modes
 
     @property
     def modes_T(self) -> _Modes:
@@ -268,7 +281,7 @@ class _System:
         So = np.diag(self.S[o])
         try:
             with np.errstate(all="ignore"):
-                P = solve_discrete_are(Ad.T, C.T, Qd, So)
+                P = stationary_covariance(Ad, C, Qd, self.S[o])
         except (np.linalg.LinAlgError, ValueError):
             return None
         P = (P + P.T) / 2.0
@@ -314,8 +327,30 @@ class _System:
             dL=dL,
             F=F,
             dF=dF,
-            modes=_Modes(F),
         )
+
+
+def stationary_covariance(Ad: np.ndarray, C: np.ndarray, Qd: np.ndarray, S: np.ndarray):
+    """P of the stationary filter's Riccati equation P = Ad P Ad^T + Qd - Ad P C^T (C P C^T +
+    diag(S))^-1 C P Ad^T: by doubling (:func:`railtherm.estimation.loops.riccati`, compiled,
+    a few microseconds for a thermal network's states), or by
+    ``scipy.linalg.solve_discrete_are`` (the QZ method) where doubling does not converge
+    within ``RICCATI_DOUBLINGS`` or a measurement variance is not positive."""
+    S = np.asarray(S, dtype=float)
+    if np.all(S > 0.0):
+        from railtherm.estimation import loops  # numba: compiled on first use
+
+        P, converged = loops.riccati(
+            np.ascontiguousarray(Ad, dtype=float),
+            np.ascontiguousarray(C, dtype=float),
+            np.ascontiguousarray(Qd, dtype=float),
+            np.ascontiguousarray(S),
+            RICCATI_TOL,
+            RICCATI_DOUBLINGS,
+        )
+        if converged:
+            return P
+    return solve_discrete_are(Ad.T, C.T, Qd, np.diag(S))
 
 
 def _diag_stack(d: np.ndarray) -> np.ndarray:

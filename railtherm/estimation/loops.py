@@ -1,7 +1,8 @@
 """Row recursions compiled with numba: the Kalman filter's with its forward sensitivities
 (:func:`kalman_rows`), the simulation with its free response that ranks the output-error
-start's grid inside a Kalman fit (:func:`output_error`), and one mode's first-order recursion
-that every modal simulation runs (:func:`first_order`).
+start's grid inside a Kalman fit (:func:`output_error`), one mode's first-order recursion
+that every modal simulation runs (:func:`first_order`), and the stationary filter's Riccati
+equation by doubling (:func:`riccati`).
 
 One pass of the predictor-form filter of :mod:`railtherm.estimation.kalman` over one
 experiment: per row, the update with the measured outputs o (none: skipped),
@@ -37,6 +38,44 @@ import numpy as np
 from numba import njit
 
 LOG_2PI = math.log(2.0 * math.pi)
+
+
+@njit(cache=True)
+def riccati(Ad, C, Qd, S, tol, max_iter):
+    """P of the filter's discrete algebraic Riccati equation
+
+        P = Ad P Ad^T + Qd - Ad P C^T (C P C^T + diag(S))^-1 C P Ad^T
+
+    (the predicted covariance of the stationary filter: ``scipy.linalg.solve_discrete_are(
+    Ad.T, C.T, Qd, diag(S))``) by the structure-preserving doubling algorithm (Chu, Fan and
+    Lin 2005): with A = Ad^T, G = C^T diag(S)^-1 C, H = Qd and W = I + G H,
+
+        A <- A W^-1 A,  G <- G + A W^-1 G A^T,  H <- H + A^T H W^-1 A,
+
+    H converges quadratically to P (the closed loop's spectral radius squared at each
+    doubling). Returns (P, converged): converged is False when no doubling within
+    ``max_iter`` moved H by less than ``tol`` relative, or a number went non-finite."""
+    n = Ad.shape[0]
+    A = Ad.T.copy()
+    G = C.T @ np.diag(1.0 / S) @ C
+    H = Qd.copy()
+    eye = np.eye(n)
+    for _ in range(max_iter):
+        W = eye + G @ H
+        WA = np.linalg.solve(W, A)
+        WG = np.linalg.solve(W, G)
+        H_next = H + A.T @ (H @ WA)
+        H_next = (H_next + H_next.T) / 2.0
+        G = G + A @ WG @ A.T
+        G = (G + G.T) / 2.0
+        A = A @ WA
+        change = np.max(np.abs(H_next - H))
+        H = H_next
+        if not np.all(np.isfinite(H)):
+            return H, False
+        if change <= tol * np.max(np.abs(H)):
+            return H, True
+    return H, False
 
 
 @njit(cache=True)
