@@ -175,12 +175,7 @@ def test_every_module_of_the_package_is_in_the_architecture_doc():
 
 FUNCTION_LINES_MAX = 120  # lines of one function, its docstring included
 # a function kept longer, with the reason: (module, function) -> why
-LONG_FUNCTIONS = {
-    ("railtherm/estimation/loops.py", "kalman_rows"): (
-        "the compiled (numba) row loop of the Kalman filter with its forward sensitivities; "
-        "split only with benchmarks/pysip_armadillo.py showing no loss"
-    ),
-}
+LONG_FUNCTIONS: dict[tuple[str, str], str] = {}
 
 
 def test_no_function_of_the_package_is_longer_than_one_step_needs():

@@ -113,6 +113,267 @@ def _predict(Ad, Bd, x, u, xn):
 
 
 @njit(cache=True)
+def _gain(P, C, S, o, no, PCt, R, Lc, Li, Rinv, K):
+    """The update's gain for the outputs o[:no]: PCt = P C_o^T, R = C_o PCt + S_o, its
+    Cholesky factor Lc, Li = Lc^-1, R^-1 = Li^T Li and K = PCt R^-1, all in place. Returns
+    log det R, or NaN when R is not positive definite."""
+    n = P.shape[0]
+    for i in range(n):
+        for jj in range(no):
+            s = 0.0
+            for t in range(n):
+                s += P[i, t] * C[o[jj], t]
+            PCt[i, jj] = s
+    for ii in range(no):
+        for jj in range(no):
+            s = 0.0
+            for t in range(n):
+                s += C[o[ii], t] * PCt[t, jj]
+            R[ii, jj] = s
+        R[ii, ii] += S[o[ii]]
+    logdet = 0.0
+    for ii in range(no):
+        for jj in range(ii + 1):
+            s = R[ii, jj]
+            for t in range(jj):
+                s -= Lc[ii, t] * Lc[jj, t]
+            if ii == jj:
+                if not s > 0.0:
+                    return math.nan
+                Lc[ii, ii] = math.sqrt(s)
+                logdet += 2.0 * math.log(Lc[ii, ii])
+            else:
+                Lc[ii, jj] = s / Lc[jj, jj]
+    for ii in range(no):  # Li = Lc^-1 (lower triangular)
+        for jj in range(no):
+            Li[ii, jj] = 0.0
+        Li[ii, ii] = 1.0 / Lc[ii, ii]
+        for jj in range(ii):
+            s = 0.0
+            for t in range(jj, ii):
+                s -= Lc[ii, t] * Li[t, jj]
+            Li[ii, jj] = s / Lc[ii, ii]
+    for ii in range(no):  # R^-1 = Li^T Li
+        for jj in range(no):
+            s = 0.0
+            for t in range(max(ii, jj), no):
+                s += Li[t, ii] * Li[t, jj]
+            Rinv[ii, jj] = s
+    for i in range(n):
+        for jj in range(no):
+            s = 0.0
+            for t in range(no):
+                s += PCt[i, t] * Rinv[t, jj]
+            K[i, jj] = s
+    return logdet
+
+
+@njit(cache=True)
+def _gain_derivatives(dP, C, dS, o, no, Rinv, K, order, dPCt, dR, RdR, dK, g_const, f_const):
+    """Along every direction q: dPCt = dP C_o^T, dR = C_o dPCt + dS_o, R^-1 dR (its half
+    trace: the constant part of the row's gradient, g_const), dK = (dPCt - K dR) R^-1; with
+    order 2 also f_const = 1/2 tr(R^-1 dR_q R^-1 dR_r) of the Fisher information."""
+    Q, n = dP.shape[0], dP.shape[1]
+    for q in range(Q):
+        for i in range(n):
+            for jj in range(no):
+                s = 0.0
+                for t in range(n):
+                    s += dP[q, i, t] * C[o[jj], t]
+                dPCt[q, i, jj] = s
+        for ii in range(no):
+            for jj in range(no):
+                s = 0.0
+                for t in range(n):
+                    s += C[o[ii], t] * dPCt[q, t, jj]
+                dR[q, ii, jj] = s
+            dR[q, ii, ii] += dS[q, o[ii]]
+        g = 0.0
+        for ii in range(no):
+            for jj in range(no):
+                s = 0.0
+                for t in range(no):
+                    s += Rinv[ii, t] * dR[q, t, jj]
+                RdR[q, ii, jj] = s
+            g += RdR[q, ii, ii]
+        g_const[q] = 0.5 * g
+        # dK = (dPCt - K dR) R^-1
+        for i in range(n):
+            for jj in range(no):
+                s = 0.0
+                for t in range(no):
+                    w = dPCt[q, i, t]
+                    for r in range(no):
+                        w -= K[i, r] * dR[q, r, t]
+                    s += w * Rinv[t, jj]
+                dK[q, i, jj] = s
+    if order >= 2:
+        for q in range(Q):
+            for r in range(q + 1):
+                s = 0.0
+                for ii in range(no):
+                    for jj in range(no):
+                        s += RdR[q, ii, jj] * RdR[r, jj, ii]
+                f_const[q, r] = 0.5 * s
+                f_const[r, q] = 0.5 * s
+
+
+@njit(cache=True)
+def _scores(C, dx, o, no, a, dR, Rinv, g_const, f_const, order, de, Rde, grad, fisher):
+    """The row's gradient dNLL_q = g_const_q + deps_q^T a - 1/2 a^T dR_q a (deps = -C_o dx,
+    written to de) added to grad, and with order 2 its Fisher information added to fisher."""
+    Q, n = dx.shape
+    for q in range(Q):
+        g = g_const[q]
+        for ii in range(no):
+            s = 0.0
+            for t in range(n):
+                s -= C[o[ii], t] * dx[q, t]
+            de[q, ii] = s
+            g += s * a[ii]
+            w = 0.0
+            for jj in range(no):
+                w += dR[q, ii, jj] * a[jj]
+            g -= 0.5 * a[ii] * w
+        grad[q] += g
+    if order >= 2:
+        for q in range(Q):
+            for ii in range(no):
+                s = 0.0
+                for jj in range(no):
+                    s += Rinv[ii, jj] * de[q, jj]
+                Rde[q, ii] = s
+        for q in range(Q):
+            for r in range(q + 1):
+                s = f_const[q, r]
+                for ii in range(no):
+                    s += de[q, ii] * Rde[r, ii]
+                fisher[q, r] += s
+                if r != q:
+                    fisher[r, q] += s
+
+
+@njit(cache=True)
+def _update_derivatives(no, eps, de, K, dK, dR, PCt, frozen, dx, dP):
+    """dx += dK eps + K deps and, unless the gain is held, dP -= dK (K R)^T + (K R) dK^T +
+    K dR K^T (K R = PCt), in place."""
+    Q, n = dx.shape
+    for q in range(Q):
+        for i in range(n):
+            s = 0.0
+            for jj in range(no):
+                s += dK[q, i, jj] * eps[jj] + K[i, jj] * de[q, jj]
+            dx[q, i] += s
+        if not frozen:
+            for i in range(n):
+                for t in range(i + 1):
+                    s = 0.0
+                    for jj in range(no):
+                        s += dK[q, i, jj] * PCt[t, jj] + PCt[i, jj] * dK[q, t, jj]
+                        w = 0.0
+                        for r in range(no):
+                            w += dR[q, jj, r] * K[t, r]
+                        s += K[i, jj] * w
+                    dP[q, i, t] -= s
+                    if t != i:
+                        dP[q, t, i] -= s
+
+
+@njit(cache=True)
+def _update(no, eps, K, PCt, frozen, x, P):
+    """x += K eps and, unless the gain is held, P -= K PCt^T, in place."""
+    n = x.shape[0]
+    for i in range(n):
+        s = 0.0
+        for jj in range(no):
+            s += K[i, jj] * eps[jj]
+        x[i] += s
+    if not frozen:
+        for i in range(n):
+            for t in range(i + 1):
+                s = 0.0
+                for jj in range(no):
+                    s += K[i, jj] * PCt[t, jj]
+                P[i, t] -= s
+                if t != i:
+                    P[t, i] -= s
+
+
+@njit(cache=True)
+def _predict_derivatives(Ad, dAd, dBd, x, u, dx, dxn):
+    """dx <- Ad dx + dAd x + dBd u along every direction, in place (x that of the update)."""
+    Q, n = dx.shape
+    m = dBd.shape[2]
+    for q in range(Q):
+        for i in range(n):
+            s = 0.0
+            for t in range(n):
+                s += Ad[i, t] * dx[q, t] + dAd[q, i, t] * x[t]
+            for t in range(m):
+                s += dBd[q, i, t] * u[t]
+            dxn[q, i] = s
+    for q in range(Q):
+        for i in range(n):
+            dx[q, i] = dxn[q, i]
+
+
+@njit(cache=True)
+def _predict_covariance(Ad, Qd, dAd, dQd, order, P, dP, Pp, dPp, AP, Pn, dPn):
+    """P <- Ad P Ad^T + Qd and (order >= 1) dP <- (dAd P + Ad dP) Ad^T + Ad P dAd^T + dQd, in
+    place. Returns how far each moved from the row's predicted Pp, dPp and their sizes
+    (pchange, psize, change, size: the largest absolute entries), which decide the hold."""
+    Q, n = dP.shape[0], P.shape[0]
+    for i in range(n):  # Ad P
+        for t in range(n):
+            s = 0.0
+            for r in range(n):
+                s += Ad[i, r] * P[r, t]
+            AP[i, t] = s
+    change = 0.0
+    size = 0.0
+    if order >= 1:
+        for q in range(Q):
+            for i in range(n):
+                for t in range(n):
+                    s = 0.0
+                    for r in range(n):
+                        s += dAd[q, i, r] * P[r, t] + Ad[i, r] * dP[q, r, t]
+                    Pn[i, t] = s
+            for i in range(n):
+                for t in range(i + 1):
+                    s = dQd[q, i, t]
+                    for r in range(n):
+                        s += Pn[i, r] * Ad[t, r] + AP[i, r] * dAd[q, t, r]
+                    dPn[q, i, t] = s
+            for i in range(n):
+                for t in range(i):
+                    dPn[q, t, i] = dPn[q, i, t]
+        for q in range(Q):
+            for i in range(n):
+                for t in range(n):
+                    change = max(change, abs(dPn[q, i, t] - dPp[q, i, t]))
+                    size = max(size, abs(dPn[q, i, t]))
+                    dP[q, i, t] = dPn[q, i, t]
+    pchange = 0.0
+    psize = 0.0
+    for i in range(n):
+        for t in range(i + 1):
+            s = Qd[i, t]
+            w = Qd[t, i]
+            for r in range(n):
+                s += AP[i, r] * Ad[t, r]
+                w += AP[t, r] * Ad[i, r]
+            Pn[i, t] = 0.5 * (s + w)
+            Pn[t, i] = Pn[i, t]
+    for i in range(n):
+        for t in range(n):
+            pchange = max(pchange, abs(Pn[i, t] - Pp[i, t]))
+            psize = max(psize, abs(Pn[i, t]))
+            P[i, t] = Pn[i, t]
+    return pchange, psize, change, size
+
+
+@njit(cache=True)
 def kalman_rows(
     Ad, Bd, Qd, C, S, dAd, dBd, dQd, dS, y, u, x0, dx0, P0, dP0,
     order, freeze_tol, xp, eps_out, rvar_out, steady_from,
@@ -128,47 +389,29 @@ def kalman_rows(
     innovation covariance that is not positive definite."""
     N, n_out = y.shape
     n = Ad.shape[0]
-    m = Bd.shape[1]
     Q = dAd.shape[0]
     series = xp.shape[0] > 0
-    x = x0.copy()
-    P = P0.copy()
-    dx = dx0.copy()
-    dP = dP0.copy()
-    xn = np.empty(n)
-    Pn = np.empty((n, n))
-    AP = np.empty((n, n))
-    dxn = np.empty((Q, n))
-    dPn = np.empty((Q, n, n))
-    Pp = np.empty((n, n))  # the row's predicted P and dP, before its update
-    dPp = np.empty((Q, n, n))
+    x, P, dx, dP = x0.copy(), P0.copy(), dx0.copy(), dP0.copy()
+    xn, Pn, AP = np.empty(n), np.empty((n, n)), np.empty((n, n))
+    dxn, dPn = np.empty((Q, n)), np.empty((Q, n, n))
+    Pp, dPp = np.empty((n, n)), np.empty((Q, n, n))  # the row's predicted P, dP
     o = np.empty(n_out, np.int64)
-    eps = np.empty(n_out)
-    a = np.empty(n_out)
-    PCt = np.empty((n, n_out))
-    R = np.empty((n_out, n_out))
-    Lc = np.empty((n_out, n_out))
-    Li = np.empty((n_out, n_out))
-    Rinv = np.empty((n_out, n_out))
-    K = np.empty((n, n_out))
-    dPCt = np.empty((Q, n, n_out))
-    dR = np.empty((Q, n_out, n_out))
-    RdR = np.empty((Q, n_out, n_out))
-    dK = np.empty((Q, n, n_out))
-    de = np.empty((Q, n_out))
-    Rde = np.empty((Q, n_out))
-    g_const = np.zeros(Q)
-    f_const = np.zeros((Q, Q))
-    grad = np.zeros(Q)
-    fisher = np.zeros((Q, Q))
+    eps, a = np.empty(n_out), np.empty(n_out)
+    PCt, K = np.empty((n, n_out)), np.empty((n, n_out))
+    R, Lc = np.empty((n_out, n_out)), np.empty((n_out, n_out))
+    Li, Rinv = np.empty((n_out, n_out)), np.empty((n_out, n_out))
+    dPCt, dK = np.empty((Q, n, n_out)), np.empty((Q, n, n_out))
+    dR, RdR = np.empty((Q, n_out, n_out)), np.empty((Q, n_out, n_out))
+    de, Rde = np.empty((Q, n_out)), np.empty((Q, n_out))
+    g_const, f_const = np.zeros(Q), np.zeros((Q, Q))
+    grad, fisher = np.zeros(Q), np.zeros((Q, Q))
     nll = 0.0
     logdet = 0.0
     frozen = False
     prev_code = -1
     n_steady = 0
     for k in range(N):
-        # the row's measurement pattern
-        no = 0
+        no = 0  # the row's measurement pattern
         code = 0
         for j in range(n_out):
             if not math.isnan(y[k, j]):
@@ -192,97 +435,13 @@ def kalman_rows(
                     s -= C[j, i] * x[i]
                 eps[jj] = s
             if not frozen:
-                # PCt = P C_o^T, R = C_o PCt + S_o, its Cholesky factor, R^-1 and log det R
-                for i in range(n):
-                    for jj in range(no):
-                        s = 0.0
-                        for t in range(n):
-                            s += P[i, t] * C[o[jj], t]
-                        PCt[i, jj] = s
-                for ii in range(no):
-                    for jj in range(no):
-                        s = 0.0
-                        for t in range(n):
-                            s += C[o[ii], t] * PCt[t, jj]
-                        R[ii, jj] = s
-                    R[ii, ii] += S[o[ii]]
-                logdet = 0.0
-                for ii in range(no):
-                    for jj in range(ii + 1):
-                        s = R[ii, jj]
-                        for t in range(jj):
-                            s -= Lc[ii, t] * Lc[jj, t]
-                        if ii == jj:
-                            if not s > 0.0:
-                                return 1, math.inf, grad, fisher, n_steady
-                            Lc[ii, ii] = math.sqrt(s)
-                            logdet += 2.0 * math.log(Lc[ii, ii])
-                        else:
-                            Lc[ii, jj] = s / Lc[jj, jj]
-                for ii in range(no):  # Li = Lc^-1 (lower triangular)
-                    for jj in range(no):
-                        Li[ii, jj] = 0.0
-                    Li[ii, ii] = 1.0 / Lc[ii, ii]
-                    for jj in range(ii):
-                        s = 0.0
-                        for t in range(jj, ii):
-                            s -= Lc[ii, t] * Li[t, jj]
-                        Li[ii, jj] = s / Lc[ii, ii]
-                for ii in range(no):  # R^-1 = Li^T Li
-                    for jj in range(no):
-                        s = 0.0
-                        for t in range(max(ii, jj), no):
-                            s += Li[t, ii] * Li[t, jj]
-                        Rinv[ii, jj] = s
-                for i in range(n):
-                    for jj in range(no):
-                        s = 0.0
-                        for t in range(no):
-                            s += PCt[i, t] * Rinv[t, jj]
-                        K[i, jj] = s
+                logdet = _gain(P, C, S, o, no, PCt, R, Lc, Li, Rinv, K)
+                if math.isnan(logdet):
+                    return 1, math.inf, grad, fisher, n_steady
                 if order >= 1:
-                    for q in range(Q):
-                        for i in range(n):
-                            for jj in range(no):
-                                s = 0.0
-                                for t in range(n):
-                                    s += dP[q, i, t] * C[o[jj], t]
-                                dPCt[q, i, jj] = s
-                        for ii in range(no):
-                            for jj in range(no):
-                                s = 0.0
-                                for t in range(n):
-                                    s += C[o[ii], t] * dPCt[q, t, jj]
-                                dR[q, ii, jj] = s
-                            dR[q, ii, ii] += dS[q, o[ii]]
-                        g = 0.0
-                        for ii in range(no):
-                            for jj in range(no):
-                                s = 0.0
-                                for t in range(no):
-                                    s += Rinv[ii, t] * dR[q, t, jj]
-                                RdR[q, ii, jj] = s
-                            g += RdR[q, ii, ii]
-                        g_const[q] = 0.5 * g
-                        # dK = (dPCt - K dR) R^-1
-                        for i in range(n):
-                            for jj in range(no):
-                                s = 0.0
-                                for t in range(no):
-                                    w = dPCt[q, i, t]
-                                    for r in range(no):
-                                        w -= K[i, r] * dR[q, r, t]
-                                    s += w * Rinv[t, jj]
-                                dK[q, i, jj] = s
-                    if order >= 2:
-                        for q in range(Q):
-                            for r in range(q + 1):
-                                s = 0.0
-                                for ii in range(no):
-                                    for jj in range(no):
-                                        s += RdR[q, ii, jj] * RdR[r, jj, ii]
-                                f_const[q, r] = 0.5 * s
-                                f_const[r, q] = 0.5 * s
+                    _gain_derivatives(
+                        dP, C, dS, o, no, Rinv, K, order, dPCt, dR, RdR, dK, g_const, f_const
+                    )
             quad = 0.0
             for ii in range(no):
                 s = 0.0
@@ -296,131 +455,18 @@ def kalman_rows(
                     eps_out[k, o[jj]] = eps[jj]
                     rvar_out[k, o[jj]] = R[jj, jj]
             if order >= 1:
-                for q in range(Q):
-                    g = g_const[q]
-                    for ii in range(no):
-                        s = 0.0
-                        for t in range(n):
-                            s -= C[o[ii], t] * dx[q, t]
-                        de[q, ii] = s
-                        g += s * a[ii]
-                        w = 0.0
-                        for jj in range(no):
-                            w += dR[q, ii, jj] * a[jj]
-                        g -= 0.5 * a[ii] * w
-                    grad[q] += g
-                if order >= 2:
-                    for q in range(Q):
-                        for ii in range(no):
-                            s = 0.0
-                            for jj in range(no):
-                                s += Rinv[ii, jj] * de[q, jj]
-                            Rde[q, ii] = s
-                    for q in range(Q):
-                        for r in range(q + 1):
-                            s = f_const[q, r]
-                            for ii in range(no):
-                                s += de[q, ii] * Rde[r, ii]
-                            fisher[q, r] += s
-                            if r != q:
-                                fisher[r, q] += s
-                for q in range(Q):  # dx += dK eps + K deps
-                    for i in range(n):
-                        s = 0.0
-                        for jj in range(no):
-                            s += dK[q, i, jj] * eps[jj] + K[i, jj] * de[q, jj]
-                        dx[q, i] += s
-                    if not frozen:  # dP -= dK (K R)^T + (K R) dK^T + K dR K^T, K R = PCt
-                        for i in range(n):
-                            for t in range(i + 1):
-                                s = 0.0
-                                for jj in range(no):
-                                    s += dK[q, i, jj] * PCt[t, jj] + PCt[i, jj] * dK[q, t, jj]
-                                    w = 0.0
-                                    for r in range(no):
-                                        w += dR[q, jj, r] * K[t, r]
-                                    s += K[i, jj] * w
-                                dP[q, i, t] -= s
-                                if t != i:
-                                    dP[q, t, i] -= s
-            for i in range(n):
-                s = 0.0
-                for jj in range(no):
-                    s += K[i, jj] * eps[jj]
-                x[i] += s
-            if not frozen:
-                for i in range(n):
-                    for t in range(i + 1):
-                        s = 0.0
-                        for jj in range(no):
-                            s += K[i, jj] * PCt[t, jj]
-                        P[i, t] -= s
-                        if t != i:
-                            P[t, i] -= s
+                _scores(C, dx, o, no, a, dR, Rinv, g_const, f_const, order, de, Rde, grad, fisher)
+                _update_derivatives(no, eps, de, K, dK, dR, PCt, frozen, dx, dP)
+            _update(no, eps, K, PCt, frozen, x, P)
         # the prediction, differentiated (with x and P of the update)
         if order >= 1:
-            for q in range(Q):
-                for i in range(n):
-                    s = 0.0
-                    for t in range(n):
-                        s += Ad[i, t] * dx[q, t] + dAd[q, i, t] * x[t]
-                    for t in range(m):
-                        s += dBd[q, i, t] * u[k, t]
-                    dxn[q, i] = s
-            for q in range(Q):
-                for i in range(n):
-                    dx[q, i] = dxn[q, i]
+            _predict_derivatives(Ad, dAd, dBd, x, u[k], dx, dxn)
         _predict(Ad, Bd, x, u[k], xn)
         if frozen:
             continue
-        for i in range(n):  # Ad P
-            for t in range(n):
-                s = 0.0
-                for r in range(n):
-                    s += Ad[i, r] * P[r, t]
-                AP[i, t] = s
-        change = 0.0
-        size = 0.0
-        if order >= 1:
-            # dP <- (dAd P + Ad dP) Ad^T + Ad P dAd^T + dQd
-            for q in range(Q):
-                for i in range(n):
-                    for t in range(n):
-                        s = 0.0
-                        for r in range(n):
-                            s += dAd[q, i, r] * P[r, t] + Ad[i, r] * dP[q, r, t]
-                        Pn[i, t] = s
-                for i in range(n):
-                    for t in range(i + 1):
-                        s = dQd[q, i, t]
-                        for r in range(n):
-                            s += Pn[i, r] * Ad[t, r] + AP[i, r] * dAd[q, t, r]
-                        dPn[q, i, t] = s
-                for i in range(n):
-                    for t in range(i):
-                        dPn[q, t, i] = dPn[q, i, t]
-            for q in range(Q):
-                for i in range(n):
-                    for t in range(n):
-                        change = max(change, abs(dPn[q, i, t] - dPp[q, i, t]))
-                        size = max(size, abs(dPn[q, i, t]))
-                        dP[q, i, t] = dPn[q, i, t]
-        pchange = 0.0
-        psize = 0.0
-        for i in range(n):
-            for t in range(i + 1):
-                s = Qd[i, t]
-                w = Qd[t, i]
-                for r in range(n):
-                    s += AP[i, r] * Ad[t, r]
-                    w += AP[t, r] * Ad[i, r]
-                Pn[i, t] = 0.5 * (s + w)
-                Pn[t, i] = Pn[i, t]
-        for i in range(n):
-            for t in range(n):
-                pchange = max(pchange, abs(Pn[i, t] - Pp[i, t]))
-                psize = max(psize, abs(Pn[i, t]))
-                P[i, t] = Pn[i, t]
+        pchange, psize, change, size = _predict_covariance(
+            Ad, Qd, dAd, dQd, order, P, dP, Pp, dPp, AP, Pn, dPn
+        )
         if (
             freeze_tol >= 0.0
             and k + 1 < N
