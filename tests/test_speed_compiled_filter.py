@@ -136,3 +136,15 @@ def test_the_stationary_covariance_is_scipys_riccati_solution(n, outputs, seed, 
     R = C @ P @ C.T + np.diag(S)
     residual = Ad @ P @ Ad.T + Qd - Ad @ P @ C.T @ np.linalg.solve(R, C @ P @ Ad.T) - P
     assert np.abs(residual).max() <= 1e-9 * scale
+
+
+def test_a_zero_measurement_variance_leaves_the_riccati_equation_to_qz():
+    """A measurement without noise (S = 0 for one output: G = C^T S^-1 C does not exist) is
+    solved by scipy's QZ method, whose solution the filter then uses unchanged."""
+    from scipy.linalg import solve_discrete_are
+
+    Ad = np.array([[0.9, 0.05], [0.02, 0.95]])
+    C, Qd, S = np.eye(2), np.diag([1e-3, 2e-3]), np.array([0.0, 1e-2])
+    P = filtering.stationary_covariance(Ad, C, Qd, S)
+    np.testing.assert_array_equal(P, solve_discrete_are(Ad.T, C.T, Qd, np.diag(S)))
+    assert P[0, 0] == pytest.approx(Qd[0, 0], rel=0.01)  # the measured state known but for Qd

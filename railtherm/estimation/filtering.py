@@ -335,19 +335,23 @@ def stationary_covariance(Ad: np.ndarray, C: np.ndarray, Qd: np.ndarray, S: np.n
     diag(S))^-1 C P Ad^T: by doubling (:func:`railtherm.estimation.loops.riccati`, compiled,
     a few microseconds for a thermal network's states), or by
     ``scipy.linalg.solve_discrete_are`` (the QZ method) where doubling does not converge
-    within ``RICCATI_DOUBLINGS`` or a measurement variance is not positive."""
+    within ``RICCATI_DOUBLINGS``, meets a singular step, or a measurement variance is not
+    positive."""
     S = np.asarray(S, dtype=float)
     if np.all(S > 0.0):
         from railtherm.estimation import loops  # numba: compiled on first use
 
-        P, converged = loops.riccati(
-            np.ascontiguousarray(Ad, dtype=float),
-            np.ascontiguousarray(C, dtype=float),
-            np.ascontiguousarray(Qd, dtype=float),
-            np.ascontiguousarray(S),
-            RICCATI_TOL,
-            RICCATI_DOUBLINGS,
-        )
+        try:
+            P, converged = loops.riccati(
+                np.ascontiguousarray(Ad, dtype=float),
+                np.ascontiguousarray(C, dtype=float),
+                np.ascontiguousarray(Qd, dtype=float),
+                np.ascontiguousarray(S),
+                RICCATI_TOL,
+                RICCATI_DOUBLINGS,
+            )
+        except np.linalg.LinAlgError:  # a singular doubling step: QZ below
+            converged = False
         if converged:
             return P
     return solve_discrete_are(Ad.T, C.T, Qd, np.diag(S))

@@ -645,17 +645,15 @@ class StorageCorrection:
 def _body_response(T: np.ndarray, s: np.ndarray, tau_veh: float) -> np.ndarray:
     """T_veh^0 of :func:`storage_corrected_kA`: eq. 8's lag tau_veh dT_veh/dt = T - T_veh from
     T_veh(0) = T(0), driven by T linear between grid points (first-order hold) on the uniform
-    grid s: T_veh[n+1] = a T_veh[n] + (g - a) T[n] + (1 - g) T[n+1], a = exp(-h), g = (1 - a)
-    / h, h = step / tau_veh (the exact integral over the step)."""
+    grid s: T_veh[n+1] = a T_veh[n] + (G0 - G1) T[n] + G1 T[n+1] with (a, G0, G1) the exact
+    ramp discretisation of :func:`railtherm.estimation.models.discretize_ramp`."""
     if s.size < 2:
         raise ValueError("the k window has fewer than two rows")
     step = float(s[1] - s[0])
     if not np.allclose(np.diff(s), step):
         raise ValueError("the k window's time steps are not equally spaced")
-    h = step / tau_veh
-    a = math.exp(-h)
-    g = -math.expm1(-h) / h
-    forcing = (g - a) * T[:-1] + (1.0 - g) * T[1:]
+    a, G0, G1 = (float(M[0, 0]) for M in models.discretize_ramp([[-1.0]], [[1.0]], step / tau_veh))
+    forcing = (G0 - G1) * T[:-1] + G1 * T[1:]
     return models.recursion(a, np.append(forcing, 0.0), T[0])
 
 
