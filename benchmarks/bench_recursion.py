@@ -7,18 +7,20 @@ interpreter that has numpy, pandas and scipy.linalg already (as every simulating
 
     python benchmarks/bench_recursion.py [--rounds 5]
 
-Prints, per channel count C and length N, the best of 3 rounds of each (time per call) and
-the ratios to lfilter, after checking that the compiled loop gives lfilter's numbers exactly
-and dtbtrs within 1e-12; then the best of ``--rounds`` start-up times, alternating between the
-two imports.
+Prints, per channel count C and length N, the CPU time per call of each, best of 7
+interleaved rounds (lfilter, railtherm, dtbtrs, lfilter, ...; one thread each: none of them
+threads), and the ratios to lfilter, after checking that the compiled loop gives lfilter's
+numbers exactly and dtbtrs within 1e-12; then the best of ``--rounds`` start-up CPU times,
+alternating between the two imports.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import subprocess
 import sys
-import timeit
+import time
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +38,8 @@ START_UP = {
         "recursion(0.5, np.zeros((1, 2)), np.zeros(1))"
     ),
 }
-PRELOADED = "import numpy, pandas, scipy.linalg, time; t = time.perf_counter(); "
+PRELOADED = "import numpy, pandas, scipy.linalg, time; t = time.process_time(); "
+ROUNDS = 7
 
 
 def by_lfilter(w: np.ndarray, z0: np.ndarray) -> np.ndarray:
@@ -61,9 +64,24 @@ def by_banded_solve(w: np.ndarray, z0: np.ndarray) -> np.ndarray:
     return z.T
 
 
+def interleaved(functions, w: np.ndarray, z0: np.ndarray, rounds: int) -> list[float]:
+    """CPU seconds per call of each function, the best of ``rounds`` rounds in which every
+    function runs once after the other (a load on the machine falls on all alike); each
+    round repeats a call as often as fills ~0.2 ms of lfilter's time at this size."""
+    n = max(1, 200_000 // w.shape[1])
+    best = [math.inf] * len(functions)
+    for _ in range(rounds):
+        for i, f in enumerate(functions):
+            start = time.process_time()
+            for _ in range(n):
+                f(w, z0)
+            best[i] = min(best[i], (time.process_time() - start) / n)
+    return best
+
+
 def start_up(code: str) -> float:
-    """Seconds of ``code`` in a fresh interpreter, after numpy, pandas and scipy.linalg."""
-    statement = PRELOADED + code + "; print(time.perf_counter() - t)"
+    """CPU seconds of ``code`` in a fresh interpreter, after numpy, pandas and scipy.linalg."""
+    statement = PRELOADED + code + "; print(time.process_time() - t)"
     run = subprocess.run(
         [sys.executable, "-c", statement],
         capture_output=True,
@@ -89,11 +107,7 @@ def main() -> None:
             assert np.array_equal(by_recursion(w, z0), a)
             b = by_banded_solve(w, z0)
             assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(a).max())
-            n = max(1, 200_000 // N)
-            t = [
-                min(timeit.repeat(lambda f=f, w=w, z0=z0: f(w, z0), number=n, repeat=3)) / n
-                for f in (by_lfilter, by_recursion, by_banded_solve)
-            ]
+            t = interleaved((by_lfilter, by_recursion, by_banded_solve), w, z0, ROUNDS)
             print(
                 f"| {C} | {N:.0e} | {t[0] * 1e3:.3f} ms | {t[1] * 1e3:.3f} ms "
                 f"| {t[2] * 1e3:.3f} ms | {t[1] / t[0]:.2f} | {t[2] / t[0]:.2f} |"
@@ -103,7 +117,7 @@ def main() -> None:
         for name, code in START_UP.items():
             times[name].append(start_up(code))
     print()
-    print(f"| start-up (best of {rounds}, after numpy, pandas, scipy.linalg) | seconds |")
+    print(f"| start-up (best of {rounds}, after numpy, pandas, scipy.linalg) | CPU seconds |")
     print("|---|---|")
     for name, seconds in times.items():
         print(f"| {name} | {min(seconds):.2f} s |")
