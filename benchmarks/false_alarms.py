@@ -51,9 +51,9 @@ DEFAULT_SETTINGS = (
 LEVEL = 0.05  # the family-wise level the verdict's tests are judged at (whiteness_alpha)
 
 
-def judge(truth, yaml_path: Path, setting: str) -> dict:
-    """Fit one record as the study does and judge it: the verdict, per criterion whether it
-    applied and passed, and the reasons."""
+def fitted(yaml_path: Path, setting: str, kA: float | None = None):
+    """Fit one record as the study does: its estimate, series and judged fit (``kA``: the
+    static kA replaced by this value, to see what its error does)."""
     from railtherm.config import load_vehicle
     from railtherm.estimation import kvalue
     from railtherm.study import fitsettings, identify, quality, run
@@ -66,8 +66,16 @@ def judge(truth, yaml_path: Path, setting: str) -> dict:
     estimator = setting.split("/")[0]
     model = "order2" if estimator == "output_error" else f"order2{fitsettings.KALMAN_SUFFIX}"
     storage = storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k)
+    if kA is not None:
+        storage = {**storage, "kA_corrected": float(kA)}
     estimate, series = identify.identify(windows, vehicle.data, k, model, storage)
-    checked = quality.check(estimate, series, vehicle.data.get("check"))
+    return estimate, series, quality.check(estimate, series, vehicle.data.get("check"))
+
+
+def judge(truth, yaml_path: Path, setting: str) -> dict:
+    """Fit one record as the study does and judge it: the verdict, per criterion whether it
+    applied and passed, and the reasons."""
+    estimate, _, checked = fitted(yaml_path, setting)
     row = {
         "setting": setting,
         "vehicle": truth.vehicle,

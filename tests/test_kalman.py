@@ -12,7 +12,7 @@ from records import noisy_power_record
 from scipy.integrate import quad_vec
 from scipy.linalg import expm
 
-from railtherm.estimation import filtering, kalman, models, pem
+from railtherm.estimation import diagnostics, filtering, kalman, models, pem
 from railtherm.study import fitsettings, identify
 
 REPO = Path(__file__).resolve().parents[1]
@@ -612,6 +612,40 @@ def test_input_noise_bias_is_removed_and_its_spread_claimed():
     assert plain[:, 0].mean() > 3.0 * plain[:, 0].std(ddof=1) / math.sqrt(len(plain))
     ratio = np.sqrt((claimed**2).mean(axis=0)) / spread
     assert np.all((ratio > 0.6) & (ratio < 1.6)), ratio
+
+
+def test_innovations_with_declared_input_noise_are_the_maximum_likelihood_predictors():
+    """The whiteness check judges the maximum-likelihood predictor. With 1 kW of declared
+    noise on Q_H the compensated estimate moves and its diffusions go to their bound, so the
+    filter at the compensated parameters is no one-step predictor of the record: its
+    innovations fail Ljung-Box (p < 1e-3) on every record. The reported innovations are
+    the maximum-likelihood point's - the same as the fit without the declaration - and pass
+    (p > 0.01)."""
+    options = {"fixed": {"kA": TRAM2["kA"]}, "start": "initial", "initial": TRAM2}
+    for seed in range(3):
+        _, u, y = noisy_power_record(seed)
+        e = pem.Experiment(name="step", dt=60.0, u=u, y=y)
+        plain = kalman.fit(S2, [e], **options)
+        r = kalman.fit(S2, [e], **options, input_noise={"Q_H": 1000.0})
+        assert r.theta["C"] != pytest.approx(plain.theta["C"], rel=1e-3)
+        np.testing.assert_array_equal(r.innovations[0], plain.innovations[0])
+        np.testing.assert_array_equal(r.innovation_var[0], plain.innovation_var[0])
+        at_estimate = kalman.fit(
+            S2,
+            [e],
+            fixed={
+                **r.theta,
+                **{f"sigma_{s}": v for s, v in r.sigma.items()},
+                **{f"s_{o}": v for o, v in r.meas_var.items()},
+            },
+        )
+
+        def ljung_box(fit):
+            z = fit.innovations[0][:, 0] / np.sqrt(fit.innovation_var[0][:, 0])
+            return diagnostics.residual_tests(z).to_dict()["ljung_box_p"]
+
+        assert ljung_box(r) > 0.01
+        assert ljung_box(at_estimate) < 1e-3
 
 
 # ----------------------------------------------------------------------------------------------

@@ -97,7 +97,11 @@ class KalmanResult(Estimate):
     N x n_states), ``residuals`` (measured - simulated, NaN where not compared), ``one_step``
     (the filter's predictions x_{k|k-1}, N x n_states), ``innovations`` (y - C x_{k|k-1},
     N x n_outputs, NaN where not measured), ``innovation_var`` (the diagonal of R_k, N x
-    n_outputs, NaN where not measured).
+    n_outputs, NaN where not measured). These three are the maximum-likelihood predictor's:
+    with declared input noise, at the point the compensation starts from (:func:`fit`) - the
+    compensated parameters remove the input noise's bias from the estimate but are not the
+    best one-step predictor, so their innovations carry the input noise's coloured share and
+    are no test of the stochastic model's whiteness.
 
     ``unknowns`` names every estimated quantity in the order of ``covariance_log`` (the
     inverse observed information: log parameters, log noise parameters, initial states in K).
@@ -338,10 +342,12 @@ def fit(
     v = sol.x
     H = _hessian(lik, v, _gradient(lik, v))
     levels = common.noise_levels(structure, input_noise or {}, experiments)
-    meat = None
+    meat, v_ml = None, v
     if any(levels):
         v, sol, H, meat = _compensated(lik, v, sol, levels, lo, hi)
     result = _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost, meat)
+    if v_ml is not v:  # the one-step predictor is the maximum-likelihood one
+        _one_step_series(result, lik, v_ml)
     result.input_noise_sd = [dict(level) for level in levels] if any(levels) else []
     return result
 
@@ -849,7 +855,6 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
     flags += common.x0_flags(prob, sol, v)
     identified = _identified(flags, free, th, ci, v, lo, hi, bnds)
     # the series at the optimum
-    runs = lik.passes(v, 0, series=True)
     x0s = lik.x0s(v)
     simulated, residuals = _simulated(structure, lik, th, v, x0s)
     sigma, svar = lik.sigma(v), lik.meas_var(v)
@@ -862,7 +867,7 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         }
         for t, j in enumerate(lik.offset_out)
     }
-    return KalmanResult(
+    result = KalmanResult(
         structure=structure.name,
         theta={p: float(th[p]) for p in structure.parameters},
         free=free,
@@ -890,9 +895,6 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         offsets=offsets,
         loglik=-nll,
         n_params=U,
-        innovations=[r.eps for r in runs],
-        innovation_var=[r.rvar for r in runs],
-        one_step=[r.xp for r in runs],
         x0_estimated=[tuple(structure.states[i] for i in d.x0_free) for d in lik.data],
         dt=[float(d.e.dt) for d in lik.data],
         states=tuple(structure.states),
@@ -906,6 +908,7 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         nfev=int(sol.nfev),
         njev=int(sol.njev),
     )
+    return _one_step_series(result, lik, v)
 
 
 def _covariance(H: np.ndarray, keep: np.ndarray, U: int, meat: np.ndarray | None):
@@ -956,6 +959,17 @@ def _identified(flags, free, th, ci, v, lo, hi, bnds):
             at = (side, bnds[p][0] if side == "lower" else bnds[p][1])
         identified[p] = common.identification(th[p], ci[p], at)
     return identified
+
+
+def _one_step_series(result: KalmanResult, lik: Likelihood, v: np.ndarray) -> KalmanResult:
+    """``result``'s one-step predictions, innovations and their variances (the filter's
+    series, :class:`KalmanResult`) at the point v: the optimum, or with declared input noise
+    the maximum-likelihood point the compensation starts from (:func:`fit`)."""
+    runs = lik.passes(v, 0, series=True)
+    result.innovations = [r.eps for r in runs]
+    result.innovation_var = [r.rvar for r in runs]
+    result.one_step = [r.xp for r in runs]
+    return result
 
 
 def _simulated(structure, lik, th, v, x0s):

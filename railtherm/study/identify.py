@@ -82,7 +82,7 @@ def _not_identified(fitted: Mapping[str, Any], structure: models.Structure) -> l
 
 def _static_kA_check(
     structure, exps, options, vehicle_data, kvalue, storage, static
-) -> tuple[dict[str, Any], tuple | None]:
+) -> tuple[dict[str, Any], tuple | None, Any]:
     """Whether the identification records accept the two-stage fit (``static``: its result,
     judged dict and budget), which holds the static kA fixed.
 
@@ -102,8 +102,9 @@ def _static_kA_check(
     the joint kA as far as it likes) leave the two-stage fit in place with a note that says
     so (a verdict reason). Returns the check's record for the fit file (``kA_static``,
     ``kA_joint``, ``z`` per parameter, ``kA_within_static_u``, ``use_joint`` and its
-    ``reason``; with ``note`` where the fit is replaced or in conflict) and, where the joint
-    fit replaces the two-stage one, its (result, judged dict, budget, options), else None."""
+    ``reason``; with ``note`` where the fit is replaced or in conflict), where the joint
+    fit replaces the two-stage one its (result, judged dict, budget, options), else None, and
+    the joint fit's result (None where it failed)."""
     _, fitted, budget = static
     kA_static = float(options["fixed"]["kA"])
     if storage:
@@ -116,7 +117,7 @@ def _static_kA_check(
         joint = _judged_fit(structure, exps, joint_options, vehicle_data, kvalue, None)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:
         record["reason"] = f"the joint fit failed ({err})"
-        return record, None
+        return record, None, None
     kA_joint = float(joint[1]["parameters"]["kA"]["value"])
     z = _differences(structure, (fitted, budget), joint, kA_static)
     undetermined = _not_identified(fitted, structure)
@@ -128,13 +129,13 @@ def _static_kA_check(
     record.update(kA_joint=kA_joint, z=z, u_static_rel=u_static_rel, kA_within_static_u=within)
     if not (undetermined or contradicted):
         record["reason"] = "the records accept the two-stage fit"
-        return record, None
+        return record, None, joint[0]
     if joint_undetermined:
         record["reason"] = (
             f"the joint fit leaves {', '.join(joint_undetermined)} not identified: the "
             "two-stage fit stays"
         )
-        return record, None
+        return record, None, joint[0]
     if not within:
         # two independent measurements of kA disagree beyond the static test's own
         # uncertainty: the records' kA cannot simply replace it (a heat source the model
@@ -147,7 +148,7 @@ def _static_kA_check(
             f"uncertainty ({100 * u_static_rel:.2g} %): a heat source or sink the model lacks, "
             "or a k window that does not measure the loss; the two-stage fit is kept"
         )
-        return record, None
+        return record, None, joint[0]
     agreement = _kA_agreement(kA_joint, kA_static, d_kA, u_static_rel, z["kA"])
     if undetermined:
         record["reason"] = STATIC_UNDETERMINED
@@ -180,7 +181,7 @@ def _static_kA_check(
         p: float(fitted["parameters"][p]["value"]) for p in ("kA", *structure.coupled)
     }
     record.update(use_joint=True, note=note)
-    return record, (*joint, joint_options)
+    return record, (*joint, joint_options), joint[0]
 
 
 def _kA_agreement(kA_joint, kA_static, d_kA, u_static_rel, z_kA) -> str:
@@ -242,6 +243,10 @@ def _differences(structure, static, joint, kA_static: float) -> dict[str, float]
 STATIC_UNDETERMINED = "the static kA left the capacities not identified"
 STATIC_CONTRADICTED = "the records contradict the two-stage fit"
 STATIC_CONFLICT = "the static test and the records disagree"
+# a two-stage Kalman fit's whiteness is judged on the joint fit of its check: the static kA,
+# held fixed, errs within its own uncertainty, and that error alone colours the innovations
+# of a long record; its agreement with the records is the k method's criterion
+WHITENESS_OF_JOINT = "the fit with kA free (the two-stage check's joint fit)"
 
 
 def identify(
@@ -296,10 +301,13 @@ def identify(
         ) from None
     method_notes: list[str] = []
     checked = bool(vehicle_data["model"].get("two_stage_check", True))
+    whiteness_of = result, None
     if checked and "kA" in fixed and kvalue is not None and structure.coupled:
-        check, joint = _static_kA_check(
+        check, joint, joint_result = _static_kA_check(
             structure, exps, options, vehicle_data, kvalue, storage_used, (result, fitted, budget)
         )
+        if joint_result is not None and joint is None:
+            whiteness_of = joint_result, WHITENESS_OF_JOINT
         if joint is not None:
             result, fitted, budget, options = joint
             fixed = options["fixed"]
@@ -340,7 +348,13 @@ def identify(
     if estimator == "kalman":
         series = _innovation_series(structure, series, result)
         alpha = float(check_thresholds(vehicle_data.get("check"))["whiteness_alpha"])
-        estimate["innovations"] = innovation_tests(series, outputs, alpha)
+        judged, of = whiteness_of
+        if of is not None:  # the joint fit's innovations, beside the reported fit's rows
+            judged = _innovation_series(structure, series.iloc[:, :0], judged)
+            estimate["innovations_of"] = of
+        else:
+            judged = series
+        estimate["innovations"] = innovation_tests(judged, outputs, alpha)
         estimate["fit"]["loglik"] = float(result.loglik)
         estimate["fit"]["n_params"] = int(result.n_params)
     return estimate, series

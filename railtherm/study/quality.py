@@ -212,7 +212,9 @@ def innovation_reasons(estimate: Mapping[str, Any], thresholds: Mapping[str, Any
     judged by Holm's procedure (:func:`railtherm.estimation.diagnostics.holm`) at
     ``whiteness_alpha``: with white innovations the fit is put in doubt with probability at
     most that level, however many outputs and tests there are (each test alone at that level
-    would do so up to 2 x outputs times as often)."""
+    would do so up to 2 x outputs times as often). A two-stage fit's tests are those of its
+    check's joint fit (``innovations_of``, :func:`railtherm.study.identify.identify`), named
+    in the reason."""
     from railtherm.estimation import diagnostics
 
     tests = estimate.get("innovations", {})
@@ -221,12 +223,13 @@ def innovation_reasons(estimate: Mapping[str, Any], thresholds: Mapping[str, Any
     adjusted = diagnostics.holm([float(tests[state][key]) for state, key in names])
     held = dict(zip(names, adjusted, strict=True))
     family = f"Holm over {len(names)} tests" if len(names) > 1 else "one test"
+    of = f" of {estimate['innovations_of']}" if estimate.get("innovations_of") else ""
     reasons = []
     for state, t in tests.items():
         lb, cpg = held[(state, "ljung_box_p")], held[(state, "cpg_p")]
         if min(lb, cpg) < alpha:
             reasons.append(
-                f"The one-step innovations of {state} are not white (Ljung-Box p = "
+                f"The one-step innovations of {state}{of} are not white (Ljung-Box p = "
                 f"{t['ljung_box_p']:.3g}, cumulated periodogram p = {t['cpg_p']:.3g}; "
                 f"adjusted {lb:.3g} and {cpg:.3g} by {family}, below the family's level "
                 f"{alpha:g}): the stochastic model misses a dynamic or an input."
@@ -622,6 +625,7 @@ def _record(
         "outputs": estimate["outputs"],
         **({key: fit[key] for key in ("loglik", "n_params", "n_obs")} if kalman else {}),
         **({"innovations": estimate["innovations"]} if kalman else {}),
+        **({"innovations_of": estimate["innovations_of"]} if "innovations_of" in estimate else {}),
         **({"noise": fit["noise"]} if kalman and "noise" in fit else {}),
     }
     return head, tail
