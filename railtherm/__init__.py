@@ -7,7 +7,8 @@ wind tunnel that synthesises campaigns from declared ground truth, and the estim
 The entry points, importable from here (loaded on first use, so that ``import railtherm``
 stays cheap): :func:`load_vehicle` (a validated vehicle config), :func:`fit_vehicle` (one
 vehicle through clean, static k, fit and check), :class:`Fit` and :func:`read_fit` (a
-checked fit: parameters, verdict, ``to_statespace()``, ``simulate()``).
+checked fit: parameters, verdict, ``to_statespace()``, ``simulate()``), and the typed record
+of a fit file it builds on (:class:`FitRecord`, :class:`ParameterEstimate`).
 """
 
 from importlib import import_module
@@ -25,6 +26,8 @@ _LAZY = {
     "Fit": "railtherm.study.fit",
     "read_fit": "railtherm.study.fit",
     "StateSpace": "railtherm.study.fit",
+    "FitRecord": "railtherm.records",
+    "ParameterEstimate": "railtherm.records",
     "fit_vehicle": "railtherm.study.run",
 }
 __all__ = ["ConfigError", "DataError", "RailthermError", "__version__", *_LAZY]

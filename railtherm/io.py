@@ -4,10 +4,11 @@
 Every result file is plain YAML, keys in the order they were written (:func:`write_result`),
 so that a diff of two runs reads like the results. :func:`read_result` gives its content as
 plain data and stops with a :class:`~railtherm.errors.DataError` naming the file when it cannot
-be read or holds no mapping; the typed views build on it (:func:`railtherm.study.fit.read_fit`,
-:meth:`railtherm.estimation.kvalue.KValue.from_dict`). The workflow's scripts, the figures and the
-tables read result files through this module only; it imports no other part of railtherm but its
-errors and the YAML loader.
+be read or holds no mapping. A fit file is read and written as its typed record only
+(:func:`read_fit`, :func:`write_fit`: :class:`railtherm.records.FitRecord`); the other typed
+views build on :func:`read_result` (:meth:`railtherm.estimation.kvalue.KValue.from_dict`). The
+workflow's scripts, the figures and the tables read result files through this module only; it
+imports no other part of railtherm but its errors, the YAML loader and the records.
 """
 
 from __future__ import annotations
@@ -18,10 +19,11 @@ from typing import Any
 
 import yaml
 
-from railtherm.errors import DataError
-from railtherm.yamlio import SafeLoader
+from railtherm.errors import ConfigError, DataError
+from railtherm.records import FitRecord
+from railtherm.yamlio import SafeLoader, read_yaml
 
-__all__ = ["read_result", "write_result"]
+__all__ = ["read_fit", "read_result", "write_fit", "write_result"]
 
 
 def write_result(data: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
@@ -43,3 +45,25 @@ def read_result(path: str | os.PathLike[str]) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise DataError(str(path), "", None, "not a result file: it holds no mapping of keys")
     return data
+
+
+def read_fit(path: str | os.PathLike[str], display: str | None = None) -> FitRecord:
+    """The :class:`~railtherm.records.FitRecord` of a fit file (``fit_<model>.yaml``): the one
+    route from a fit file to the code. The file is read as a user's file is
+    (:func:`railtherm.yamlio.read_yaml`: a missing file, bad YAML or a key given twice is a
+    :class:`~railtherm.errors.ConfigError` naming ``display``, default the path); one that
+    holds no mapping of keys is refused. Whether its content can run a model is the
+    command's check (:func:`railtherm.study.fit.check_fit_file`)."""
+    name = display or str(path)
+    data = read_yaml(path, display=name)
+    if not isinstance(data, Mapping):
+        raise ConfigError(
+            name, "(file)", type(data).__name__, "not a fit file: it holds no mapping of keys"
+        )
+    return FitRecord.from_dict(data)
+
+
+def write_fit(record: FitRecord, path: str | os.PathLike[str]) -> None:
+    """Write a fit's record as ``fit_<model>.yaml`` (:func:`write_result`: plain YAML, keys in
+    the order of the fit)."""
+    write_result(record.to_dict(), path)

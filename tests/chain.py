@@ -27,4 +27,4 @@ def checked_fit(
 ) -> tuple[dict, dict]:
     """(the checked fit of ``model`` as fit_<model>.yaml holds it, the tidy tables)."""
     result = checked_fits(vehicle, [model], workdir)
-    return result.fits[model].data, result.tables
+    return result.fits[model].to_dict(), result.tables

@@ -19,6 +19,7 @@ from chain import checked_fits
 from railtherm import config
 from railtherm.errors import ConfigError
 from railtherm.estimation import outliers
+from railtherm.records import FitRecord
 from railtherm.study import reference
 
 REPO = Path(__file__).resolve().parents[1]
@@ -64,10 +65,10 @@ def test_the_study_fits_pysips_rows_without_touching_the_raw_file(pysip_rows, al
     """The window ends a step before the last row; the raw file keeps all 233 rows."""
     raw = pd.read_csv(RAW)
     assert len(raw) == 233 and raw["Time"].iloc[-1] == GLITCH_TIME
-    fit = pysip_rows.fits["interior_envelope_kalman"].data
+    fit = pysip_rows.fits["interior_envelope_kalman"].to_dict()
     assert fit["rows"] == {"h2": {"rows": 232, "used": {"T": 232}}}
     assert pysip_rows.tables["h2"]["time"].max() == GLITCH_TIME - 1800.0
-    assert all_rows.fits["interior_envelope_kalman"].data["rows"]["h2"]["rows"] == 233
+    assert all_rows.fits["interior_envelope_kalman"].content["rows"]["h2"]["rows"] == 233
     # the glitch: the last sample 0.84 K above the one before, the heating off
     assert raw["T_int"].iloc[-1] - raw["T_int"].iloc[-2] == pytest.approx(0.84, abs=0.01)
     assert raw["P_hea"].iloc[-1] == 0.0
@@ -79,7 +80,7 @@ def test_the_study_fits_pysips_rows_without_touching_the_raw_file(pysip_rows, al
 def test_kalman_fit_on_pysips_rows_is_within_half_a_percent_of_pysip(pysip_rows, anchor, values):
     """Armadillo.yaml's Kalman fit (first-order hold, 232 rows), as the validation study makes
     it: R_o, R_i, C_w and C_i each within 0.5 % of pySIP's."""
-    fit = pysip_rows.fits["interior_envelope_kalman"].data
+    fit = pysip_rows.fits["interior_envelope_kalman"].to_dict()
     assert fit["input_hold"] == "first_order" and fit["estimator"] == "kalman"
     got = pysip_terms(fit)
     for name, value in values.items():
@@ -89,9 +90,9 @@ def test_kalman_fit_on_pysips_rows_is_within_half_a_percent_of_pysip(pysip_rows,
 def test_all_rows_kalman_fit_misses_pysip_by_the_glitch(all_rows, pysip_rows):
     """With the glitch row the outdoor resistance moves by more than 4 % (the difference the
     two fits' rows make, not a difference of the tools)."""
-    got = pysip_terms(all_rows.fits["interior_envelope_kalman"].data)
+    got = pysip_terms(all_rows.fits["interior_envelope_kalman"].content)
     assert got["R_o"] / PYSIP_PUBLISHED["R_o"] - 1 > 0.04
-    same = pysip_terms(pysip_rows.fits["interior_envelope_kalman"].data)
+    same = pysip_terms(pysip_rows.fits["interior_envelope_kalman"].content)
     assert abs(same["R_o"] / PYSIP_PUBLISHED["R_o"] - 1) < 0.005
 
 
@@ -105,7 +106,7 @@ def test_all_rows_kalman_fit_misses_pysip_by_the_glitch(all_rows, pysip_rows):
 def test_the_glitch_row_is_named_by_the_innovations(all_rows, model, statistic):
     """All 233 rows: the last sample's standardized innovation (Kalman) or residual (output
     error) lies beyond the Bonferroni threshold over the record, and the fit's notes name it."""
-    fit = all_rows.fits[model].data
+    fit = all_rows.fits[model].to_dict()
     found = fit["outliers"]["T"]
     assert found["statistic"] == statistic and found["n"] == 233
     assert found["threshold"] == pytest.approx(outliers.bonferroni_threshold(233, 0.05))
@@ -130,7 +131,7 @@ def test_railtherm_fit_prints_the_outlying_samples(capsys):
 
 def test_the_glitch_is_the_kalman_fits_largest_innovation(all_rows):
     """An innovation of about 11 standard deviations: no other sample comes near it."""
-    found = all_rows.fits["interior_envelope_kalman"].data["outliers"]["T"]
+    found = all_rows.fits["interior_envelope_kalman"].content["outliers"]["T"]
     z = sorted(found["samples"], key=lambda s: -abs(s["z"]))
     assert z[0]["time"] == GLITCH_TIME and z[0]["z"] > 8.0
     assert all(abs(s["z"]) < 0.6 * z[0]["z"] for s in z[1:])
@@ -190,9 +191,10 @@ def test_comparison_uses_the_published_uncertainty(pysip_rows, all_rows):
     statistical sd): within the uncertainties on pySIP's rows; the published sd is written
     in the row's unit."""
     ref = reference.load_reference(PUBLISHED / "pysip_armadillo_kalman.yaml")
-    fit = pysip_rows.fits["interior_envelope_kalman"].data
+    fit = pysip_rows.fits["interior_envelope_kalman"].to_dict()
     windows = {"h2": pysip_rows.tables["h2"]}
-    table = reference.compare(ref, fit, windows, pysip_rows.vehicle.data).set_index("quantity")
+    table = reference.compare(ref, FitRecord.from_dict(fit), windows, pysip_rows.vehicle.data)
+    table = table.set_index("quantity")
     K_o = fit["parameters"]["K_o"]
     sd_pub = PYSIP_SD["R_o"] / PYSIP_PUBLISHED["R_o"]
     expected = np.log(K_o["value"] * PYSIP_PUBLISHED["R_o"]) / np.hypot(K_o["sd_log"], sd_pub)
@@ -201,7 +203,7 @@ def test_comparison_uses_the_published_uncertainty(pysip_rows, all_rows):
     assert abs(table.loc["K_o", "z"]) < 0.1 and abs(table.loc["K_i", "z"]) < 0.1
     assert np.isnan(table.loc["C", "z"]) and np.isnan(table.loc["C", "published_sd"])
     assert table.loc["K_o", "rows"] == 232
-    md = reference.markdown(table.reset_index(), [ref], "measured", [fit])
+    md = reference.markdown(table.reset_index(), [ref], "measured", [FitRecord.from_dict(fit)])
     assert f"| K_o | W/K | 56.85 ± {56.85 * sd_pub:.4g} |" in md
     assert "railtherm's fit used 232 rows" in md
 
@@ -213,8 +215,10 @@ def test_a_published_kA_with_its_uncertainty(pysip_rows, tmp_path):
     path = tmp_path / "ref.yaml"
     path.write_text(yaml.safe_dump(data))
     ref = reference.load_reference(path)
-    fit = pysip_rows.fits["interior_envelope_kalman"].data
-    table = reference.compare(ref, fit, {"h2": pysip_rows.tables["h2"]}, pysip_rows.vehicle.data)
+    fit = pysip_rows.fits["interior_envelope_kalman"].to_dict()
+    table = reference.compare(
+        ref, FitRecord.from_dict(fit), {"h2": pysip_rows.tables["h2"]}, pysip_rows.vehicle.data
+    )
     row = table.set_index("quantity").loc["kA"]
     kA = fit["parameters"]["kA"]
     expected = np.log(kA["value"] / 51.0) / np.hypot(kA["sd_log_total"], 1.5 / 51.0)

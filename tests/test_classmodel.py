@@ -83,7 +83,7 @@ VEHICLE = {"id": "V1", "class": "metro", "mass_kg": 36_000, "surface_m2": 250.0}
 
 
 def test_member_from_fit_gives_eqs_24_and_25():
-    m = member_from_fit(Fit(fit_data()), VEHICLE)
+    m = member_from_fit(Fit.from_dict(fit_data()), VEHICLE)
     assert m.usable and m.why == ""
     assert m.c_veh == pytest.approx(1.8e7 / 36_000)  # eq. 24
     assert m.delta == pytest.approx(1.8)  # eq. 25
@@ -98,7 +98,7 @@ def test_member_not_usable_why():
         "limit_value": 1e4,
         "reason": "at its lower bound 1e+04",
     }
-    m = member_from_fit(Fit(fit_data(quality.IN_DOUBT, C=bound)), VEHICLE)
+    m = member_from_fit(Fit.from_dict(fit_data(quality.IN_DOUBT, C=bound)), VEHICLE)
     assert not m.usable and m.delta is None
     assert m.why == (
         "C not identified (at a bound); K_veh, C_veh not identified (coupled to a parameter "
@@ -108,13 +108,13 @@ def test_member_not_usable_why():
     # an estimate flagged at a bound is never used, even where marked identified
     data = fit_data()
     data["flags"] = [{"code": "at_bound", "parameters": ["K_veh"], "message": "..."}]
-    m = member_from_fit(Fit(data), VEHICLE)
+    m = member_from_fit(Fit.from_dict(data), VEHICLE)
     assert not m.usable and m.kappa_veh is None and m.c_veh is None
     assert m.why == (
         "K_veh not identified (at a bound); C, C_veh not identified (coupled to a parameter "
         "not identified)"
     )
-    m = member_from_fit(Fit(fit_data()), {**VEHICLE, "class": "other", "mass_kg": None})
+    m = member_from_fit(Fit.from_dict(fit_data()), {**VEHICLE, "class": "other", "mass_kg": None})
     assert not m.usable and m.why == "no mass_kg" and m.c_veh is None
 
 
@@ -140,10 +140,10 @@ def row_of(**cells) -> dict:
 
 def test_member_from_row_is_member_from_fit():
     # the same vehicle from its Table 2 row and from its fit: one rule, the same member
-    assert member_from_row(row_of(), VEHICLE) == member_from_fit(Fit(fit_data()), VEHICLE)
+    assert member_from_row(row_of(), VEHICLE) == member_from_fit(Fit.from_dict(fit_data()), VEHICLE)
     bound = "not identified: at its lower bound 1e+04"
     m = member_from_row(row_of(verdict=quality.IN_DOUBT, C="", C_status=bound), VEHICLE)
-    fit = Fit(
+    fit = Fit.from_dict(
         fit_data(
             quality.IN_DOUBT,
             C={"identified": False, "reason": bound.removeprefix("not identified: ")},
@@ -164,7 +164,7 @@ def test_member_from_row_is_member_from_fit():
         "parameter not identified)"
     )
     assert m.kappa_veh is None
-    fit = Fit(
+    fit = Fit.from_dict(
         fit_data(K_veh={"identified": False, "reason": unbounded.removeprefix("not identified: ")})
     )
     assert m == member_from_fit(fit, VEHICLE)

@@ -16,6 +16,7 @@ import yaml
 
 from railtherm.config import load_vehicle
 from railtherm.errors import ConfigError
+from railtherm.records import FitRecord
 from railtherm.report import tableformat
 from railtherm.study import aggregate, fitsettings, quality
 from railtherm.study.run import fit_vehicle
@@ -76,9 +77,9 @@ def test_both_estimators_fit_and_write_their_own_files(both):
     }
     for key in result.fits:
         assert (root / "out" / "vehicles" / "Armadillo" / f"fit_{key}.yaml").is_file()
-    kalman = result.fits["interior_envelope_kalman"].data
+    kalman = result.fits["interior_envelope_kalman"].to_dict()
     assert kalman["estimator"] == "kalman"
-    assert result.fits["interior_envelope"].data["estimator"] == "output_error"
+    assert result.fits["interior_envelope"].content["estimator"] == "output_error"
     assert math.isfinite(kalman["loglik"]) and kalman["n_params"] > len(kalman["free"])
     assert set(kalman["innovations"]) == {"T"}
 
@@ -89,7 +90,7 @@ def test_both_estimators_are_judged_by_the_simulation_and_say_by_what(both):
     more than max_rmse_K is in doubt, white innovations or not."""
     result, _ = both
     for key in ("interior_envelope", "interior_envelope_kalman"):
-        fit = result.fits[key].data
+        fit = result.fits[key].to_dict()
         rmse = fit["measures"]["T"]["overall"]["rmse"]
         judged = {c["criterion"]: c for c in fit["criteria"]}
         assert judged["rmse"]["applies"] and judged["rmse"]["passed"] == (rmse <= 0.2), key
@@ -99,7 +100,7 @@ def test_both_estimators_are_judged_by_the_simulation_and_say_by_what(both):
         assert judged["residuals_white"]["applies"] is False  # require_white is off
         assert fit["judged_by"].startswith("R²")
         assert ("RMSE ✗" in fit["judged_by"]) == (rmse > 0.2)
-    kf = result.fits["interior_envelope_kalman"].data
+    kf = result.fits["interior_envelope_kalman"].to_dict()
     white = kf["innovations"]["T"]["white"]
     assert white == (not any("innovations of T are not white" in r for r in kf["reasons"]))
 
@@ -166,11 +167,14 @@ def test_model_selection_considers_only_acceptable_converged_fits():
     small = quality.check(*kalman_estimate(0.05), {})
     large = quality.check(*kalman_estimate(1.0), {})
     large |= {"model": "order2_kalman", "order": 2, "loglik": 500.0, "n_params": 6}
+    small, large = FitRecord.from_dict(small), FitRecord.from_dict(large)
     assert tableformat.model_selection_markdown([small, large]) == ""
     table = aggregate.model_table([small, large], "hand-built")
     assert table["best_aic"].tolist() == [True, False]
     assert table["best_bic"].tolist() == [True, False]
-    unconverged = {**small, "flags": [{"code": "not_converged", "message": "stopped"}]}
+    unconverged = FitRecord.from_dict(
+        {**small.to_dict(), "flags": [{"code": "not_converged", "message": "stopped"}]}
+    )
     table = aggregate.model_table([unconverged, large], "hand-built")
     assert not table["best_aic"].any() and not table["converged"].iloc[0]
     text = tableformat.model_markdown(table, "hand-built")
@@ -179,7 +183,7 @@ def test_model_selection_considers_only_acceptable_converged_fits():
 
 def test_models_table_names_the_estimator_and_marks_indicative_criteria(both):
     result, _ = both
-    fits = [f.data for f in result.fits.values()]
+    fits = list(result.fits.values())
     table = aggregate.model_table(fits, "measured")
     assert sorted(table["estimator"]) == ["kalman", "kalman", "output_error", "output_error"]
     # the information criteria are compared within an estimator, never across, and only
@@ -198,8 +202,8 @@ def test_models_table_names_the_estimator_and_marks_indicative_criteria(both):
 
 def test_the_fit_table_names_the_estimator_only_where_a_fit_is_not_the_papers(both):
     result, _ = both
-    oe = [result.fits[k].data for k in ("order1", "interior_envelope")]
-    kf = [result.fits[k].data for k in ("order1_kalman", "interior_envelope_kalman")]
+    oe = [result.fits[k] for k in ("order1", "interior_envelope")]
+    kf = [result.fits[k] for k in ("order1_kalman", "interior_envelope_kalman")]
     assert "estimator" not in aggregate.fit_table(oe).columns
     table = aggregate.fit_table(oe + kf)
     assert list(table.columns[:3]) == ["vehicle", "order", "estimator"]

@@ -36,10 +36,12 @@ def test_fit_command_reproduces_the_workflow_numbers(tram2, capsys):
         assert fit.verdict == row["verdict"]
         assert fit.R2 == pytest.approx(row["R2"], rel=1e-5)
         for name, p in fit.parameters.items():
-            if p.ci95 is None or name not in table.columns:
+            if p.ci95_combined is None or name not in table.columns:
                 continue
             assert p.value == pytest.approx(row[name], rel=1e-5), name
-            assert p.ci95 == pytest.approx((row[f"{name}_lo"], row[f"{name}_hi"]), rel=1e-5)
+            assert p.ci95_combined == pytest.approx(
+                (row[f"{name}_lo"], row[f"{name}_hi"]), rel=1e-5
+            )
     for name in ("clean/step_up.csv", "kvalue.yaml", "identify/order2.yaml"):
         assert (tram2 / "out/vehicles/Tram2" / name).is_file(), name
 

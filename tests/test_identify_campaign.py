@@ -8,6 +8,7 @@ from chain import checked_fit
 from railtherm import synth
 from railtherm.data import ingest
 from railtherm.estimation import models, pem
+from railtherm.records import FitRecord
 from railtherm.study import aggregate
 
 
@@ -22,7 +23,8 @@ def campaign_fits(campaign_study):
         for vid, vehicle in study.vehicles.items()
     }
     truth = synth.ground_truth_table(campaign)
-    return aggregate.fit_table(list(fits.values()), truth).set_index("vehicle"), fits
+    records = [FitRecord.from_dict(f) for f in fits.values()]
+    return aggregate.fit_table(records, truth).set_index("vehicle"), fits
 
 
 @pytest.fixture(scope="module")

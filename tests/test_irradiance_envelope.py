@@ -171,34 +171,34 @@ def sun_on_envelope(tmp_path_factory) -> Path:
 
 def test_envelope_gain_recovers_the_aperture_and_air_misses_it(sun_on_envelope):
     envelope = fit_file(declare(sun_on_envelope, "envelope"))
-    assert envelope.data["structure"] == "interior_envelope+I_sol@envelope"
+    assert envelope.content["structure"] == "interior_envelope+I_sol@envelope"
     assert envelope.structure == models.structure_for("interior_envelope", ["I_sol@envelope"])
     a = envelope.parameters["a_I_sol"]
-    lo, hi = a.ci95
-    assert lo < TRUTH["a_I_sol"] < hi and hi / lo < 1.5, (a.value, a.ci95)
+    lo, hi = a.ci95_combined
+    assert lo < TRUTH["a_I_sol"] < hi and hi / lo < 1.5, (a.value, a.ci95_combined)
     for p in ("C", "K_i", "C_e", "K_o"):
-        lo, hi = envelope.parameters[p].ci95
+        lo, hi = envelope.parameters[p].ci95_combined
         assert lo < TRUTH[p] < hi, (p, envelope.parameters[p])
-    rmse = envelope.data["measures"]["T"]["overall"]["rmse"]
+    rmse = envelope.content["measures"]["T"]["overall"]["rmse"]
     assert rmse < 0.06, rmse  # the sensor noise, 0.05 K
 
     air = fit_file(declare(sun_on_envelope, "air"))
-    assert air.data["structure"] == "interior_envelope+I_sol"
-    rmse_air = air.data["measures"]["T"]["overall"]["rmse"]
+    assert air.content["structure"] == "interior_envelope+I_sol"
+    rmse_air = air.content["measures"]["T"]["overall"]["rmse"]
     assert rmse_air > 4.0 * rmse, (rmse_air, rmse)  # the sun's delay through the walls
     assert rmse_air > 0.2  # more than the verdict's max_rmse_K: visibly wrong
-    lo, hi = air.parameters["a_I_sol"].ci95
+    lo, hi = air.parameters["a_I_sol"].ci95_combined
     assert not lo < TRUTH["a_I_sol"] < hi
 
 
 def test_shared_gain_recovers_the_share(tmp_path):
     truth = {**TRUTH, "f_I_sol": 0.4}
     fit = fit_file(declare(write_case(tmp_path, "both", truth, seed=12), "both"))
-    assert fit.data["structure"] == "interior_envelope+I_sol@both"
+    assert fit.content["structure"] == "interior_envelope+I_sol@both"
     for p in ("a_I_sol", "f_I_sol"):
-        lo, hi = fit.parameters[p].ci95
+        lo, hi = fit.parameters[p].ci95_combined
         assert lo < truth[p] < hi, (p, fit.parameters[p])
-    assert fit.parameters["f_I_sol"].ci95[1] < 0.6  # clearly neither node alone
+    assert fit.parameters["f_I_sol"].ci95_combined[1] < 0.6  # clearly neither node alone
 
 
 def test_config_refuses_envelope_gain_with_the_first_order_model(sun_on_envelope):

@@ -83,13 +83,13 @@ def test_new_vehicle_reads_the_workbook_as_it_is_and_the_fit_finds_the_truth(wor
     fit = result.fits["order2"]
     # no steady window for the static k test: kA is estimated with the capacities, and the
     # verdict says so (the config's default mode asks for the static test); nothing else
-    assert fit.data["k_source"].startswith("joint estimation"), fit.data["k_source"]
-    failed = [c["criterion"] for c in fit.data["criteria"] if c["applies"] and not c["passed"]]
+    assert fit.content["k_source"].startswith("joint estimation"), fit.content["k_source"]
+    failed = [c["criterion"] for c in fit.content["criteria"] if c["applies"] and not c["passed"]]
     assert failed in ([], ["k_stage"]), (failed, fit.reasons)
     for p, value in TRUTH.items():
         entry = fit.parameters[p]
         assert entry.identified, p
-        assert entry.ci95[0] <= value <= entry.ci95[1], (p, entry)
+        assert entry.ci95_combined[0] <= value <= entry.ci95_combined[1], (p, entry)
         assert entry.value == pytest.approx(value, rel=0.05), p
 
 

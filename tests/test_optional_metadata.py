@@ -331,7 +331,7 @@ def test_railtherm_fit_runs_an_object_without_mass_and_surface(cli_fit, capsys):
     for model in ("order1", "order2", "interior_envelope"):
         result = read_fit(cli_fit / f"fit_{model}.yaml")
         assert result.parameters["kA"].value > 0
-        notes = " ".join(result.data["notes"])
+        notes = " ".join(result.content["notes"])
         assert "no surface_m2" in notes and "no mass_kg" in notes
         assert not any("k = kA / A" in r for r in result.reasons)
         estimate = yaml.safe_load((cli_fit / "identify" / f"{model}.yaml").read_text())
@@ -418,7 +418,7 @@ def test_snakemake_study_with_objects_without_metadata(tmp_path):
     fit2 = read_fit(study / "results" / "vehicles" / "Tram2" / "fit_order2.yaml")
     # kA from the k window (storage-corrected), no surface needed
     assert fit2.k_source == "static test (eq. 10), storage-corrected"
-    assert fit2.data["k_eq10"] is not None and fit2.data["kA_fixed"] == fit2.theta["kA"]
+    assert fit2.content["k_eq10"] is not None and fit2.content["kA_fixed"] == fit2.theta["kA"]
 
 
 def test_railtherm_fit_prints_kA_for_an_object_without_surface_with_a_k_window(tmp_path, capsys):

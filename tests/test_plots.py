@@ -11,8 +11,10 @@ import pandas as pd
 import pytest
 from matplotlib.image import imread
 
+from railtherm import io as rt_io
 from railtherm.config import section_defaults
 from railtherm.estimation import kvalue
+from railtherm.records import FitRecord
 from railtherm.report import plots
 
 SETTINGS = section_defaults("kvalue")  # the schema defaults
@@ -137,7 +139,7 @@ def order1(s):
     return out
 
 
-FIT = {
+FIT_CONTENT = {
     "vehicle": "Tram9",
     "order": 2,
     "verdict": "fit acceptable",
@@ -147,6 +149,7 @@ FIT = {
     "parameters": {"C": {"value": 1.8e7, "estimated": True, "ci95": [1.7e7, 1.9e7]}},
     "synthetic": True,
 }
+FIT = FitRecord.from_dict(FIT_CONTENT)
 
 
 def table3():
@@ -220,12 +223,18 @@ def labels_of(fig):
 
 def test_fit_figure_without_surface_sensors_draws_no_t_veh_line():
     s = series(veh=False)  # T_veh all NaN, T_veh_sim still there
-    fig = plots.fit_figure(s, FIT | {"outputs": ["T"]}, "no surface sensors")
+    fig = plots.fit_figure(
+        s, FitRecord.from_dict(FIT_CONTENT | {"outputs": ["T"]}), "no surface sensors"
+    )
     labels = labels_of(fig)
     assert "T measured" in labels and "T simulated" in labels and "T residual" in labels
     assert not [x for x in labels if "T_veh" in x]
     # a first-order series has no T_veh columns at all
-    labels = labels_of(plots.fit_figure(order1(series()), FIT | {"outputs": ["T"]}, "order 1"))
+    labels = labels_of(
+        plots.fit_figure(
+            order1(series()), FitRecord.from_dict(FIT_CONTENT | {"outputs": ["T"]}), "order 1"
+        )
+    )
     assert not [x for x in labels if "T_veh" in x]
 
 
@@ -233,7 +242,11 @@ def test_fit_figure_draws_t_veh_when_compared_or_measured():
     labels = labels_of(plots.fit_figure(series(), FIT, "compared"))
     assert {"T_veh measured", "T_veh simulated", "T_veh residual"} <= set(labels)
     # measured but not compared: drawn, yet no residual
-    labels = labels_of(plots.fit_figure(series(), FIT | {"outputs": ["T"]}, "measured"))
+    labels = labels_of(
+        plots.fit_figure(
+            series(), FitRecord.from_dict(FIT_CONTENT | {"outputs": ["T"]}), "measured"
+        )
+    )
     assert {"T_veh measured", "T_veh simulated"} <= set(labels)
     assert "T_veh residual" not in labels
 
@@ -265,7 +278,9 @@ def test_fit_figure_lays_two_windows_side_by_side():
 
 
 def test_fit_figure_text_box_and_axis_units():
-    fig = plots.fit_figure(series(), FIT | {"verdict": "assumptions in doubt"}, "box")
+    fig = plots.fit_figure(
+        series(), FitRecord.from_dict(FIT_CONTENT | {"verdict": "assumptions in doubt"}), "box"
+    )
     texts = [t.get_text() for ax in fig.axes for t in ax.texts]
     box = next(t for t in texts if "NRMSE fit" in t)
     lines = box.splitlines()
@@ -504,7 +519,7 @@ def test_vehicle_figures_draws_the_k_figure_and_each_fit_from_their_files(tmp_pa
     s.to_csv(tmp_path / "series.csv", index=False)
     fits = {}
     for key, estimator in (("order2", "output_error"), ("order2_kalman", "kalman")):
-        fit = FIT | {"structure": "second_order", "estimator": estimator}
+        fit = FIT_CONTENT | {"structure": "second_order", "estimator": estimator}
         (tmp_path / f"fit_{key}.yaml").write_text(yaml.safe_dump(fit))
         fits[key] = {
             "fit": str(tmp_path / f"fit_{key}.yaml"),
@@ -518,7 +533,7 @@ def test_vehicle_figures_draws_the_k_figure_and_each_fit_from_their_files(tmp_pa
         "result": str(tmp_path / "kvalue.yaml"),
         "png": str(tmp_path / "out" / "kvalue.png"),
     }
-    drawn = plots.vehicle_figures("Tram9", kvalue=kfiles, fits=fits, synthetic=True)
+    drawn = plots.vehicle_figures("Tram9", kvalue=kfiles, fit_files=fits, synthetic=True)
     assert drawn == [
         "k figure of Tram9",
         "fit figure of Tram9, second_order",
@@ -542,7 +557,7 @@ def test_vehicle_figures_draws_the_k_figure_and_each_fit_from_their_files(tmp_pa
         ("order2", "Tram9: second-order model (eqs. 7-8)"),
         ("order2_kalman", "Tram9: second-order model (eqs. 7-8), Kalman-filter estimator"),
     ):
-        fit = yaml.safe_load((tmp_path / f"fit_{key}.yaml").read_text())
+        fit = rt_io.read_fit(tmp_path / f"fit_{key}.yaml")
         plots.save_figure(plots.fit_figure(read, fit, title, synthetic=True), direct / key)
         for ext in ("png", "svg"):
             assert (out / f"fit_{key}.{ext}").read_bytes() == (direct / f"{key}.{ext}").read_bytes()

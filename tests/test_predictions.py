@@ -59,7 +59,7 @@ def second_order_fit(vehicle: str, theta: dict, identified: bool = True) -> Fit:
             "sd_log": 0.025,
             "identified": identified or p != "C",
         }
-    return Fit(
+    return Fit.from_dict(
         {
             "vehicle": vehicle,
             "model": "order2",

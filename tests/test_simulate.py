@@ -61,7 +61,7 @@ def scenario(
 
 def first_order_fit(kA: float = 800.0, C_bar: float = 3.0e7) -> Fit:
     """A first-order fit (eq. 9) with exact parameters and no uncertainty."""
-    return Fit(
+    return Fit.from_dict(
         {
             "vehicle": "Box",
             "model": "order1",
@@ -269,13 +269,15 @@ def test_band_follows_the_fits_uncertainty(fit_files):
     fit = read_fit(fit_files("Metro1", "order2")[0])
     sc = scenario(24 * 3600.0, 120.0, -20.0, heating_W=50_000.0, heat_up_to_C=10.0)
     wide = sim.simulate(fit, sc, draws=400, seed=2).outcomes["heat_up_time_s"]
-    tight_data = {**fit.data}
+    tight_data = {**fit.to_dict()}
     tight_data["parameters"] = {
         p: {**e, **({"sd_log": e["sd_log"] / 10} if "sd_log" in e else {})}
-        for p, e in fit.data["parameters"].items()
+        for p, e in fit.content["parameters"].items()
     }
     tight_data["systematic"] = {"effects_log": {}, "effects_log_fixed": {}}
-    tight = sim.simulate(Fit(tight_data), sc, draws=400, seed=2).outcomes["heat_up_time_s"]
+    tight = sim.simulate(Fit.from_dict(tight_data), sc, draws=400, seed=2).outcomes[
+        "heat_up_time_s"
+    ]
     assert (tight.hi - tight.lo) < 0.3 * (wide.hi - wide.lo)
     assert tight.lo < tight.value < tight.hi
 
@@ -292,11 +294,11 @@ def test_kalman_process_noise_widens_the_band(fit_files):
     acceptable: a fit in doubt carries no band (test_simulate_limits.py), and it is the
     noise's contribution that is tested here, not this fit's verdict."""
     fit = read_fit(fit_files("Armadillo", "order2_kalman")[0])
-    fit = Fit({**fit.data, "verdict": "fit acceptable"})
+    fit = Fit.from_dict({**fit.to_dict(), "verdict": "fit acceptable"})
     sc = scenario(48 * 3600.0, 1800.0, 5.0, heating_W=300.0, heat_up_to_C=12.0)
     with_noise = sim.simulate(fit, sc, draws=300, seed=4)
-    data = {k: v for k, v in fit.data.items() if k != "noise"}
-    without = sim.simulate(Fit(data), sc, draws=300, seed=4)
+    data = {k: v for k, v in fit.content.items() if k != "noise"}
+    without = sim.simulate(Fit.from_dict(data), sc, draws=300, seed=4)
     assert "process noise (kalman estimator)" in with_noise.band_sources
     w = with_noise.series["T_hi"] - with_noise.series["T_lo"]
     wo = without.series["T_hi"] - without.series["T_lo"]
@@ -314,13 +316,13 @@ def test_band_of_a_campaign_fit_holds_the_prediction_of_the_truth(fit_files, veh
     truth = synth.ground_truth_table(campaign).set_index("vehicle").loc[vehicle]
     assert not truth["deviations"], "a vehicle without a declared deviation"
     fit = read_fit(fit_files(vehicle, "order2")[0])
-    true_data = {**fit.data, "parameters": {}}
+    true_data = {**fit.to_dict(), "parameters": {}}
     true_data["parameters"] = {
         p: {"value": float(truth[p]), "estimated": False} for p in ("kA", "C", "K_veh", "C_veh")
     }
     sc = scenario(24 * 3600.0, 60.0, -20.0, heating_W=50_000.0, heat_up_to_C=10.0)
     band = sim.simulate(fit, sc, draws=300, seed=5).outcomes["heat_up_time_s"]
-    true = sim.simulate(Fit(true_data), sc, draws=0).outcomes["heat_up_time_s"].value
+    true = sim.simulate(Fit.from_dict(true_data), sc, draws=0).outcomes["heat_up_time_s"].value
     assert band.lo <= true <= band.hi
     assert (band.hi - band.lo) / band.value < 0.25
 
@@ -330,7 +332,7 @@ def test_irradiance_enters_through_the_fitted_aperture():
     the scenario's irradiance adds a_I_sol * I to the heat balance; one the model lacks is
     refused, and one the scenario leaves out is said to be taken as 0."""
     kA, a = 800.0, 3.0
-    fit = Fit(
+    fit = Fit.from_dict(
         {
             "vehicle": "Box",
             "model": "order1",

@@ -48,7 +48,7 @@ def fit(
             "sd_log": sd,
             "identified": True,
         }
-    return Fit(
+    return Fit.from_dict(
         {
             "vehicle": vehicle,
             "model": "order2",

@@ -12,6 +12,7 @@ import pytest
 
 from railtherm.data import ingest
 from railtherm.estimation import models
+from railtherm.records import FitRecord
 from railtherm.study import sindy
 
 TRAM2 = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
@@ -105,24 +106,29 @@ def test_measurement_noise_at_the_campaign_level_keeps_the_verdicts():
 
 
 def test_grey_box_bounds_from_a_fit_contain_its_coefficients():
-    fit = {
+    """Interval arithmetic over the parameters' intervals; an entry written without its
+    identification is judged by its interval, so an unbounded C_veh implies no coefficient."""
+    content = {
         "parameters": {
             "kA": {"value": 979.2},
             "C": {"value": 1.8e7, "ci95": [1.5e7, 2.2e7]},
             "K_veh": {"value": 974.0, "ci95": [800.0, 1200.0]},
-            "C_veh": {"value": 1.0e7, "ci95": [0.0, float("inf")]},
+            "C_veh": {"value": 1.0e7, "ci95": [0.5e7, 2.0e7]},
         }
     }
-    xi, lo, hi = sindy.grey_box_from_fit(fit)
+    xi, lo, hi = sindy.grey_box_from_fit(FitRecord.from_dict(content))
     assert np.all(lo <= xi) and np.all(xi <= hi)
     assert lo[0, 3] == pytest.approx(1000 / 2.2e7 * 3600)  # 1/C at the largest C
-    assert lo[1, 0] == 0.0 and np.isinf(hi[1, 0])  # K_veh/C_veh with C_veh in [0, inf]
+    assert lo[1, 0] == pytest.approx(800.0 / 2.0e7 * 3600)  # K_veh/C_veh at its smallest
+    content["parameters"]["C_veh"]["ci95"] = [0.0, float("inf")]
+    xi, lo, hi = sindy.grey_box_from_fit(FitRecord.from_dict(content))
+    assert np.isnan(xi[1, 0]) and lo[1, 0] == -np.inf and hi[1, 0] == np.inf
 
 
 def test_the_yaml_says_which_terms_were_kept_and_why():
     A, B = body_to_outdoor(300.0)
     vehicle = {"id": "X", "synthetic": True}
-    fit = {"parameters": {p: {"value": v} for p, v in TRAM2.items()}}
+    fit = FitRecord.from_dict({"parameters": {p: {"value": v} for p, v in TRAM2.items()}})
     data = sindy.for_vehicle(vehicle, [experiment(A, B)], fit, FAST)
     assert data["verdict"] == sindy.CONTRADICTED and data["synthetic"] is True
     kept = {(t["equation"], t["term"]) for t in data["terms"] if t["kept"]}
@@ -179,14 +185,16 @@ def test_without_the_stage_pysindy_is_never_imported():
 def test_no_coefficient_is_implied_from_a_parameter_the_data_do_not_determine():
     """K_veh at its upper bound: K_veh/C and K_veh/C_veh are not implied (NaN, unbounded), and
     kA/C, 1/C still are."""
-    fit = {
-        "parameters": {
-            "kA": {"value": 900.0, "estimated": False},
-            "C": {"value": 1e7, "ci95": [0.9e7, 1.1e7], "identified": True},
-            "K_veh": {"value": 1e7, "ci95": [0.0, float("inf")], "identified": False},
-            "C_veh": {"value": 2e7, "ci95": [1.8e7, 2.2e7], "identified": True},
+    fit = FitRecord.from_dict(
+        {
+            "parameters": {
+                "kA": {"value": 900.0, "estimated": False},
+                "C": {"value": 1e7, "ci95": [0.9e7, 1.1e7], "identified": True},
+                "K_veh": {"value": 1e7, "ci95": [0.0, float("inf")], "identified": False},
+                "C_veh": {"value": 2e7, "ci95": [1.8e7, 2.2e7], "identified": True},
+            }
         }
-    }
+    )
     xi, lo, hi = sindy.grey_box_from_fit(fit)
     assert np.isnan(xi[0, 1]) and np.isnan(xi[1, 0])  # dT/dt: T_veh, dT_veh/dt: T
     assert lo[1, 0] == -np.inf and hi[1, 0] == np.inf

@@ -131,8 +131,8 @@ def test_three_systems_aligned_on_utc_are_fitted_with_the_truth_inside_the_inter
     for name in ("C", "K_veh", "C_veh"):
         truth = TRUTH[name]
         p = fit.parameters[name]
-        assert p.identified and p.ci95 is not None, str(p)
-        assert p.ci95[0] <= truth <= p.ci95[1], f"{p} (truth {truth:g})"
+        assert p.identified and p.ci95_combined is not None, str(p)
+        assert p.ci95_combined[0] <= truth <= p.ci95_combined[1], f"{p} (truth {truth:g})"
         assert abs(p.value / truth - 1.0) < 0.05, f"{p} (truth {truth:g})"
 
 
@@ -332,7 +332,7 @@ def test_a_clock_left_undeclared_is_found_and_puts_the_fit_in_doubt(record):
     the verdict names the key to declare; declared, the flag is gone."""
     vehicle_yaml(record, **{"sources.power.format.time.start": CABIN_START.isoformat()})
     fit = run.fit_vehicle(load(record), ["order2"], workdir=record).fits["order2"]
-    power = fit.data["clocks"]["power"]
+    power = fit.content["clocks"]["power"]
     assert abs(power["offset_s"] - METER_EARLY_S) <= 30.0, power
     assert power["significant"], power
     assert fit.verdict != "fit acceptable"
@@ -342,7 +342,7 @@ def test_a_clock_left_undeclared_is_found_and_puts_the_fit_in_doubt(record):
     vehicle_yaml(record)
     fit = run.fit_vehicle(load(record), ["order2"], workdir=record).fits["order2"]
     assert fit.verdict == "fit acceptable", fit.reasons
-    assert abs(fit.data["clocks"]["power"]["offset_s"]) < 30.0
+    assert abs(fit.content["clocks"]["power"]["offset_s"]) < 30.0
 
 
 def test_new_vehicle_on_the_three_files_writes_a_yaml_that_fits_once_its_todos_are_filled(
@@ -392,8 +392,8 @@ def test_new_vehicle_on_the_three_files_writes_a_yaml_that_fits_once_its_todos_a
     fit = result.fits["order2"]
     for name, truth in TRUTH.items():
         p = fit.parameters[name]
-        assert p.identified and p.ci95 is not None, str(p)
-        assert p.ci95[0] <= truth <= p.ci95[1], f"{p} (truth {truth:g})"
+        assert p.identified and p.ci95_combined is not None, str(p)
+        assert p.ci95_combined[0] <= truth <= p.ci95_combined[1], f"{p} (truth {truth:g})"
 
 
 @pytest.mark.bad_input

@@ -8,11 +8,12 @@ import pandas as pd
 import pytest
 
 from railtherm.estimation import pem
+from railtherm.records import FitRecord
 from railtherm.report import tableformat
 from railtherm.study import aggregate, smallsample
 
 
-def fit(
+def fit_content(
     C,
     K_veh,
     C_veh,
@@ -25,7 +26,7 @@ def fit(
     r2=0.99,
     pinned=None,
 ):
-    """A fit_order2.yaml-like dict; sd_log for (C, K_veh, C_veh), corr of C and C_veh;
+    """The content of a fit_order2.yaml; sd_log for (C, K_veh, C_veh), corr of C and C_veh;
     ``pinned``: {parameter: ("lower" | "upper", bound)} for estimates at a bound."""
     free = ["C", "K_veh", "C_veh"]
     R = np.eye(3)
@@ -55,6 +56,11 @@ def fit(
         "correlation": R.tolist(),
         "systematic": {"effects_log": effects or {}},
     }
+
+
+def fit(*args, **kwargs) -> FitRecord:
+    """The record of :func:`fit_content`'s fit file."""
+    return FitRecord.from_dict(fit_content(*args, **kwargs))
 
 
 def vehicle(cls, mass=30_000.0, A=300.0, windows=1, synthetic=True):
@@ -244,22 +250,22 @@ def test_a_hand_built_fit_at_a_bound_is_judged_with_its_coupling():
         assert not judged[p]["identified"] and judged[p]["coupled_to"] == ["C"]
     assert judged["kA"]["identified"]  # fixed from the static test, not coupled
     total = aggregate.fit_totals(f)["C_total"]
-    assert total["identified"] and total["held_at_bound"] == ["C"]
+    assert total.identified and total.held_at_bound == ("C",)
     # C held at its bound: the sum's spread is C_veh's, weighted by its share of the sum
     w = 5.7e6 / (5.7e6 + 1e4)
-    assert total["sd_log_total"] == pytest.approx(w * 0.3)
+    assert total.sd_log_total == pytest.approx(w * 0.3)
     # every part at a bound: a sum of bounds is nothing the data give
     both = fit(1e4, 500, 1e4, pinned={"C": ("lower", 1e4), "C_veh": ("lower", 1e4)})
-    assert not aggregate.fit_totals(both)["C_total"]["identified"]
+    assert not aggregate.fit_totals(both)["C_total"].identified
     upper = fit(1e7, 500, 1e10, pinned={"C_veh": ("upper", 1e10)})
-    assert not aggregate.fit_totals(upper)["C_total"]["identified"]
+    assert not aggregate.fit_totals(upper)["C_total"].identified
 
 
 def test_the_total_capacity_follows_the_covariance_and_the_systematic_effects():
     independent = fit(1e7, 500, 1e7, sd=(0.2, 0.1, 0.2), corr=0.0)
     anti = fit(1e7, 500, 1e7, sd=(0.2, 0.1, 0.2), corr=-0.9)
-    sd0 = aggregate.fit_totals(independent)["C_total"]["sd_log_total"]
-    sd1 = aggregate.fit_totals(anti)["C_total"]["sd_log_total"]
+    sd0 = aggregate.fit_totals(independent)["C_total"].sd_log_total
+    sd1 = aggregate.fit_totals(anti)["C_total"].sd_log_total
     assert sd0 == pytest.approx(math.sqrt(0.25 * 0.04 * 2))
     assert sd1 == pytest.approx(math.sqrt(0.25 * 0.04 * 2 * (1 - 0.9)))  # C + C_veh is firmer
     moved = fit(
@@ -270,7 +276,7 @@ def test_the_total_capacity_follows_the_covariance_and_the_systematic_effects():
         corr=0.0,
         effects={"C": {"scale_Q_H": 0.1}, "C_veh": {"scale_Q_H": 0.3}},
     )
-    sd2 = aggregate.fit_totals(moved)["C_total"]["sd_log_total"]
+    sd2 = aggregate.fit_totals(moved)["C_total"].sd_log_total
     assert sd2 == pytest.approx(math.sqrt(sd0**2 + (0.5 * 0.1 + 0.5 * 0.3) ** 2))
 
 
@@ -280,7 +286,9 @@ def test_the_total_capacity_is_checked_against_the_first_order_C_bar():
 
     def order1(C_bar):
         ci = [C_bar * math.exp(-0.2), C_bar * math.exp(0.2)]
-        return {"parameters": {"C_bar": {"value": C_bar, "estimated": True, "ci95": ci}}}
+        return FitRecord.from_dict(
+            {"parameters": {"C_bar": {"value": C_bar, "estimated": True, "ci95": ci}}}
+        )
 
     first = {"A": order1(3.1e7), "B": order1(9e7)}
     t2 = aggregate.table2(fits, {v: kv(2.0) for v in vehicles}, vehicles, first).set_index(
@@ -301,7 +309,7 @@ def test_an_interval_spanning_more_than_a_factor_1000_in_total_is_not_an_estimat
     # judged on the total, not per side: a factor 1424 with each side within 1000 of the value
     assert not pem.identification(18_466.0, (489.0, 696_797.0))["identified"]
     f = fit(1e7, 500, 2e7, sd=(0.1, 4.0, 0.1))  # K_veh: exp(2 * 1.96 * 4) > 1000
-    assert f["parameters"]["K_veh"]["identified"] is False
+    assert f.parameters["K_veh"].identified is False
     t2 = aggregate.table2({"A": f}, {"A": kv(2.0)}, {"A": vehicle("metro")})
     assert math.isnan(t2.iloc[0]["K_veh"]) and t2.iloc[0]["K_veh_status"].startswith(
         "not identified: 95 % interval spans a factor"
@@ -319,13 +327,17 @@ def test_truth_comparison_splits_inside_the_interval_from_within_tolerance():
     truth = pd.DataFrame(
         {"vehicle": ["x"], "C": [1e7], "K_veh": [500.0], "C_veh": [2e7], "deviations": [""]}
     )
-    good = fit(1.08e7, 500, 2e7, sd=(0.1, 0.2, 0.01)) | {"nrmse_fit": 0.9, "flags": []}
+    good = FitRecord.from_dict(
+        fit_content(1.08e7, 500, 2e7, sd=(0.1, 0.2, 0.01)) | {"nrmse_fit": 0.9, "flags": []}
+    )
     row = aggregate.fit_table([good], truth).iloc[0]
     assert row["C_inside"] and not row["C_within_tolerance"]  # 8 % off, inside +-20 %
     assert row["C_veh_inside"] and row["C_veh_within_tolerance"]
     assert row["C_total_truth"] == 3e7 and row["C_total_inside"]
     assert row["C_recovered"] and row["K_veh_recovered"] and row["C_veh_recovered"]
-    wide = fit(1e7, 5e4, 2e7, sd=(0.1, 5.0, 0.1)) | {"nrmse_fit": 0.9, "flags": []}
+    wide = FitRecord.from_dict(
+        fit_content(1e7, 5e4, 2e7, sd=(0.1, 5.0, 0.1)) | {"nrmse_fit": 0.9, "flags": []}
+    )
     row = aggregate.fit_table([wide], truth).iloc[0]
     # K_veh not identified, C and C_veh coupled to it: none compared with the truth
     for p in ("C", "K_veh", "C_veh"):

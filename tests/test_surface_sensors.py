@@ -79,20 +79,20 @@ def fits(case):
 
 def test_measured_envelope_is_compared_and_narrows_C_e(fits):
     plain, wall = fits["unmeasured"], fits["measured"]
-    assert plain.data["outputs"] == ["T"] and wall.data["outputs"] == ["T", "T_e"]
+    assert plain.content["outputs"] == ["T"] and wall.content["outputs"] == ["T", "T_e"]
     assert plain.series["T_e"].isna().all()
     # T_e's measurement is the surface sensor's cleaned mean (the tidy column T_veh)
     assert wall.series["T_e"].notna().all()
-    residual = wall.data["measures"]["T_e"]["overall"]["rmse"]
+    residual = wall.content["measures"]["T_e"]["overall"]["rmse"]
     assert residual < 1.3 * NOISE_K, residual
     # its calibration offset is a source of the systematic budget, like T_veh's
-    assert "offset_T_e" in wall.data["systematic"]["sources"]
-    assert "offset_T_e" not in plain.data["systematic"]["sources"]
+    assert "offset_T_e" in wall.content["systematic"]["sources"]
+    assert "offset_T_e" not in plain.content["systematic"]["sources"]
     widths = {}
     for name, fit in fits.items():
         for p, truth in TRUTH.items():
             assert abs(fit.parameters[p].value / truth - 1.0) < 0.05, (name, fit.parameters[p])
-        lo, hi = fit.parameters["C_e"].ci95
+        lo, hi = fit.parameters["C_e"].ci95_combined
         assert lo < TRUTH["C_e"] < hi, (name, fit.parameters["C_e"])
         widths[name] = np.log(hi / lo)
     assert widths["measured"] < 0.85 * widths["unmeasured"], widths

@@ -19,6 +19,7 @@ from snakemake_run import snakemake
 from railtherm import config, structures
 from railtherm.data import ingest
 from railtherm.errors import ConfigError
+from railtherm.records import FitRecord
 from railtherm.study import fitsettings, identify, reference
 
 REPO = Path(__file__).resolve().parents[1]
@@ -152,7 +153,9 @@ def test_solar_input_is_estimated_with_an_interval():
 def test_reference_comparison_on_the_armadillo_data(armadillo_fit):
     vehicle, checked, tables = armadillo_fit
     ref = reference.load_reference(PYSIP)
-    table = reference.compare(ref, checked, tables, vehicle.data).set_index("quantity")
+    table = reference.compare(ref, FitRecord.from_dict(checked), tables, vehicle.data).set_index(
+        "quantity"
+    )
     # pySIP's own parameters through railtherm's simulator reproduce pySIP's printed fit:
     # both tools read the same data and the same model
     assert table.loc["nrmse_fit", "published_simulated"] == pytest.approx(PYSIP_NRMSE_FIT, abs=0.01)
@@ -163,7 +166,9 @@ def test_reference_comparison_on_the_armadillo_data(armadillo_fit):
     md = reference.markdown(table.reset_index(), [ref], "measured")
     assert "NRMSE fit" in md and "R² (eq. 21)" in md and "pySIP" in md
     with pytest.raises(ValueError, match="compared with the fit"):
-        reference.compare(ref, {**checked, "model": "order2"}, tables, vehicle.data)
+        reference.compare(
+            ref, FitRecord.from_dict({**checked, "model": "order2"}), tables, vehicle.data
+        )
 
 
 def test_a_reference_of_any_published_subset_compares_with_blanks(armadillo_fit, tmp_path):
@@ -174,7 +179,9 @@ def test_a_reference_of_any_published_subset_compares_with_blanks(armadillo_fit,
     data["parameters"] = {"kA": 51.0, "a_I_sol": 2.5}
     path = tmp_path / "ref.yaml"
     path.write_text(yaml.safe_dump(data))
-    table = reference.compare(reference.load_reference(path), checked, tables, vehicle.data)
+    table = reference.compare(
+        reference.load_reference(path), FitRecord.from_dict(checked), tables, vehicle.data
+    )
     table = table.set_index("quantity")
     assert table.loc["kA", "published"] == 51.0
     assert abs(table.loc["kA", "ratio"] - 1) < 0.10

@@ -38,6 +38,7 @@ from railtherm.estimation.acf import autocorrelation
 from railtherm.estimation.diagnostics import cumulated_periodogram
 from railtherm.estimation.kvalue import KValue
 from railtherm.estimation.metrics import ljung_box
+from railtherm.records import FitRecord
 from railtherm.report.figurebase import (
     COLORS,
     DPI,
@@ -221,20 +222,20 @@ def _fmt(x: Any, digits: int) -> str:
     return f"{value:.{digits}f}" if np.isfinite(value) else "n/a"
 
 
-def _fit_text(fit: Mapping[str, Any]) -> str:
+def _fit_text(fit: FitRecord) -> str:
     """R^2 (eq. 21) and NRMSE fit of T (as in the fit file) and the verdict."""
     return "\n".join(
         [
-            f"R² of T (eq. 21) = {_fmt(fit.get('R2'), 4)}",
-            f"NRMSE fit of T = {_fmt(fit.get('nrmse_fit'), 3)}",
-            f"verdict: {fit.get('verdict', 'n/a')}",
+            f"R² of T (eq. 21) = {_fmt(fit.content.get('R2'), 4)}",
+            f"NRMSE fit of T = {_fmt(fit.nrmse_fit, 3)}",
+            f"verdict: {fit.content.get('verdict', 'n/a')}",
         ]
     )
 
 
 def fit_figure(
     series: pd.DataFrame,
-    fit: Mapping[str, Any],
+    fit: FitRecord,
     title: str,
     *,
     synthetic: bool = False,
@@ -244,10 +245,10 @@ def fit_figure(
     on one side-by-side time axis; legends and a box with R^2 (eq. 21), the NRMSE fit and the
     verdict stand right of the panels.
 
-    ``series`` is an ``order{n}_series.csv`` table, ``fit`` the ``fit_order{n}.yaml`` mapping.
-    T_veh is drawn when it was compared (``"T_veh" in fit["outputs"]``) or measured."""
+    ``series`` is an ``order{n}_series.csv`` table, ``fit`` the record of ``fit_order{n}.yaml``.
+    T_veh is drawn when it was compared (``"T_veh" in fit.outputs``) or measured."""
     lay = lay_windows(series)
-    outputs = [str(o) for o in (fit.get("outputs") or ["T"])]
+    outputs = [str(o) for o in (fit.outputs or ("T",))]
     with matplotlib.rc_context(RC):
         fig = Figure(figsize=FIGSIZE_IN, dpi=DPI, layout="constrained")
         FigureCanvasAgg(fig)
@@ -498,7 +499,7 @@ def vehicle_figures(
     vehicle: str,
     *,
     kvalue: Mapping[str, str] | None = None,
-    fits: Mapping[str, Mapping[str, str]] | None = None,
+    fit_files: Mapping[str, Mapping[str, str]] | None = None,
     synthetic: bool = False,
 ) -> list[str]:
     """Draw every figure of one vehicle from its result files, as PNG and SVG: the record with
@@ -507,7 +508,7 @@ def vehicle_figures(
     innovations (:func:`innovation_figure`).
 
     ``kvalue``: the files ``record`` and ``window`` (tidy tables), ``result`` (kvalue.yaml) and
-    ``png`` (the figure's PNG path; the SVG beside it), or None. ``fits``: per model key the
+    ``png`` (the figure's PNG path; the SVG beside it), or None. ``fit_files``: per model key the
     files ``fit`` (fit_<key>.yaml), ``series`` (its measured vs simulated series), ``png`` and,
     for a Kalman-filter fit, ``innovations_png``. Returns what was drawn, a line per figure.
     """
@@ -523,26 +524,26 @@ def vehicle_figures(
         )
         save_figure(figure, kvalue["png"].removesuffix(".png"))
         drawn.append(f"k figure of {vehicle}")
-    for files in (fits or {}).values():
-        fit = rt_io.read_result(files["fit"])
+    for files in (fit_files or {}).values():
+        fit = rt_io.read_fit(files["fit"])
         series = pd.read_csv(files["series"])
-        fit_synthetic = bool(fit.get("synthetic", False))
-        model = structures.of_fit(fit["structure"]).title
-        if fit.get("estimator") == "kalman":
+        fit_synthetic = fit.synthetic
+        model = structures.of_fit(fit.structure_name).title
+        if fit.estimator == "kalman":
             model += ", Kalman-filter estimator"
-        figure = fit_figure(series, fit, f"{fit['vehicle']}: {model}", synthetic=fit_synthetic)
+        figure = fit_figure(series, fit, f"{fit.vehicle}: {model}", synthetic=fit_synthetic)
         save_figure(figure, files["png"].removesuffix(".png"))
-        drawn.append(f"fit figure of {fit['vehicle']}, {fit['structure']}")
+        drawn.append(f"fit figure of {fit.vehicle}, {fit.structure_name}")
         if "innovations_png" in files:
-            names = list(fit["outputs"])
+            names = list(fit.outputs)
             innovation_figure(
                 series["time"].to_numpy(float),
                 series[[f"{s}_innovation" for s in names]].to_numpy(float),
                 series[[f"{s}_innovation_sd" for s in names]].to_numpy(float),
-                title=f"{fit['vehicle']}: {fit['structure']}, Kalman-filter estimator",
+                title=f"{fit.vehicle}: {fit.structure_name}, Kalman-filter estimator",
                 path=files["innovations_png"],
                 names=names,
                 synthetic=fit_synthetic,
             )
-            drawn.append(f"innovation figure of {fit['vehicle']}, {fit['structure']}")
+            drawn.append(f"innovation figure of {fit.vehicle}, {fit.structure_name}")
     return drawn

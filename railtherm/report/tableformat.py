@@ -17,13 +17,14 @@ import pandas as pd
 
 from railtherm import structures
 from railtherm.estimation import common
+from railtherm.records import FitRecord
 from railtherm.report.tables import round_significant, write_csv
 from railtherm.study.aggregate import ESTIMATED, NOT_GIVEN, is_not_given, selectable
 
 ESTIMATOR_LABEL = {"output_error": "output error", "kalman": "Kalman ML"}
 
 
-def model_selection_markdown(fits: Sequence[Mapping[str, Any]], alpha: float = 0.05) -> str:
+def model_selection_markdown(fits: Sequence[FitRecord], alpha: float = 0.05) -> str:
     """Per vehicle with two or more kalman fits that are acceptable and converged (a fit in
     doubt or unconverged is no candidate): the forward selection of its nested
     structures by likelihood-ratio tests
@@ -34,24 +35,24 @@ def model_selection_markdown(fits: Sequence[Mapping[str, Any]], alpha: float = 0
     from railtherm.estimation import diagnostics
     from railtherm.study.fitsettings import split_key
 
-    by_vehicle: dict[str, list] = {}
+    by_vehicle: dict[str, list[FitRecord]] = {}
     for fit in fits:
-        if fit.get("estimator") == "kalman" and selectable(fit):
-            by_vehicle.setdefault(fit["vehicle"], []).append(fit)
+        if fit.estimator == "kalman" and selectable(fit):
+            by_vehicle.setdefault(fit.vehicle, []).append(fit)
     parts = []
     for vehicle, kfits in by_vehicle.items():
-        keys = {split_key(f["model"])[0]: f for f in kfits}
+        keys = {split_key(f.model)[0]: f for f in kfits}
         if len(keys) < 2:
             continue
         nesting = [
             (small, large, boundary)
             for small, large, boundary in structures.nesting()
-            if small in keys and large in keys and keys[large]["n_params"] > keys[small]["n_params"]
+            if small in keys and large in keys and keys[large].n_params > keys[small].n_params
         ]
         if not nesting:  # e.g. order2 and interior_envelope without order1: not nested
             continue
         nested = {name for link in nesting for name in link[:2]}
-        candidates = [(k, f["loglik"], f["n_params"]) for k, f in keys.items() if k in nested]
+        candidates = [(k, f.loglik, f.n_params) for k, f in keys.items() if k in nested]
         selection = diagnostics.forward_selection(candidates, nesting, alpha)
         parts.append(diagnostics.selection_markdown(vehicle, selection))
     return "\n".join(parts)

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from railtherm.estimation import models, pem
+from railtherm.records import FitRecord, ParameterEstimate
 from railtherm.study import identifiability
 from railtherm.study.quality import ACCEPTABLE
 from railtherm.study.smallsample import t_interval, two_class_test
@@ -107,29 +108,25 @@ RECOVERY_TOLERANCE = {"C": 0.05, "K_veh": 0.10, "C_veh": 0.05, "C_total": 0.05}
 TOTAL = "C_total"  # C + C_veh (eqs. 7-8), the capacity the first-order C_bar lumps (eq. 9)
 
 
-def fit_structure(fit: Mapping[str, Any]) -> models.Structure | None:
+def fit_structure(fit: FitRecord) -> models.Structure | None:
     """The structure of a written fit (``structure``, irradiance inputs stripped); a fit
     without the key but with C, K_veh and C_veh is the second-order model (eqs. 7-8)."""
-    name = str(fit.get("structure") or "").split("+")[0]
-    if not name and {"C", "K_veh", "C_veh"} <= set(fit["parameters"]):
+    name = fit.structure_name.split("+")[0]
+    if not name and {"C", "K_veh", "C_veh"} <= set(fit.parameters):
         name = "second_order"
     return models.STRUCTURES.get(name)
 
 
-def judged_parameters(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
-    """{param: identification} of a written fit: each estimated parameter as
-    :func:`railtherm.study.identifiability.parameter_identification` judges it, then the structure's
-    coupled parameters together (``Structure.coupled``,
+def judged_parameters(fit: FitRecord) -> dict[str, Mapping[str, Any]]:
+    """{param: identification} of a written fit: each estimated parameter as the fit file
+    records it (:attr:`railtherm.records.ParameterEstimate.identification`), then the
+    structure's coupled parameters together (``Structure.coupled``,
     :func:`railtherm.study.identifiability.coupled_identification`):
     a capacity or the internal conductance coupled to one the data do not determine is not an
     estimate either. A fixed parameter (kA from the static test) is identified."""
-    judged = {
-        p: (
-            identifiability.parameter_identification(e)
-            if e.get("estimated")
-            else {"identified": True}
-        )
-        for p, e in fit["parameters"].items()
+    judged: dict[str, Mapping[str, Any]] = {
+        p: e.identification if e.estimated else {"identified": True}
+        for p, e in fit.parameters.items()
     }
     structure = fit_structure(fit)
     if structure is not None:
@@ -138,19 +135,20 @@ def judged_parameters(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
     return judged
 
 
-def fit_totals(fit: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
+def fit_totals(fit: FitRecord) -> dict[str, ParameterEstimate]:
     """The totals of a written fit (``totals``: C_total = C + C_veh with its 95 % interval),
     as recorded, or computed from its parameters, correlation and systematic effects
     (:func:`railtherm.study.identifiability.total_capacity`) for a fit written without them."""
-    if fit.get("totals"):
-        return dict(fit["totals"])
+    if fit.totals:
+        return fit.totals
     structure = fit_structure(fit)
-    params = fit["parameters"]
+    params = fit.parameters
     out = {}
     for name, parts in (structure.totals if structure is not None else {}).items():
-        if all(params.get(p, {}).get("estimated") for p in parts):
-            effects = (fit.get("systematic") or {}).get("effects_log")
-            out[name] = identifiability.total_capacity(fit, parts, effects)
+        if all(p in params and params[p].estimated for p in parts):
+            effects = fit.section("systematic").get("effects_log")
+            entry = identifiability.total_capacity(fit.content, parts, effects)
+            out[name] = ParameterEstimate.from_entry(name, entry)
     return out
 
 
@@ -159,7 +157,7 @@ def intervals_overlap(a: Sequence[float], b: Sequence[float]) -> bool:
     return bool(float(a[0]) <= float(b[1]) and float(b[0]) <= float(a[1]))
 
 
-def total_vs_C_bar(total: Mapping[str, Any] | None, C_bar: Mapping[str, Any] | None) -> str:
+def total_vs_C_bar(total: ParameterEstimate | None, C_bar: ParameterEstimate | None) -> str:
     """C_total = C + C_veh of the second-order fit against C_bar of the first-order fit of the
     same vehicle, the same capacity by eq. 9: "overlap" when their 95 % intervals meet,
     "disjoint" when not, "not comparable: <why>" when either is not an estimate."""
@@ -168,13 +166,12 @@ def total_vs_C_bar(total: Mapping[str, Any] | None, C_bar: Mapping[str, Any] | N
     if C_bar is None:
         return "not comparable: no first-order fit"
     for name, entry in ((TOTAL, total), ("C_bar", C_bar)):
-        judged = identifiability.parameter_identification(entry)
-        if not judged.get("identified", True):
+        if not entry.identified:
             return f"not comparable: {name} not identified"
-    return "overlap" if intervals_overlap(total["ci95"], C_bar["ci95"]) else "disjoint"
+    return "overlap" if intervals_overlap(total.ci95_combined, C_bar.ci95_combined) else "disjoint"
 
 
-def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) -> pd.DataFrame:
+def fit_table(fits: Sequence[FitRecord], truth: pd.DataFrame | None = None) -> pd.DataFrame:
     """One row per vehicle and model order: verdict, R^2 (eq. 21), NRMSE fit, how k was
     obtained, every parameter with its 95 % interval, the flags; the total capacity C_total =
     C + C_veh of a second-order fit (``C_total``, ``_lo``, ``_hi``, ``_status``) and whether
@@ -189,47 +186,46 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
     data do not determine is never compared with the truth (all three False)."""
     truth_by_id = truth.set_index("vehicle") if truth is not None else None
     first_order = {
-        (f["vehicle"], f.get("estimator", "output_error")): f["parameters"].get("C_bar")
+        (f.vehicle, f.estimator): f.parameters["C_bar"]
         for f in fits
-        if "C_bar" in f["parameters"] and f["parameters"]["C_bar"].get("estimated")
+        if "C_bar" in f.parameters and f.parameters["C_bar"].estimated
     }
     rows = []
     for fit in fits:
         row: dict[str, Any] = {
-            "vehicle": fit["vehicle"],
-            "order": fit["order"],
-            "verdict": fit["verdict"],
-            "judged_by": fit.get("judged_by", ""),
-            "R2": fit["R2"],
-            "nrmse_fit": fit["nrmse_fit"],
-            "k_source": fit["k_source"],
+            "vehicle": fit.vehicle,
+            "order": fit.order,
+            "verdict": fit.verdict,
+            "judged_by": fit.judged_by,
+            "R2": fit.R2,
+            "nrmse_fit": fit.nrmse_fit,
+            "k_source": fit.k_source,
         }
         judged = judged_parameters(fit)
+        params = fit.parameters
         for p in PARAMETERS:
-            entry = fit["parameters"].get(p)
+            entry = params.get(p)
             if entry is None:
                 row |= {p: math.nan, f"{p}_lo": math.nan, f"{p}_hi": math.nan, f"{p}_status": ""}
-            elif not entry.get("estimated"):  # held fixed (kA from the static test)
-                value = float(entry["value"])
+            elif not entry.estimated:  # held fixed (kA from the static test)
+                value = entry.value
                 row |= {p: value, f"{p}_lo": math.nan, f"{p}_hi": math.nan, f"{p}_status": "fixed"}
             else:
-                q = quantity(entry["value"], entry["ci95"], judged[p])
+                q = quantity(entry.value, entry.ci95_combined, judged[p])
                 row |= {f"{p}{suffix}": q[suffix] for suffix in ("", "_lo", "_hi", "_status")}
         total = fit_totals(fit).get(TOTAL)
         if total is None:
             row |= {TOTAL: math.nan, f"{TOTAL}_lo": math.nan, f"{TOTAL}_hi": math.nan}
             row |= {f"{TOTAL}_status": "", f"{TOTAL}_vs_C_bar": ""}
         else:
-            q = quantity(
-                total["value"], total["ci95"], identifiability.parameter_identification(total)
-            )
+            q = quantity(total.value, total.ci95_combined, total.identification)
             row |= {f"{TOTAL}{suffix}": q[suffix] for suffix in ("", "_lo", "_hi", "_status")}
-            key = (fit["vehicle"], fit.get("estimator", "output_error"))
+            key = (fit.vehicle, fit.estimator)
             row[f"{TOTAL}_vs_C_bar"] = total_vs_C_bar(total, first_order.get(key))
-        row["flags"] = ";".join(sorted({f["code"] for f in fit["flags"]}))
-        known = truth_by_id is not None and fit["vehicle"] in truth_by_id.index
-        if known and fit["order"] == 2:
-            t = truth_by_id.loc[fit["vehicle"]]
+        row["flags"] = ";".join(sorted({f["code"] for f in fit.flags}))
+        known = truth_by_id is not None and fit.vehicle in truth_by_id.index
+        if known and fit.order == 2:
+            t = truth_by_id.loc[fit.vehicle]
             row["deviations"] = "" if pd.isna(t["deviations"]) else t["deviations"]
             for p, tol in RECOVERY_TOLERANCE.items():
                 true = float(t["C"] + t["C_veh"]) if p == TOTAL else float(t[p])
@@ -246,7 +242,7 @@ def fit_table(fits: list[Mapping[str, Any]], truth: pd.DataFrame | None = None) 
                 }
         rows.append(row)
     table = pd.DataFrame(rows)
-    estimators = [fit.get("estimator", "output_error") for fit in fits]
+    estimators = [fit.estimator for fit in fits]
     if any(e != "output_error" for e in estimators):  # said where it is not the paper's
         table.insert(table.columns.get_loc("order") + 1, "estimator", estimators)
     return table
@@ -259,7 +255,7 @@ WHITENESS_ALPHA = packaged_schema("vehicle")["properties"]["check"]["properties"
 ]["default"]
 
 
-def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
+def model_table(fits: Sequence[FitRecord], source: str) -> pd.DataFrame:
     """Every fitted model of every vehicle side by side (rule compare_models): the overall
     heat-loss coefficient kA with its 95 % interval and how it was obtained, and the measures of
     the simulated T (the one output every structure shares): R^2 (eq. 21), NRMSE fit, RMSE,
@@ -272,27 +268,27 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
     dependent residuals as independent samples."""
     rows = []
     for fit in fits:
-        T = dict(fit["measures"]["T"]["overall"])
-        estimator = fit.get("estimator", "output_error")
+        T = dict(fit.section("measures")["T"]["overall"])
+        estimator = fit.estimator
         if estimator == "kalman":  # the criteria of its likelihood, the tests of its innovations
             from railtherm.estimation.diagnostics import information_criteria
 
-            T |= information_criteria(fit["loglik"], fit["n_params"], fit["n_obs"])
-            T["p"] = fit["n_params"]
-            T["ljung_box_p"] = fit["innovations"]["T"]["ljung_box_p"]
-        kA = fit["parameters"].get("kA", {})
-        if kA.get("estimated"):
-            q = quantity(kA["value"], kA["ci95"], identifiability.parameter_identification(kA))
+            T |= information_criteria(fit.loglik, fit.n_params, fit.n_obs)
+            T["p"] = fit.n_params
+            T["ljung_box_p"] = fit.section("innovations")["T"]["ljung_box_p"]
+        kA = fit.parameters.get("kA")
+        if kA is not None and kA.estimated:
+            q = quantity(kA.value, kA.ci95_combined, kA.identification)
         else:  # fixed from the static test
-            q = {"": kA.get("value", math.nan), "_lo": math.nan, "_hi": math.nan}
-            q["_status"] = "fixed" if kA else ""
+            q = {"": math.nan if kA is None else kA.value, "_lo": math.nan, "_hi": math.nan}
+            q["_status"] = "fixed" if kA is not None else ""
         rows.append(
             {
-                "vehicle": fit["vehicle"],
-                "model": fit["model"],
+                "vehicle": fit.vehicle,
+                "model": fit.model,
                 "estimator": estimator,
-                "structure": fit["structure"],
-                "k_source": fit["k_source"],
+                "structure": fit.structure_name,
+                "k_source": fit.k_source,
                 "kA": q[""],
                 "kA_lo": q["_lo"],
                 "kA_hi": q["_hi"],
@@ -305,8 +301,8 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
                 "bic": T["bic"],
                 "ljung_box_p": T["ljung_box_p"],
                 "effective_samples": T["effective_samples"],
-                "verdict": fit["verdict"],
-                "judged_by": fit.get("judged_by", ""),
+                "verdict": fit.verdict,
+                "judged_by": fit.judged_by,
                 "converged": converged(fit),
                 "source": source,
             }
@@ -328,15 +324,15 @@ def model_table(fits: list[Mapping[str, Any]], source: str) -> pd.DataFrame:
     return df
 
 
-def converged(fit: Mapping[str, Any]) -> bool:
+def converged(fit: FitRecord) -> bool:
     """Whether the fit's solver ended at a clean optimum (no ``not_converged`` flag)."""
-    return not any(f["code"] == "not_converged" for f in fit.get("flags", ()))
+    return not any(f["code"] == "not_converged" for f in fit.flags)
 
 
-def selectable(fit: Mapping[str, Any]) -> bool:
+def selectable(fit: FitRecord) -> bool:
     """Whether a fit is a candidate of model selection (the lowest AIC / BIC, the forward
     selection): acceptable and converged."""
-    return fit["verdict"] == ACCEPTABLE and converged(fit)
+    return fit.verdict == ACCEPTABLE and converged(fit)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -450,18 +446,18 @@ def _ratio_limit(num: tuple[str, float], den: tuple[str, float]) -> tuple[str, f
     return (kinds.pop() if kinds else "point"), num[1] / den[1]
 
 
-def _part(entry: Mapping[str, Any], judged: Mapping[str, Any]) -> tuple[str, float]:
+def _part(entry: ParameterEstimate, judged: Mapping[str, Any]) -> tuple[str, float]:
     if judged.get("identified", True):
-        return "point", float(entry["value"])
+        return "point", entry.value
     limit = judged.get("limit_value")
     return judged["limit"], math.nan if limit is None else float(limit)
 
 
 def table2(
-    fits: Mapping[str, Mapping[str, Any]],
+    fits: Mapping[str, FitRecord],
     kvalues: Mapping[str, Mapping[str, Any] | None],
     vehicles: Mapping[str, Mapping[str, Any]],
-    first_order: Mapping[str, Mapping[str, Any]] | None = None,
+    first_order: Mapping[str, FitRecord] | None = None,
 ) -> pd.DataFrame:
     """Table 2: per vehicle k (W/(m^2 K)), C (J/K), K_veh (W/K), C_veh (J/K) and R^2 (eq. 21) of
     the second-order model, each estimate with its 95 % interval and its status, the verdict
@@ -485,62 +481,63 @@ def table2(
     rows = []
     for vid in by_class(vehicles):
         vehicle, fit = vehicles[vid], fits[vid]
-        params = fit["parameters"]
+        params = fit.parameters
         judged = judged_parameters(fit)
         A = None if vehicle.get("surface_m2") is None else float(vehicle["surface_m2"])
         kv = kvalues.get(vid)
         if A is None:
             k = not_given("surface_m2")
-        elif params["kA"]["estimated"] or kv is None:
+        elif params["kA"].estimated or kv is None:
             entry = params["kA"]
             judged_kA = dict(judged["kA"])
             if judged_kA.get("limit_value") is not None:
                 judged_kA["limit_value"] = judged_kA["limit_value"] / A
-            ci = [c / A for c in entry.get("ci95", (math.nan, math.nan))]
-            k = quantity(entry["value"] / A, ci, judged_kA)
+            ci = [c / A for c in entry.ci95_combined or (math.nan, math.nan)]
+            k = quantity(entry.value / A, ci, judged_kA)
         else:
             U = COVERAGE_FACTOR * float(kv["u_k"])
             k = quantity(float(kv["k"]), (float(kv["k"]) - U, float(kv["k"]) + U), {})
         row: dict[str, Any] = {"vehicle": vid, "class": vehicle["class"]}
         row |= _columns("k", k)
-        row["k_source"] = fit["k_source"]
+        row["k_source"] = fit.k_source
         for p in ("C", "K_veh", "C_veh"):
             entry = params[p]
-            row |= _columns(p, quantity(entry["value"], entry["ci95"], judged[p]))
+            row |= _columns(p, quantity(entry.value, entry.ci95_combined, judged[p]))
         total = fit_totals(fit).get(TOTAL)
         if total is None:
             row |= _columns(TOTAL, quantity(math.nan, (math.nan, math.nan), {}))
         else:
-            judged_total = identifiability.parameter_identification(total)
-            row |= _columns(TOTAL, quantity(total["value"], total["ci95"], judged_total))
-        C_bar = (first_order.get(vid) or {}).get("parameters", {}).get("C_bar")
-        if C_bar is None or not C_bar.get("estimated"):
+            row |= _columns(TOTAL, quantity(total.value, total.ci95_combined, total.identification))
+        lumped = first_order.get(vid)
+        C_bar = None if lumped is None else lumped.parameters.get("C_bar")
+        if C_bar is None or not C_bar.estimated:
             row |= _columns("C_bar", quantity(math.nan, (math.nan, math.nan), {}))
             C_bar = None
         else:
-            judged_C_bar = identifiability.parameter_identification(C_bar)
-            row |= _columns("C_bar", quantity(C_bar["value"], C_bar["ci95"], judged_C_bar))
+            row |= _columns(
+                "C_bar", quantity(C_bar.value, C_bar.ci95_combined, C_bar.identification)
+            )
         row[f"{TOTAL}_vs_C_bar"] = total_vs_C_bar(total, C_bar)
         row |= {
-            "R2": float(fit["R2"]),
-            "verdict": fit["verdict"],
+            "R2": fit.R2,
+            "verdict": fit.verdict,
             "source": SYNTHETIC_SOURCE if vehicle.get("synthetic", False) else MEASURED_SOURCE,
         }
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def _sd_log_ratio(fit: Mapping[str, Any], num: str, den: str) -> float:
+def _sd_log_ratio(fit: FitRecord, num: str, den: str) -> float:
     """sd of log(num / den): statistical part from the fit's sd_log and correlation, systematic
     part from the signed effects of each type-B source (a source shifts both at once)."""
-    params = fit["parameters"]
-    free = list(fit["free"])
-    corr = np.asarray(fit["correlation"], dtype=float)
-    sd_n, sd_d = float(params[num]["sd_log"]), float(params[den]["sd_log"])
+    params = fit.parameters
+    free = list(fit.free)
+    corr = fit.correlation
+    sd_n, sd_d = float(params[num].sd_log), float(params[den].sd_log)
     rho = corr[free.index(num), free.index(den)]
     rho = 0.0 if not np.isfinite(rho) else float(rho)
     var = sd_n**2 + sd_d**2 - 2.0 * rho * sd_n * sd_d
-    effects = fit.get("systematic", {}).get("effects_log", {})
+    effects = fit.section("systematic").get("effects_log", {})
     e_n, e_d = effects.get(num, {}), effects.get(den, {})
     for source in sorted(set(e_n) | set(e_d)):  # fixed order: the same bits every run
         var += (float(e_n.get(source, 0.0)) - float(e_d.get(source, 0.0))) ** 2
@@ -549,7 +546,7 @@ def _sd_log_ratio(fit: Mapping[str, Any], num: str, den: str) -> float:
 
 def table3(
     t2: pd.DataFrame,
-    fits: Mapping[str, Mapping[str, Any]],
+    fits: Mapping[str, FitRecord],
     vehicles: Mapping[str, Mapping[str, Any]],
 ) -> pd.DataFrame:
     """Table 3: c_veh = C_veh / m_veh (eq. 24, J/(kg K)) and delta = C_veh / C (eq. 25) with
@@ -567,7 +564,7 @@ def table3(
         t2["vehicle"], t2["class"], t2["verdict"], t2["source"], strict=True
     ):
         fit = fits[vid]
-        params = fit["parameters"]
+        params = fit.parameters
         judged = judged_parameters(fit)
         mass = vehicles[vid].get("mass_kg")
         m = math.nan if mass is None else float(mass)
@@ -576,7 +573,7 @@ def table3(
         if mass is None:
             c_veh = not_given("mass_kg")
         elif c_kind == "point":
-            ci = [c / m for c in C_veh["ci95"]]
+            ci = [c / m for c in C_veh.ci95_combined]
             c_veh = quantity(c_value, ci, pem.identification(c_value, ci))
         else:
             reason = f"C_veh {judged['C_veh']['reason']}"
@@ -607,7 +604,7 @@ def table3(
 def table1(
     vehicles: Mapping[str, Mapping[str, Any]],
     kvalues: Mapping[str, Mapping[str, Any] | None],
-    fits: Mapping[str, Mapping[str, Any]],
+    fits: Mapping[str, FitRecord],
 ) -> pd.DataFrame:
     """Table 1: per class, how many vehicles had a static k test, how many of those were
     steady (usable), how many identification windows the fits used, how many vehicles' C,
@@ -633,7 +630,7 @@ def table1(
                 for vid in ids
             ),
             "vehicles evaluated (fit acceptable)": sum(
-                fits[vid]["verdict"] == ACCEPTABLE for vid in ids
+                fits[vid].verdict == ACCEPTABLE for vid in ids
             ),
         }
     rows = []
@@ -778,11 +775,11 @@ def class_test(
 
 
 def study_tables(
-    fits: Mapping[str, Mapping[str, Any]],
+    fits: Mapping[str, FitRecord],
     kvalues: Mapping[str, Mapping[str, Any] | None],
     vehicles: Mapping[str, Mapping[str, Any]],
     class_test_groups: Sequence[str] = ("metro", "regional"),
-    first_order: Mapping[str, Mapping[str, Any]] | None = None,
+    first_order: Mapping[str, FitRecord] | None = None,
 ) -> dict[str, pd.DataFrame]:
     """Tables 1-3, the class summary and the class test from the second-order fits;
     ``first_order``: the vehicles' first-order fits, whose C_bar Table 2 sets beside C_total."""

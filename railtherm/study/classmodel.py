@@ -229,7 +229,6 @@ def _unidentified(fit: Fit) -> dict[str, str]:
     flagged ``at_bound`` counts even when marked identified: a fit whose estimate sits at a
     bound is never used."""
     params = fit.parameters
-    entries = fit.data.get("parameters") or {}
     pinned = {
         p for f in fit.flags if f.get("code") == "at_bound" for p in f.get("parameters") or ()
     }
@@ -238,7 +237,7 @@ def _unidentified(fit: Fit) -> dict[str, str]:
         if p in pinned:
             out[p] = AT_BOUND
         elif not params[p].identified:
-            out[p] = _kind(str((entries.get(p) or {}).get("reason", "")))
+            out[p] = _kind(str(params[p].identification.reason or ""))
     return out
 
 
@@ -251,12 +250,12 @@ def member_from_fit(fit: Fit, vehicle: Mapping[str, Any]) -> ClassMember:
         raise ConfigError(
             f"fit of {fit.vehicle}", "vehicle", fit.vehicle, f"is not the config's vehicle {vid!r}"
         )
-    base = str(fit.data.get("structure", "")).split("+")[0]
+    base = fit.structure_name.split("+")[0]
     if base != STRUCTURE:
         raise ConfigError(
             f"fit of {vid}",
             "structure",
-            fit.data.get("structure"),
+            fit.structure_name or None,
             f"a class reference model needs the second-order fit ({STRUCTURE}, eqs. 7-8)",
         )
     params = fit.parameters
@@ -270,7 +269,7 @@ def member_from_fit(fit: Fit, vehicle: Mapping[str, Any]) -> ClassMember:
         {p: params[p].value for p in FIT_PARAMETERS},
         _unidentified(fit),
         fit.verdict,
-        bool(vehicle.get("synthetic", False) or fit.data.get("synthetic", False)),
+        bool(vehicle.get("synthetic", False) or fit.synthetic),
     )
 
 

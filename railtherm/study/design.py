@@ -753,7 +753,7 @@ def residual_noise(fit) -> tuple[dict[str, float], dict[str, float]] | None:
     if records is None:
         return None
     structure = fit.structure
-    outputs = [s for s in (fit.data.get("outputs") or []) if f"{s}_residual" in fit.series]
+    outputs = [s for s in fit.outputs if f"{s}_residual" in fit.series]
     if not outputs:
         return None
     runs, step_s = records
@@ -795,7 +795,7 @@ def prior_from_fit(fit) -> Prior:
     samples of that record: the programme is taken at the same logger step), with the slow
     shapes of its systematic errors taken out where the fit's series is at hand
     (:func:`residual_noise`), else as its measures give them."""
-    measures = fit.data.get("measures") or {}
+    measures = fit.section("measures")
     noise = {s: float(m["overall"]["rmse"]) for s, m in measures.items()}
     tau = {s: float(m["overall"].get("autocorrelation_time", 1.0)) for s, m in measures.items()}
     separated = residual_noise(fit)
@@ -814,7 +814,7 @@ def _read_with_series(path: str | Path):
     from railtherm.study.fit import check_fit_file, read_fit
 
     fit = read_fit(path)
-    check_fit_file(path, fit.data)
+    check_fit_file(path, fit)
     series = Path(path).parent / "identify" / f"{fit.model}_series.csv"
     return read_fit(path, series) if series.is_file() else fit
 
@@ -836,7 +836,7 @@ def residuals_of(fits) -> tuple[dict[str, float], dict[str, float]]:
     for fit in fits:
         if fit.verdict != ACCEPTABLE:
             continue
-        measures = fit.data.get("measures") or {}
+        measures = fit.section("measures")
         levels = residual_noise(fit) or (
             {s: float(m["overall"]["rmse"]) for s, m in measures.items()},
             {s: float(m["overall"].get("autocorrelation_time", 1)) for s, m in measures.items()},

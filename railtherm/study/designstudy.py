@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from railtherm.study import design
+from railtherm.study.fit import Fit
 
 __all__ = [
     "BUDGET_SOURCES",
@@ -62,7 +63,7 @@ STEP_H = 24.0  # each step phase before scaling
 def systematic_of(fit) -> dict[str, float]:
     """The standard uncertainties of the fit's systematic sources, as a programme names them
     (:data:`BUDGET_SOURCES`); sources of other kinds are left out."""
-    sources = (fit.data.get("systematic") or {}).get("sources") or {}
+    sources = fit.section("systematic").get("sources") or {}
     return {BUDGET_SOURCES[k]: float(v) for k, v in sources.items() if k in BUDGET_SOURCES}
 
 
@@ -118,7 +119,7 @@ def _class_prior(members, vehicle: Mapping[str, Any], vid: str, fits, draws: int
 
 
 def vehicle_rows(
-    fits: Mapping[str, Any],
+    fits: Mapping[str, Fit],
     kvalues: Mapping[str, Mapping[str, Any] | None],
     vehicles: Mapping[str, Mapping[str, Any]],
     members: Sequence[Any],
@@ -180,10 +181,11 @@ def vehicle_rows(
         hours = sum(len(r.u) for r in records[0]) * records[1] / 3600.0 if records else math.nan
         for p in CHECKED:
             par = fit.parameters.get(p)
-            identified = par is not None and par.identified and par.ci95 is not None
+            ci = None if par is None else par.ci95_combined
+            identified = par is not None and par.identified and ci is not None
             realised = (
-                math.sqrt(par.ci95[1] / par.ci95[0]) - 1.0 if identified else math.nan
-            )  # exp of the interval's log half-width, less 1
+                math.sqrt(ci[1] / ci[0]) - 1.0 if identified else math.nan
+            )  # exp of the combined interval's log half-width, less 1
             predicted = own.half_width[p] if own is not None and own.identifiable[p] else math.nan
             lo, med, hi, share = spread.get(p, (math.nan,) * 4)
             rows.append(

@@ -45,6 +45,7 @@ import numpy as np
 
 from railtherm.errors import ConfigError
 from railtherm.study import simulate as sim
+from railtherm.study.fit import Fit
 from railtherm.study.weather import Weather, on_grid
 from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_schema
 
@@ -597,7 +598,7 @@ def no_acceptable_fit(verdicts: Mapping[str, str]) -> str:
 
 
 def study_rows(
-    fits: Mapping[str, Any],
+    fits: Mapping[str, Fit],
     vehicles: Mapping[str, Mapping[str, Any]],
     weathers: Sequence[Weather],
     profile: Profile,

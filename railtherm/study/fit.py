@@ -1,11 +1,11 @@
-"""A checked fit of one grey-box model to one vehicle, as an object.
+"""A checked fit of one grey-box model to one vehicle, as a model.
 
-:class:`Fit` is what ``fit_<model>.yaml`` holds (the rule ``check``'s output): the parameters
-with their 95 % intervals and the explicit "not identified" state, the flags, the fit
-measures (R^2 of eq. 21) and the verdict; with the identified model as a continuous
-state-space system (:meth:`Fit.to_statespace`, eqs. 7-8 or 9) and a simulator
-(:meth:`Fit.simulate`, exact zero-order hold as in eq. 15). :func:`read_fit` and
-:meth:`Fit.write` are the one place the file is read and written.
+:class:`Fit` is the :class:`~railtherm.records.FitRecord` of ``fit_<model>.yaml`` (the rule
+``check``'s output: the parameters with their 95 % intervals and the explicit "not
+identified" state, the flags, the fit measures (R^2 of eq. 21) and the verdict) with the
+identified model as a continuous state-space system (:meth:`Fit.to_statespace`, eqs. 7-8 or
+9) and a simulator (:meth:`Fit.simulate`, exact zero-order hold as in eq. 15). :func:`read_fit`
+and :meth:`Fit.write` read and write the file through :mod:`railtherm.io`.
 """
 
 from __future__ import annotations
@@ -21,51 +21,7 @@ import pandas as pd
 
 from railtherm import io as results_io
 from railtherm.estimation import models, outliers
-from railtherm.study import identifiability
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """One parameter of a fit (SI units). ``estimated``: True (by PEM), False (fixed, e.g. kA
-    from the static test, eq. 10) or "derived" (kA of losses in series). ``ci95`` is the
-    combined 95 % interval (statistical and systematic), None for a fixed parameter.
-    ``identified`` is False where the data do not determine the value: then ``limit``
-    ("upper" | "lower" | "none") and ``limit_value`` say what the data do bound, ``reason``
-    why (a bound of the search, an interval too wide, or coupled to such a parameter)."""
-
-    name: str
-    value: float
-    estimated: bool | str
-    ci95: tuple[float, float] | None = None
-    identified: bool = True
-    limit: str | None = None
-    limit_value: float | None = None
-    reason: str = ""
-
-    @classmethod
-    def from_entry(cls, name: str, entry: Mapping[str, Any]) -> Parameter:
-        ident = identifiability.parameter_identification(entry)
-        ci = entry.get("ci95")
-        return cls(
-            name=name,
-            value=float(entry["value"]),
-            estimated=entry.get("estimated", True),
-            ci95=None if ci is None else (float(ci[0]), float(ci[1])),
-            identified=bool(ident["identified"]),
-            limit=ident.get("limit"),
-            limit_value=ident.get("limit_value"),
-            reason=str(ident.get("reason", "")),
-        )
-
-    def __str__(self) -> str:
-        if not self.identified:
-            if self.limit in ("upper", "lower") and self.limit_value is not None:
-                side = {"upper": "at most", "lower": "at least"}[self.limit]
-                return f"{self.name}: not identified ({side} {self.limit_value:.3g})"
-            return f"{self.name}: not identified ({self.reason or 'no limit the data give'})"
-        if self.ci95 is None:
-            return f"{self.name} = {self.value:.4g} (fixed)"
-        return f"{self.name} = {self.value:.4g} [{self.ci95[0]:.4g}, {self.ci95[1]:.4g}]"
+from railtherm.records import FitRecord
 
 
 @dataclass(frozen=True)
@@ -87,64 +43,36 @@ class StateSpace:
         return models.discretize_zoh(self.A, self.B, dt)
 
 
-@dataclass
-class Fit:
-    """A checked fit: ``data`` is the content of ``fit_<model>.yaml``; ``series`` the
-    measured and simulated states per window (time, T, T_sim, ..., inputs), when known."""
+@dataclass(frozen=True, eq=False)
+class Fit(FitRecord):
+    """A checked fit as a model: its :class:`~railtherm.records.FitRecord` (the content of
+    ``fit_<model>.yaml``: parameters, intervals, the verdict) with the identified model as a
+    state-space system and a simulator; ``series`` the measured and simulated states per
+    window (time, T, T_sim, ..., inputs), when known."""
 
-    data: dict[str, Any]
     series: pd.DataFrame | None = field(default=None, repr=False)
 
-    # --- what the tables print
-    @property
-    def vehicle(self) -> str:
-        return str(self.data["vehicle"])
+    @classmethod
+    def from_dict(cls, content: Mapping[str, Any], series: pd.DataFrame | None = None) -> Fit:
+        """The fit of a fit file's content (the rule check's output), with its series."""
+        return cls(FitRecord.from_dict(content).content, series)
 
-    @property
-    def model(self) -> str:
-        return str(self.data["model"])
-
-    @property
-    def verdict(self) -> str:
-        return str(self.data["verdict"])
-
-    @property
-    def reasons(self) -> list[str]:
-        return list(self.data.get("reasons", []))
-
-    @property
-    def flags(self) -> list[dict[str, Any]]:
-        return list(self.data.get("flags", []))
-
-    @property
-    def R2(self) -> float:
-        """R^2 of the simulated T over every window (eq. 21)."""
-        return float(self.data["R2"])
-
-    @property
-    def k_source(self) -> str:
-        return str(self.data["k_source"])
-
-    @property
-    def parameters(self) -> dict[str, Parameter]:
-        return {p: Parameter.from_entry(p, e) for p, e in self.data["parameters"].items()}
+    @classmethod
+    def of(cls, record: FitRecord, series: pd.DataFrame | None = None) -> Fit:
+        """The fit of a record, with its series."""
+        return cls(record.content, series)
 
     @property
     def hold(self) -> str:
         """How the inputs ran between samples in the fit ("zero_order": eq. 15, or
         "first_order"); a simulation of the model uses the same discretisation."""
-        return str(self.data.get("input_hold", "zero_order"))
-
-    @property
-    def theta(self) -> dict[str, float]:
-        """Every parameter's value by name (identified or not: the model as fitted)."""
-        return {p: float(e["value"]) for p, e in self.data["parameters"].items()}
+        return self.input_hold
 
     # --- the model
     @property
     def structure(self) -> models.Structure:
         """The grey-box structure, with the irradiance inputs it was fitted with."""
-        base, *irradiance = str(self.data["structure"]).split("+")
+        base, *irradiance = self.structure_name.split("+")
         return models.structure_for(base, irradiance)
 
     def to_statespace(self) -> StateSpace:
@@ -198,7 +126,7 @@ class Fit:
     # --- on disk
     def write(self, path: str | os.PathLike[str]) -> None:
         """Write ``fit_<model>.yaml`` (plain YAML, keys in the order of the fit)."""
-        write_yaml(self.data, path)
+        results_io.write_fit(self, path)
 
     def summary(self) -> str:
         """A few lines for people: the model, each parameter, R^2, the verdict with its
@@ -209,10 +137,10 @@ class Fit:
         ]
         lines += [f"  {p}" for p in self.parameters.values()]
         lines += [f"  - {r}" for r in self.reasons]
-        if self.data.get("clocks"):
+        if self.has("clocks"):
             from railtherm.study import clocks
 
-            lines += [f"  ~ {n}" for n in clocks.notes(self.data["clocks"])]
+            lines += [f"  ~ {n}" for n in clocks.notes(self.section("clocks"))]
         lines += [f"  ! {t}" for t in self.outlying_samples()]
         return "\n".join(lines)
 
@@ -221,7 +149,7 @@ class Fit:
         :mod:`railtherm.estimation.outliers`), one sentence each."""
         return [
             text
-            for state, found in (self.data.get("outliers") or {}).items()
+            for state, found in self.section("outliers").items()
             for text in outliers.OutlyingSamples.from_dict(state, found).texts()
         ]
 
@@ -232,12 +160,12 @@ def write_yaml(data: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
 
 
 def read_fit(path: str | os.PathLike[str], series: str | os.PathLike[str] | None = None) -> Fit:
-    """A :class:`Fit` from ``fit_<model>.yaml`` (read by :func:`railtherm.io.read_result`)
+    """A :class:`Fit` from ``fit_<model>.yaml`` (read by :func:`railtherm.io.read_fit`)
     and its series CSV, if given."""
-    return Fit(results_io.read_result(path), None if series is None else pd.read_csv(series))
+    return Fit.of(results_io.read_fit(path), None if series is None else pd.read_csv(series))
 
 
-def check_fit_file(file: str | os.PathLike[str], data: Mapping[str, Any]) -> None:
+def check_fit_file(file: str | os.PathLike[str], fit: FitRecord) -> None:
     """A ``fit_<model>.yaml`` given to a command (energy, simulate, design) as it must be for
     its model to run: a structure of the registry, a value for exactly its parameters, each
     a finite number > 0 (capacities and conductances, drawn in log), and ``free`` and
@@ -247,6 +175,7 @@ def check_fit_file(file: str | os.PathLike[str], data: Mapping[str, Any]) -> Non
     from railtherm.errors import ConfigError
 
     file = str(file)
+    data = fit.content
     again = "write it again with railtherm fit --out (or the workflow's rule check)"
     name = data.get("structure")
     base, *irradiance = str(name).split("+")

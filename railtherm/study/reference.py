@@ -29,7 +29,8 @@ import pandas as pd
 from railtherm import structures
 from railtherm.errors import ConfigError
 from railtherm.estimation import pem
-from railtherm.study import fitsettings, identifiability, quality
+from railtherm.records import FitRecord, ParameterEstimate
+from railtherm.study import fitsettings, quality
 from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_schema
 
 __all__ = [
@@ -182,19 +183,19 @@ def _row(
     standard uncertainty (sd of the logarithm), when given: then ``published_sd`` (in the
     quantity's unit) and ``z`` (:func:`z_difference`, railtherm's statistical sd, as a
     published fit's own sd is)."""
-    value = np.nan if fit_entry is None else float(fit_entry["value"])
+    value = np.nan if fit_entry is None else fit_entry.value
     lo, hi = (np.nan, np.nan)
     status = "estimated"
-    if fit_entry is not None and "ci95" in fit_entry:
-        lo, hi = map(float, fit_entry["ci95"])
-        judged = judged or identifiability.parameter_identification(fit_entry)
+    if fit_entry is not None and fit_entry.ci95_combined is not None:
+        lo, hi = fit_entry.ci95_combined
+        judged = judged or fit_entry.identification
         if not judged["identified"]:
             value, lo, hi = np.nan, np.nan, np.nan
             status = f"not identified: {judged['reason']}"
     published = np.nan if published is None else float(published)
     z = np.nan
     if published_sd_log is not None and fit_entry is not None and np.isfinite(value):
-        sd_log = fit_entry.get("sd_log", fit_entry.get("sd_log_total"))
+        sd_log = fit_entry.sd_log if fit_entry.sd_log is not None else fit_entry.sd_log_total
         if sd_log is not None:
             z = z_difference(value, float(sd_log), published, published_sd_log)
     return {
@@ -216,7 +217,7 @@ def _row(
 
 def compare(
     reference: Mapping[str, Any],
-    fit: Mapping[str, Any],
+    fit: FitRecord,
     tables: Mapping[str, pd.DataFrame],
     vehicle_data: Mapping[str, Any],
 ) -> pd.DataFrame:
@@ -224,16 +225,16 @@ def compare(
     output fit_<model>.yaml of the same vehicle and model) with its 95 % interval and the
     ratio to the published value, and, for the fit figures, the published parameters
     simulated by railtherm (:func:`simulate_published`)."""
-    if (fit["vehicle"], fit["model"]) != (reference["vehicle"], reference["model"]):
+    if (fit.vehicle, fit.model) != (reference["vehicle"], reference["model"]):
         raise ValueError(
             f"reference {reference['vehicle']}/{reference['model']} compared with the fit of "
-            f"{fit['vehicle']}/{fit['model']}"
+            f"{fit.vehicle}/{fit.model}"
         )
     theta = published_parameters(reference)
     sds = published_sd_log(reference)
     printed = reference.get("metrics") or {}
     simulated = simulate_published(reference, tables, vehicle_data) or {}
-    fitted = fit["parameters"]
+    fitted = fit.parameters
     from railtherm.study.aggregate import judged_parameters
 
     judged = judged_parameters(fit)
@@ -255,13 +256,14 @@ def compare(
             sds.get("kA"),
         )
     )
-    overall = fit["measures"]["T"]["overall"]
+    overall = fit.section("measures")["T"]["overall"]
     for q, label in METRIC_LABELS.items():
-        rows.append(_row(q, label, printed.get(q), {"value": overall[q]}, simulated.get(q)))
+        measured = ParameterEstimate(q, float(overall[q]), estimated=False)
+        rows.append(_row(q, label, printed.get(q), measured, simulated.get(q)))
     table = pd.DataFrame(rows)
-    table["k_source"] = fit["k_source"]
-    table["input_hold"] = fit.get("input_hold", "zero_order")
-    table["rows"] = int(sum(int(w["rows"]) for w in (fit.get("rows") or {}).values()))
+    table["k_source"] = fit.k_source
+    table["input_hold"] = fit.input_hold
+    table["rows"] = int(sum(int(w["rows"]) for w in fit.section("rows").values()))
     table.insert(0, "model", reference["model"])
     table.insert(0, "vehicle", reference["vehicle"])
     return table
@@ -283,11 +285,11 @@ def _number(value: float, quantity: str) -> str:
     return f"{value:.4g}"
 
 
-def outlier_text(fit: Mapping[str, Any]) -> str:
+def outlier_text(fit: FitRecord) -> str:
     """The record's outlying samples as a fit file gives them (``outliers``, by
     :func:`railtherm.study.quality.outlying_samples`), one sentence."""
     parts = []
-    for state, found in (fit.get("outliers") or {}).items():
+    for state, found in fit.section("outliers").items():
         head = (
             f"{state}, {found['statistic']}s beyond ±{found['threshold']:.2f} (the normal "
             f"quantile at {found['alpha']:g} / {found['n']}, Bonferroni over the "
@@ -306,7 +308,7 @@ def markdown(
     table: pd.DataFrame,
     references: list[Mapping[str, Any]],
     source: str,
-    fits: Sequence[Mapping[str, Any]] | None = None,
+    fits: Sequence[FitRecord] | None = None,
 ) -> str:
     """The comparison as Markdown: one table per reference, its source and location, and,
     given ``fits`` (the fit files compared, in the order of ``references``), the record's
@@ -322,7 +324,7 @@ def markdown(
             f" railtherm's fit used {int(rows['rows'].iloc[0])} rows." if "rows" in rows else ""
         )
         outlying = ""
-        if fits is not None and fits[i].get("outliers"):
+        if fits is not None and fits[i].section("outliers"):
             outlying = f" Outlying samples: {outlier_text(fits[i])}."
         parts += [
             f"### {ref['vehicle']}, {ref['model']}",

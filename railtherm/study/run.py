@@ -93,7 +93,7 @@ def fit_vehicle(
                 raise
             raise ConfigError(vehicle.path, err.key, err.value, err.reason) from None
         checked = quality.check(estimate, series, vehicle.data["check"])
-        fit = Fit(checked, series)
+        fit = Fit.from_dict(checked, series)
         if base is not None:
             write_yaml(estimate, os.path.join(base, "identify", f"{model}.yaml"))
             ingest.write_tidy(series, os.path.join(base, "identify", f"{model}_series.csv"))

@@ -261,13 +261,12 @@ def _fit_draws(fit: Any) -> tuple[Callable | None, tuple[str, ...]]:
     """Joint draws of a fit's parameters: log theta = log theta_hat + L z + E xi, with
     L L^T the statistical covariance of the free log parameters (sd_log, correlation) and
     E the signed effect of each type-B source on every parameter (xi ~ N(0, 1) per source)."""
-    data = fit.data
-    params = data["parameters"]
-    free = [p for p in data.get("free", []) if p in params]
+    params = fit.section("parameters")
+    free = [p for p in fit.free if p in params]
     if not free:
         return None, ()
     sd = np.array([float(params[p].get("sd_log", math.nan)) for p in free])
-    corr = np.asarray(data.get("correlation", np.eye(len(free))), dtype=float)
+    corr = np.array(fit.correlation, dtype=float)
     corr = np.where(np.isfinite(corr), corr, 0.0)
     np.fill_diagonal(corr, 1.0)
     if not np.all(np.isfinite(sd)):
@@ -275,7 +274,7 @@ def _fit_draws(fit: Any) -> tuple[Callable | None, tuple[str, ...]]:
     cov = corr * np.outer(sd, sd)
     w, V = np.linalg.eigh((cov + cov.T) / 2.0)
     L = V * np.sqrt(np.clip(w, 0.0, None))  # PSD square root: L L^T = cov
-    systematic = data.get("systematic") or {}
+    systematic = fit.section("systematic")
     effects = {
         **(systematic.get("effects_log") or {}),
         **(systematic.get("effects_log_fixed") or {}),
@@ -334,7 +333,7 @@ def parameter_set(params: Any) -> ParameterSet:
         not_identified = tuple(p for p, q in params.parameters.items() if not q.identified)
         draw, what = _fit_draws(params)
         sigma = None
-        noise = params.data.get("noise") or {}
+        noise = params.section("noise")
         s = params.structure
         if noise:
             sigma = np.array(
@@ -343,7 +342,7 @@ def parameter_set(params: Any) -> ParameterSet:
             what = (*what, "process noise (kalman estimator)")
         return ParameterSet(
             label=f"{params.vehicle} {params.model}",
-            source=f"identified ({params.data.get('estimator', 'output_error')}; {params.verdict})",
+            source=f"identified ({params.estimator}; {params.verdict})",
             structure=s,
             theta=params.theta,
             draw=draw,
@@ -452,10 +451,11 @@ def parameter_draws(
 def load_parameters(path: str | os.PathLike[str]) -> ParameterSet:
     """A parameter file: ``fit_<model>.yaml`` (rule check, ``railtherm fit --out``) or a class
     reference model (``railtherm reference``)."""
+    from railtherm import io as rt_io
     from railtherm.yamlio import read_yaml
 
     name = str(path)
-    data = read_yaml(path)
+    data = read_yaml(path)  # which kind of parameter file
     if isinstance(data, dict) and data.get("kind") == "class_reference_model":
         from railtherm.study import classmodel
 
@@ -463,8 +463,9 @@ def load_parameters(path: str | os.PathLike[str]) -> ParameterSet:
     if isinstance(data, dict) and {"vehicle", "parameters", "structure"} <= set(data):
         from railtherm.study.fit import Fit, check_fit_file
 
-        check_fit_file(name, data)
-        return parameter_set(Fit(data))
+        fit = Fit.of(rt_io.read_fit(path, display=name))
+        check_fit_file(name, fit)
+        return parameter_set(fit)
     keys = sorted(data) if isinstance(data, dict) else type(data).__name__
     raise ConfigError(
         name,

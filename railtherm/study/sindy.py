@@ -42,6 +42,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from railtherm.records import FitRecord
+
 STATES = ("T", "T_veh")
 INPUTS = ("T_o", "Q_H")
 FEATURES = STATES + INPUTS
@@ -309,18 +311,18 @@ def cross_check(
     return result
 
 
-def _param(fit: Mapping[str, Any], name: str) -> tuple[float, float, float]:
-    """(value, lo, hi) of a fit parameter; NaN throughout for one the data do not determine
+def _param(fit: FitRecord, name: str) -> tuple[float, float, float]:
+    """(value, lo, hi) of a fit parameter (its combined interval; a fixed one's value at
+    both ends); NaN throughout for one the data do not determine
     (railtherm.estimation.pem.identification), so no coefficient is implied from it."""
-    entry = fit["parameters"][name]
-    if entry.get("identified", True) is False:  # as judged by the fit; the interval
-        # arithmetic below copes with an unbounded interval of an older fit itself
+    entry = fit.parameters[name]
+    if not entry.identified:
         return math.nan, math.nan, math.nan
-    lo, hi = entry.get("ci95") or (entry["value"], entry["value"])
-    return float(entry["value"]), float(lo), float(hi)
+    lo, hi = entry.ci95_combined or (entry.value, entry.value)
+    return entry.value, lo, hi
 
 
-def grey_box_from_fit(fit: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def grey_box_from_fit(fit: FitRecord) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Xi implied by a second-order PEM fit (fit_order2.yaml) with 95 % bounds by interval
     arithmetic over the parameters' 95 % intervals (conservative: ignores their correlation)."""
     kA, C, K, Cv = (np.array(_param(fit, p)) for p in ("kA", "C", "K_veh", "C_veh"))
@@ -344,7 +346,7 @@ def grey_box_from_fit(fit: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray, n
 def for_vehicle(
     vehicle: Mapping[str, Any],
     windows: Sequence[pd.DataFrame],
-    fit: Mapping[str, Any] | None,
+    fit: FitRecord | None,
     settings: Settings = Settings(),
 ) -> dict[str, Any]:
     """sindy.yaml of one vehicle: the cross-check and, with a second-order fit, the grey box's

@@ -8,7 +8,7 @@ from railtherm.report import tableformat, tables
 from railtherm.study import aggregate
 
 log = logs.to_file(snakemake.log[0])
-fits = [rt_io.read_result(p) for p in snakemake.input.fits]
+fits = [rt_io.read_fit(p) for p in snakemake.input.fits]
 source = aggregate.data_source(snakemake.params.data)
 table = aggregate.model_table(fits, source)
 tables.write_csv(table, snakemake.output.csv)

@@ -20,7 +20,7 @@ for path, fit_file, vehicle, windows in zip(
     strict=True,
 ):
     ref = reference.load_reference(path)
-    fit = rt_io.read_result(fit_file)
+    fit = rt_io.read_fit(fit_file)
     windows_data = {w: ingest.read_tidy(p) for w, p in windows.items()}
     parts.append(reference.compare(ref, fit, windows_data, vehicle))
     refs.append(ref)

@@ -14,7 +14,7 @@ for vid, vehicle in snakemake.params.vehicles.items():
     windows = [ingest.read_tidy(path) for path in snakemake.input[f"windows_{vid}"]]
     fit = None
     if f"fit_{vid}" in snakemake.input.keys():
-        fit = rt_io.read_result(snakemake.input[f"fit_{vid}"])
+        fit = rt_io.read_fit(snakemake.input[f"fit_{vid}"])
     result = sindy.for_vehicle(vehicle, windows, fit, settings)
     rt_io.write_result(result, snakemake.output[f"sindy_{vid}"])
     log.info("%s: %s", result["vehicle"], result["verdict"])

@@ -25,7 +25,7 @@ for key in snakemake.params.models:
 drawn = plots.vehicle_figures(
     snakemake.wildcards.vehicle,
     kvalue=kvalue,
-    fits=fits,
+    fit_files=fits,
     synthetic=bool(snakemake.params.synthetic),
 )
 for line in drawn:
