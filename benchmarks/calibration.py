@@ -448,6 +448,7 @@ def fit_rows(truth: Truth, yaml_path: Path, setting: str) -> list[dict]:
     model = "order2" if estimator == "output_error" else f"order2{fitsettings.KALMAN_SUFFIX}"
     storage = storage_corrected_k(windows, tables.get("kvalue"), vehicle.data, k)
     estimate, _ = identify.identify(windows, vehicle.data, k, model, storage)
+    estimate = estimate.content  # the estimate file as written
     seconds = time.process_time() - started
     parameters = estimate["fit"]["parameters"]
     common = {

@@ -79,14 +79,14 @@ def judge(truth, yaml_path: Path, setting: str) -> dict:
     row = {
         "setting": setting,
         "vehicle": truth.vehicle,
-        "k_source": estimate["k_source"],
-        "verdict": checked["verdict"],
-        "reasons": " | ".join(checked["reasons"]),
+        "k_source": estimate.k_source,
+        "verdict": checked.verdict,
+        "reasons": " | ".join(checked.reasons),
     }
-    for c in checked["criteria"]:
+    for c in checked.criteria:
         row[f"applies_{c['criterion']}"] = bool(c["applies"])
         row[f"failed_{c['criterion']}"] = bool(c["applies"] and not c["passed"])
-    for state, t in (checked.get("innovations") or {}).items():
+    for state, t in checked.section("innovations").items():
         row[f"ljung_box_p_{state}"] = t["ljung_box_p"]
         row[f"cpg_p_{state}"] = t["cpg_p"]
     return row

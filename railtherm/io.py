@@ -20,10 +20,17 @@ from typing import Any
 import yaml
 
 from railtherm.errors import ConfigError, DataError
-from railtherm.records import FitRecord
+from railtherm.records import EstimateRecord, FitRecord
 from railtherm.yamlio import SafeLoader, read_yaml
 
-__all__ = ["read_fit", "read_result", "write_fit", "write_result"]
+__all__ = [
+    "read_estimate",
+    "read_fit",
+    "read_result",
+    "write_estimate",
+    "write_fit",
+    "write_result",
+]
 
 
 def write_result(data: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
@@ -66,4 +73,15 @@ def read_fit(path: str | os.PathLike[str], display: str | None = None) -> FitRec
 def write_fit(record: FitRecord, path: str | os.PathLike[str]) -> None:
     """Write a fit's record as ``fit_<model>.yaml`` (:func:`write_result`: plain YAML, keys in
     the order of the fit)."""
+    write_result(record.to_dict(), path)
+
+
+def read_estimate(path: str | os.PathLike[str]) -> EstimateRecord:
+    """The :class:`~railtherm.records.EstimateRecord` of an estimate file
+    (``identify/<model>.yaml``, the rule identify's output)."""
+    return EstimateRecord.from_dict(read_result(path))
+
+
+def write_estimate(record: EstimateRecord, path: str | os.PathLike[str]) -> None:
+    """Write an estimate's record as ``identify/<model>.yaml`` (:func:`write_result`)."""
     write_result(record.to_dict(), path)

@@ -1,10 +1,12 @@
-"""The typed records of a checked fit: what ``fit_<model>.yaml`` holds, as
-:class:`FitRecord` with one :class:`ParameterEstimate` per parameter and per total.
+"""The typed records of a fit: what ``fit_<model>.yaml`` holds, as :class:`FitRecord` with
+one :class:`ParameterEstimate` per parameter and per total, and what the identify stage hands
+the verdict (``identify/<model>.yaml``), as :class:`EstimateRecord`.
 
-A fit file is read and written by :mod:`railtherm.io` only (:func:`railtherm.io.read_fit`,
-:func:`railtherm.io.write_fit`); every layer above takes and returns these records, never a
-dict of a fit. A record keeps the file's content as written (:meth:`FitRecord.to_dict`), so a
-fit read and written again is the same file, and gives it typed names: the combined 95 %
+These files are read and written by :mod:`railtherm.io` only (:func:`railtherm.io.read_fit`,
+:func:`railtherm.io.write_fit`, :func:`railtherm.io.read_estimate`,
+:func:`railtherm.io.write_estimate`); every layer above takes and returns these records,
+never a dict of a fit. A record keeps the file's content as written (``to_dict``), so a fit
+read and written again is the same file, and gives it typed names: the combined 95 %
 interval a reader sees (``ci95_combined``, the file's ``ci95``: statistical and systematic)
 apart from the fit's statistical one (``ci95_statistical``), and whether the data determine
 the value (:class:`~railtherm.estimation.estimate.Identification`).
@@ -16,14 +18,14 @@ import copy
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
 from railtherm.estimation.common import identification
 from railtherm.estimation.estimate import Identification
 
-__all__ = ["FitRecord", "ParameterEstimate"]
+__all__ = ["EstimateRecord", "FitRecord", "ParameterEstimate"]
 
 
 def _interval(value: Any) -> tuple[float, float] | None:
@@ -127,37 +129,29 @@ def _section(content: Mapping[str, Any], key: str) -> Mapping[str, Any]:
 
 
 @dataclass(frozen=True, eq=False)
-class FitRecord:
-    """A checked fit of one grey-box model to one vehicle: the content of
-    ``fit_<model>.yaml`` (the workflow's rule ``check``), typed.
-
-    The vehicle, the model key and its ``estimator`` and ``structure``; how k was obtained
-    (``k_source``, ``kA_fixed`` and the static test's ``k_eq10`` / ``k_corrected`` with their
-    standard uncertainties); the ``verdict`` with its ``reasons`` and ``notes``; each
-    parameter and total as a :class:`ParameterEstimate`; the statistical ``correlation`` of the
-    ``free`` log parameters; R^2 of eq. 21 (``R2``) and the NRMSE fit. The sections a reader
-    rarely needs whole (``measures``, ``systematic``, ``cross_validation``, ``innovations``,
-    ``storage_correction``, ...) are read-only mappings of the file's text
-    (:meth:`section`)."""
+class _Record:
+    """What the identify stage's estimate and the checked fit share: the content of the file
+    as written (read-only), and typed names for the vehicle, the model, how k was obtained
+    and the records fitted."""
 
     content: Mapping[str, Any] = field(repr=False)
 
     @classmethod
-    def from_dict(cls, content: Mapping[str, Any]) -> FitRecord:
-        """The record of a fit file's content (a deep copy: the record does not change with
-        the mapping it was made from)."""
+    def from_dict(cls, content: Mapping[str, Any]) -> Self:
+        """The record of a file's content (a deep copy: the record does not change with the
+        mapping it was made from)."""
         return cls(MappingProxyType(copy.deepcopy(dict(content))))
 
     def to_dict(self) -> dict[str, Any]:
-        """The fit file's content, as written (a deep copy)."""
+        """The file's content, as written (a deep copy)."""
         return copy.deepcopy(dict(self.content))
 
     def section(self, key: str) -> Mapping[str, Any]:
-        """A section of the fit file as a read-only mapping (empty where it is absent)."""
+        """A section of the file as a read-only mapping (empty where it is absent)."""
         return _section(self.content, key)
 
     def has(self, key: str) -> bool:
-        """Whether the fit file holds ``key`` with a value."""
+        """Whether the file holds ``key`` with a value."""
         return self.content.get(key) is not None
 
     # --- who and what
@@ -216,6 +210,33 @@ class FitRecord:
     def u_k_corrected(self) -> float | None:
         return _number(self.content.get("u_k_corrected"))
 
+    @property
+    def notes(self) -> tuple[str, ...]:
+        return tuple(self.content.get("notes") or ())
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return tuple(self.content.get("outputs") or ())
+
+    @property
+    def windows(self) -> tuple[str, ...]:
+        return tuple(self.content.get("windows") or ())
+
+
+@dataclass(frozen=True, eq=False)
+class FitRecord(_Record):
+    """A checked fit of one grey-box model to one vehicle: the content of
+    ``fit_<model>.yaml`` (the workflow's rule ``check``), typed.
+
+    The vehicle, the model key and its ``estimator`` and ``structure``; how k was obtained
+    (``k_source``, ``kA_fixed`` and the static test's ``k_eq10`` / ``k_corrected`` with their
+    standard uncertainties); the ``verdict`` with its ``reasons`` and ``notes``; each
+    parameter and total as a :class:`ParameterEstimate`; the statistical ``correlation`` of the
+    ``free`` log parameters; R^2 of eq. 21 (``R2``) and the NRMSE fit. The sections a reader
+    rarely needs whole (``measures``, ``systematic``, ``cross_validation``, ``innovations``,
+    ``storage_correction``, ...) are read-only mappings of the file's text
+    (:meth:`section`)."""
+
     # --- the verdict
     @property
     def verdict(self) -> str:
@@ -224,10 +245,6 @@ class FitRecord:
     @property
     def reasons(self) -> tuple[str, ...]:
         return tuple(self.content.get("reasons") or ())
-
-    @property
-    def notes(self) -> tuple[str, ...]:
-        return tuple(self.content.get("notes") or ())
 
     @property
     def flags(self) -> tuple[Mapping[str, Any], ...]:
@@ -276,14 +293,6 @@ class FitRecord:
         n = len(self.free)
         return np.asarray(corr, dtype=float) if corr is not None else np.eye(n)
 
-    @property
-    def outputs(self) -> tuple[str, ...]:
-        return tuple(self.content.get("outputs") or ())
-
-    @property
-    def windows(self) -> tuple[str, ...]:
-        return tuple(self.content.get("windows") or ())
-
     # --- the fit measures
     @property
     def R2(self) -> float:
@@ -310,3 +319,55 @@ class FitRecord:
         """The Kalman fit's count of scalar measurements (None for an output-error fit)."""
         n = self.content.get("n_obs")
         return None if n is None else int(n)
+
+
+@dataclass(frozen=True, eq=False)
+class EstimateRecord(_Record):
+    """The identify stage's estimate of one model of one vehicle, before its verdict: the
+    content of ``identify/<model>.yaml``, typed (the rule ``check`` judges it into a
+    :class:`FitRecord`).
+
+    Besides what every record gives: the vehicle's surface ``A``, ``mass_kg`` and
+    ``volume_m3`` (None where the config gives none); the estimator's result with its
+    judged parameters (:meth:`section` ``"fit"``, :attr:`parameters`); the systematic budget
+    (``"systematic"``), the cross-validation, the unit checks and, for a Kalman fit, the
+    whiteness tests of its innovations (``"innovations"``, and ``innovations_of`` where they
+    are another fit's than the one reported); ``method_notes`` and the ``notes`` the k stage
+    left."""
+
+    @property
+    def A(self) -> float | None:
+        """The outer surface (m^2); None for an object without one."""
+        return _number(self.content.get("A"))
+
+    @property
+    def mass_kg(self) -> float | None:
+        return _number(self.content.get("mass_kg"))
+
+    @property
+    def volume_m3(self) -> float | None:
+        return _number(self.content.get("volume_m3"))
+
+    @property
+    def parameters(self) -> dict[str, ParameterEstimate]:
+        """Every parameter of the estimate, judged (the ``fit`` section's ``parameters``)."""
+        entries = self.section("fit").get("parameters") or {}
+        return {p: ParameterEstimate.from_entry(p, e) for p, e in entries.items()}
+
+    @property
+    def method_notes(self) -> tuple[str, ...]:
+        return tuple(self.content.get("method_notes") or ())
+
+    @property
+    def unit_checks(self) -> tuple[str, ...]:
+        return tuple(self.content.get("unit_checks") or ())
+
+    @property
+    def cross_validation(self) -> tuple[Mapping[str, Any], ...]:
+        return tuple(self.content.get("cross_validation") or ())
+
+    @property
+    def innovations_of(self) -> str | None:
+        """Whose innovations the whiteness tests judged where not the reported fit's."""
+        of = self.content.get("innovations_of")
+        return None if of is None else str(of)

@@ -96,7 +96,7 @@ def test_static_k_and_second_order_fit_recover_the_truth(cb, ideal):
     windows = {w["name"]: tables[w["name"]] for w in vehicle.windows["identification"]}
     estimate, _ = identify.identify(windows, vehicle.data, k, "order2")
     for p in ("C", "K_veh", "C_veh"):
-        value = estimate["fit"]["parameters"][p]["value"]
+        value = estimate.content["fit"]["parameters"][p]["value"]
         assert value == pytest.approx(getattr(truth, p), rel=0.05), p
 
 

@@ -63,11 +63,11 @@ def test_the_fit_after_the_fallback_holds_eq10s_kA_and_gives_numbers(monkeypatch
     monkeypatch.undo()
     data["model"] = {**data["model"], "two_stage_check": False}
     estimate, _ = identify.identify(IDENTIFICATION, data, k, 2, storage)
-    assert estimate["kA_fixed"] == pytest.approx(k["kA"])
-    assert estimate["k_corrected"] is None
-    assert estimate["storage_correction"]["reason"] == storage["reason"]
+    assert estimate.content["kA_fixed"] == pytest.approx(k["kA"])
+    assert estimate.content["k_corrected"] is None
+    assert estimate.content["storage_correction"]["reason"] == storage["reason"]
     for p in ("C", "K_veh", "C_veh"):
-        value = estimate["fit"]["parameters"][p]["value"]
+        value = estimate.content["fit"]["parameters"][p]["value"]
         assert math.isfinite(value) and value > 0
 
 

@@ -16,7 +16,7 @@ import yaml
 
 from railtherm.config import load_vehicle
 from railtherm.errors import ConfigError
-from railtherm.records import FitRecord
+from railtherm.records import EstimateRecord, FitRecord
 from railtherm.report import tableformat
 from railtherm.study import aggregate, fitsettings, quality
 from railtherm.study.run import fit_vehicle
@@ -105,7 +105,7 @@ def test_both_estimators_are_judged_by_the_simulation_and_say_by_what(both):
     assert white == (not any("innovations of T are not white" in r for r in kf["reasons"]))
 
 
-def kalman_estimate(offset_K: float, white: bool = True) -> tuple[dict, pd.DataFrame]:
+def kalman_estimate(offset_K: float, white: bool = True) -> tuple[EstimateRecord, pd.DataFrame]:
     """A hand-built Kalman estimate of one 10 h window whose simulated T lies ``offset_K``
     off the measurement (plus 0.01 K white noise), with innovations declared white."""
     n = 600
@@ -144,19 +144,21 @@ def kalman_estimate(offset_K: float, white: bool = True) -> tuple[dict, pd.DataF
             "correlation": [[1.0, 0.0], [0.0, 1.0]],
         },
     }
-    return estimate, series
+    return EstimateRecord.from_dict(estimate), series
 
 
 def test_white_innovations_do_not_excuse_a_simulation_that_misses_the_record():
     """A Kalman fit with white innovations and a simulated T 1 K off: in doubt, failed on the
     RMSE criterion alone; 0.05 K off: acceptable."""
     far = quality.check(*kalman_estimate(1.0), {})
-    assert far["verdict"] == "assumptions in doubt"
-    failed = [c["criterion"] for c in far["criteria"] if c["applies"] and not c["passed"]]
+    assert far.content["verdict"] == "assumptions in doubt"
+    failed = [c["criterion"] for c in far.content["criteria"] if c["applies"] and not c["passed"]]
     assert failed == ["rmse"]
-    assert far["judged_by"] == ("R², RMSE ✗, innovations white, flags, plausibility, k method")
+    assert far.content["judged_by"] == (
+        "R², RMSE ✗, innovations white, flags, plausibility, k method"
+    )
     near = quality.check(*kalman_estimate(0.05), {})
-    assert near["verdict"] == "fit acceptable" and "✗" not in near["judged_by"]
+    assert near.content["verdict"] == "fit acceptable" and "✗" not in near.content["judged_by"]
 
 
 def test_model_selection_considers_only_acceptable_converged_fits():
@@ -166,8 +168,9 @@ def test_model_selection_considers_only_acceptable_converged_fits():
     either."""
     small = quality.check(*kalman_estimate(0.05), {})
     large = quality.check(*kalman_estimate(1.0), {})
-    large |= {"model": "order2_kalman", "order": 2, "loglik": 500.0, "n_params": 6}
-    small, large = FitRecord.from_dict(small), FitRecord.from_dict(large)
+    large = FitRecord.from_dict(
+        large.to_dict() | {"model": "order2_kalman", "order": 2, "loglik": 500.0, "n_params": 6}
+    )
     assert tableformat.model_selection_markdown([small, large]) == ""
     table = aggregate.model_table([small, large], "hand-built")
     assert table["best_aic"].tolist() == [True, False]

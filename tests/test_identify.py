@@ -7,6 +7,7 @@ import pytest
 from railtherm.config import section_defaults
 from railtherm.errors import DataError
 from railtherm.estimation import models
+from railtherm.records import EstimateRecord
 from railtherm.study import fitsettings, identify, quality
 
 TRUTH = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
@@ -73,37 +74,41 @@ TABLES = {"up": window(30, 20_000, 29_000), "down": window(30, 29_000, 20_000)}
 
 def test_two_stage_fit_recovers_the_truth_and_cross_validates():
     estimate, series = identify.identify(TABLES, vehicle(), k_result(), 2)
-    params = estimate["fit"]["parameters"]
+    params = estimate.content["fit"]["parameters"]
     assert params["kA"] == {"value": pytest.approx(TRUTH["kA"]), "estimated": False}
     for p in ("C", "K_veh", "C_veh"):
         assert params[p]["value"] == pytest.approx(TRUTH[p], rel=1e-5)
-    assert estimate["k_source"] == "static test (eq. 10)"
-    assert {(cv["train"], cv["test"]) for cv in estimate["cross_validation"]} == {
+    assert estimate.content["k_source"] == "static test (eq. 10)"
+    assert {(cv["train"], cv["test"]) for cv in estimate.content["cross_validation"]} == {
         ("up", "down"),
         ("down", "up"),
     }
-    assert all(cv["r2_T"] > 0.999999 for cv in estimate["cross_validation"])
+    assert all(cv["r2_T"] > 0.999999 for cv in estimate.content["cross_validation"])
     assert set(series["window"]) == {"up", "down"}
     assert np.abs(series["T_residual"]).max() < 1e-6
     result = quality.check(estimate, series, section_defaults("check"))
-    assert result["verdict"] == "fit acceptable" and result["R2"] == pytest.approx(1.0)
+    assert result.content["verdict"] == "fit acceptable" and result.content["R2"] == pytest.approx(
+        1.0
+    )
 
 
 @pytest.mark.bad_input
 def test_unusable_static_k_falls_back_to_joint_and_says_so():
     estimate, series = identify.identify(TABLES, vehicle(), k_result(usable=False), 2)
-    assert estimate["k_source"] == "joint estimation (PEM)"
-    assert estimate["fit"]["parameters"]["kA"]["value"] == pytest.approx(TRUTH["kA"], rel=1e-5)
+    assert estimate.content["k_source"] == "joint estimation (PEM)"
+    assert estimate.content["fit"]["parameters"]["kA"]["value"] == pytest.approx(
+        TRUTH["kA"], rel=1e-5
+    )
     result = quality.check(estimate, series, section_defaults("check"))
-    assert result["verdict"] == "assumptions in doubt"
-    assert any("kA estimated jointly" in r for r in result["reasons"])
+    assert result.content["verdict"] == "assumptions in doubt"
+    assert any("kA estimated jointly" in r for r in result.content["reasons"])
 
 
 def test_systematic_uncertainty_widens_the_interval_by_its_budget():
     exact, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
     assert all(
         e == pytest.approx(0.0, abs=1e-9)
-        for effects in exact["systematic"]["effects_log"].values()
+        for effects in exact.content["systematic"]["effects_log"].values()
         for e in effects.values()
     )
     data = vehicle()
@@ -111,7 +116,7 @@ def test_systematic_uncertainty_widens_the_interval_by_its_budget():
     uncertain, _ = identify.identify(TABLES, data, k_result(scatter=0.02, storage=0.01), 2)
     # each physical source once: no kA source beside the instruments it is made of, and the
     # surface, which moves k but not kA = k A, is none
-    assert set(uncertain["systematic"]["sources"]) == {
+    assert set(uncertain.content["systematic"]["sources"]) == {
         "power_scale",
         "offset_T",
         "offset_T_veh",
@@ -120,7 +125,7 @@ def test_systematic_uncertainty_widens_the_interval_by_its_budget():
         "k_storage",
     }
     for p in ("C", "K_veh", "C_veh"):
-        entry = uncertain["fit"]["parameters"][p]
+        entry = uncertain.content["fit"]["parameters"][p]
         lo, hi = entry["ci95"]
         slo, shi = entry["ci95_statistical"]
         assert lo < slo and hi > shi  # the combined interval contains the statistical one
@@ -135,10 +140,10 @@ def test_power_scale_error_moves_every_parameter_by_its_scale(mode):
     data = vehicle(mode=mode)
     data["instruments"] = {"temperature_u_K": 0.0, "power_u_rel": 0.01, "surface_u_rel": 0.0}
     estimate, _ = identify.identify(TABLES, data, k_result() if mode == "static" else None, 2)
-    effects = estimate["systematic"]["effects_log"]
+    effects = estimate.content["systematic"]["effects_log"]
     for p in ("C", "K_veh", "C_veh") + (("kA",) if mode == "joint" else ()):
         assert effects[p]["power_scale"] == pytest.approx(np.log(1.01), rel=1e-4)
-        entry = estimate["fit"]["parameters"][p]
+        entry = estimate.content["fit"]["parameters"][p]
         assert entry["sd_log_total"] == pytest.approx(np.log(1.01), rel=1e-3)
 
 
@@ -154,8 +159,8 @@ def test_an_offset_on_both_temperatures_of_the_k_window_is_one_source_each():
     shifted = {n: t.assign(T=t["T"] + u) for n, t in TABLES.items()}
     direct, _ = identify.identify(shifted, vehicle(), {**k_result(), "k": kA / A}, 2)
     for p in ("C", "K_veh", "C_veh"):
-        expected = np.log(direct["fit"]["parameters"][p]["value"] / TRUTH[p])
-        assert estimate["systematic"]["effects_log"][p]["offset_T"] == pytest.approx(
+        expected = np.log(direct.content["fit"]["parameters"][p]["value"] / TRUTH[p])
+        assert estimate.content["systematic"]["effects_log"][p]["offset_T"] == pytest.approx(
             expected,
             abs=5e-5,  # two fits, each converged to ~1e-5 in log theta
         )
@@ -168,16 +173,16 @@ def test_residuals_beyond_sensor_accuracy_put_the_fit_in_doubt():
     noisy["T"] += 0.5 * np.sin(noisy["time"] / 3600.0)  # a dynamic the model lacks
     noisy["T_residual"] = noisy["T"] - noisy["T_sim"]
     result = quality.check(estimate, noisy, section_defaults("check"))
-    assert result["verdict"] == "assumptions in doubt"
-    assert any("misses the measurement" in r for r in result["reasons"])
+    assert result.content["verdict"] == "assumptions in doubt"
+    assert any("misses the measurement" in r for r in result.content["reasons"])
 
 
 def test_without_surface_sensors_the_fit_uses_T_and_still_cross_validates():
     tables = {name: t.assign(T_veh=np.nan) for name, t in TABLES.items()}
     estimate, _ = identify.identify(tables, vehicle(), k_result(), 2)
-    assert estimate["outputs"] == ["T"]
-    assert "offset_T_veh" not in estimate["systematic"]["sources"]
-    assert [cv["r2_T"] for cv in estimate["cross_validation"]] == pytest.approx([1.0, 1.0])
+    assert estimate.content["outputs"] == ["T"]
+    assert "offset_T_veh" not in estimate.content["systematic"]["sources"]
+    assert [cv["r2_T"] for cv in estimate.content["cross_validation"]] == pytest.approx([1.0, 1.0])
 
 
 @pytest.mark.bad_input
@@ -198,9 +203,9 @@ def test_a_unit_mistake_in_the_power_is_never_fit_acceptable(factor, reasons):
     k["k"], k["Q_H_mean"] = k["k"] * factor, k["Q_H_mean"] * factor
     estimate, series = identify.identify(tables, vehicle(), k, 2)
     result = quality.check(estimate, series, section_defaults("check"))
-    assert result["verdict"] == "assumptions in doubt"
+    assert result.content["verdict"] == "assumptions in doubt"
     for text in reasons:
-        assert any(text in r for r in result["reasons"]), (text, result["reasons"])
+        assert any(text in r for r in result.content["reasons"]), (text, result.content["reasons"])
     ok, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
     assert quality.plausibility(ok, section_defaults("check")) == []
 
@@ -208,7 +213,7 @@ def test_a_unit_mistake_in_the_power_is_never_fit_acceptable(factor, reasons):
 @pytest.mark.bad_input
 def test_capacities_that_store_more_than_water_are_implausible():
     estimate, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
-    light = {**estimate, "mass_kg": 5_000.0}  # (1.8e7 + 1e7) / 5 t = 5600 J/(kg K)
+    light = EstimateRecord.from_dict({**estimate.content, "mass_kg": 5_000.0})  # 5600 J/(kg K)
     reasons = quality.plausibility(light, section_defaults("check"))
     assert len(reasons) == 1 and "5600 J/(kg K)" in reasons[0] and "more than water" in reasons[0]
 
@@ -218,12 +223,12 @@ def test_an_aperture_larger_than_the_whole_surface_is_implausible():
     """An effective solar aperture of 1000 m² on a body of 8.64 m² outer surface is named;
     one of 2 m² is not judged."""
     estimate, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
-    par = estimate["fit"]["parameters"]
+    par = estimate.content["fit"]["parameters"]
 
     def with_aperture(a: float) -> dict:
         entry = {"value": a, "ci95": [0.9 * a, 1.1 * a], "estimated": True}
-        fit = {**estimate["fit"], "parameters": {**par, "a_I_sol": entry}}
-        return {**estimate, "A": 8.64, "fit": fit}
+        fit = {**estimate.content["fit"], "parameters": {**par, "a_I_sol": entry}}
+        return EstimateRecord.from_dict({**estimate.content, "A": 8.64, "fit": fit})
 
     thresholds = {**section_defaults("check"), "k_range_W_m2K": [0.01, 1000.0]}
     (reason,) = quality.plausibility(with_aperture(1000.0), thresholds)
@@ -246,8 +251,10 @@ def test_time_in_minutes_declared_seconds_is_never_fit_acceptable():
     tables = {n: t.assign(time=t["time"] / 60.0) for n, t in TABLES.items()}
     estimate, series = identify.identify(tables, vehicle(), k_result(), 2)
     result = quality.check(estimate, series, section_defaults("check"))
-    assert result["verdict"] == "assumptions in doubt"
-    assert any("time column's unit" in r for r in result["reasons"]), result["reasons"]
+    assert result.content["verdict"] == "assumptions in doubt"
+    assert any("time column's unit" in r for r in result.content["reasons"]), result.content[
+        "reasons"
+    ]
 
 
 @pytest.mark.bad_input
@@ -256,7 +263,7 @@ def test_a_fit_says_how_many_rows_it_used_and_refuses_too_few():
     a missing input stops the fit, and so does a measurement missing in too many rows."""
     estimate, _ = identify.identify(TABLES, vehicle(), k_result(), 2)
     name, table = next(iter(TABLES.items()))
-    assert estimate["rows"][name] == {
+    assert estimate.content["rows"][name] == {
         "rows": len(table),
         "used": {"T": len(table), "T_veh": len(table)},
     }
@@ -272,7 +279,7 @@ def test_a_fit_says_how_many_rows_it_used_and_refuses_too_few():
     few = {n: t.copy() for n, t in TABLES.items()}
     few[name].loc[few[name].index[:3], "T"] = np.nan  # a few missing rows are skipped
     estimate, _ = identify.identify(few, vehicle(), k_result(), 2)
-    assert estimate["rows"][name]["used"]["T"] == len(table) - 3
+    assert estimate.content["rows"][name]["used"]["T"] == len(table) - 3
 
 
 @pytest.mark.parametrize("order, air", [(2, "C"), (1, "C_bar")])

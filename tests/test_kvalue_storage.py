@@ -106,19 +106,21 @@ def test_corrected_k_recovers_the_truth_and_feeds_stage_two(lagging):
     assert 1 <= storage["iterations"] <= 4
     assert storage["window"]["T_veh_from"] == "model (eq. 8)"
     assert storage["window"]["D0"] == pytest.approx(0.3, abs=0.05)
-    assert estimate["k_eq10"] == pytest.approx(k["k"])
-    assert abs(estimate["k_corrected"] - k_true) < estimate["u_k_corrected"]
-    assert abs(estimate["k_corrected"] - k_true) < 0.2 * abs(k["k"] - k_true)
-    assert estimate["kA_fixed"] == pytest.approx(storage["kA_corrected"])
-    assert estimate["fit"]["parameters"]["kA"]["value"] == pytest.approx(storage["kA_corrected"])
-    assert estimate["k_source"] == "static test (eq. 10), storage-corrected"
+    assert estimate.content["k_eq10"] == pytest.approx(k["k"])
+    assert abs(estimate.content["k_corrected"] - k_true) < estimate.content["u_k_corrected"]
+    assert abs(estimate.content["k_corrected"] - k_true) < 0.2 * abs(k["k"] - k_true)
+    assert estimate.content["kA_fixed"] == pytest.approx(storage["kA_corrected"])
+    assert estimate.content["fit"]["parameters"]["kA"]["value"] == pytest.approx(
+        storage["kA_corrected"]
+    )
+    assert estimate.content["k_source"] == "static test (eq. 10), storage-corrected"
     # the storage term of the budget is the correction's, not eq. 10's bound
-    systematic = estimate["systematic"]
+    systematic = estimate.content["systematic"]
     assert systematic["sources"]["k_storage"] == pytest.approx(
         storage["u_storage_kA"] / storage["kA_corrected"]
     )
     for p in ("C", "K_veh", "C_veh"):
-        lo, hi = estimate["fit"]["parameters"][p]["ci95"]
+        lo, hi = estimate.content["fit"]["parameters"][p]["ci95"]
         assert lo <= TRUTH[p] <= hi, p
 
 
@@ -130,18 +132,18 @@ def test_records_disagree_with_eq10s_biased_kA_not_with_the_corrected_one(laggin
     data = vehicle()
     data["kvalue"] = {**data["kvalue"], "storage_correction": False}
     k, storage, eq10 = two_stages(k_window(0.3), data)
-    assert storage is None and eq10["storage_correction"] is None
-    assert eq10["k_source"] == "static test (eq. 10)"
-    check = eq10["fit"]["static_kA_check"]
+    assert storage is None and eq10.content["storage_correction"] is None
+    assert eq10.content["k_source"] == "static test (eq. 10)"
+    check = eq10.content["fit"]["static_kA_check"]
     assert check["kA_static"] == pytest.approx(k["kA"])
     assert check["z"]["kA"] < -fitsettings.CONTRADICTION_Z  # eq. 10 too high
     assert check["reason"] == identify.STATIC_CONFLICT and not check["kA_within_static_u"]
-    assert any("the static test and the records disagree" in n for n in eq10["notes"])
-    check = corrected["fit"]["static_kA_check"]
+    assert any("the static test and the records disagree" in n for n in eq10.content["notes"])
+    check = corrected.content["fit"]["static_kA_check"]
     assert check["use_joint"] is False
     assert all(abs(z) < fitsettings.CONTRADICTION_Z for z in check["z"].values())
-    assert corrected["k_source"] == "static test (eq. 10), storage-corrected"
-    assert not corrected["notes"]
+    assert corrected.content["k_source"] == "static test (eq. 10), storage-corrected"
+    assert not corrected.content["notes"]
 
 
 def test_measured_body_temperature_is_used_where_the_window_has_it():
@@ -149,13 +151,15 @@ def test_measured_body_temperature_is_used_where_the_window_has_it():
     k, storage, estimate = two_stages(window)
     assert storage["window"]["T_veh_from"] == "T_veh"
     assert storage["window"]["D0"] is None
-    assert abs(estimate["k_corrected"] - TRUTH["kA"] / A) < estimate["u_k_corrected"]
+    assert (
+        abs(estimate.content["k_corrected"] - TRUTH["kA"] / A) < estimate.content["u_k_corrected"]
+    )
 
 
 def test_steady_body_leaves_eq10_as_it_is():
     k, storage, estimate = two_stages(k_window(0.0))
     assert storage["iterations"] <= 2
-    assert abs(estimate["k_corrected"] - k["k"]) < 0.5 * estimate["u_k_corrected"]
+    assert abs(estimate.content["k_corrected"] - k["k"]) < 0.5 * estimate.content["u_k_corrected"]
     assert abs(k["k"] - TRUTH["kA"] / A) < 2 * k["u_k"]
 
 
@@ -204,9 +208,9 @@ def test_undetermined_capacities_leave_eq10_and_say_why(monkeypatch):
     k, storage, estimate = two_stages(k_window(0.3))
     assert storage["applied"] is False and "does not determine" in storage["reason"]
     # stage two holds eq. 10's kA (here biased by the lag, which the records then reject)
-    assert estimate["fit"]["static_kA_check"]["kA_static"] == pytest.approx(k["kA"])
-    assert estimate["k_corrected"] is None
-    assert estimate["storage_correction"]["reason"] == storage["reason"]
+    assert estimate.content["fit"]["static_kA_check"]["kA_static"] == pytest.approx(k["kA"])
+    assert estimate.content["k_corrected"] is None
+    assert estimate.content["storage_correction"]["reason"] == storage["reason"]
 
 
 # -- the static kA against the records' own -----------------------------------------------
@@ -227,9 +231,9 @@ def static_stage(scale: float, u_k_rel: float = 0.005) -> tuple[dict, dict]:
 
 def test_records_that_accept_the_static_kA_keep_the_two_stage_fit():
     k, estimate = static_stage(1.0)
-    check = estimate["fit"]["static_kA_check"]
-    assert estimate["k_source"] == "static test (eq. 10)"
-    assert estimate["kA_fixed"] == pytest.approx(k["kA"])
+    check = estimate.content["fit"]["static_kA_check"]
+    assert estimate.content["k_source"] == "static test (eq. 10)"
+    assert estimate.content["kA_fixed"] == pytest.approx(k["kA"])
     assert check["use_joint"] is False
     assert all(abs(z) < fitsettings.CONTRADICTION_Z for z in check["z"].values())
     assert check["kA_joint"] == pytest.approx(TRUTH["kA"], rel=0.002)
@@ -240,15 +244,15 @@ def test_records_that_contradict_the_static_kA_get_the_joint_fit():
     absorb the mismatch); the records determine kA far better than that, so the check
     rejects it and the joint fit, which recovers every parameter, is reported."""
     k, estimate = static_stage(1.01)
-    check = estimate["fit"]["static_kA_check"]
+    check = estimate.content["fit"]["static_kA_check"]
     assert check["use_joint"] is True and check["z"]["kA"] < -fitsettings.CONTRADICTION_Z
-    assert estimate["k_source"] == f"joint estimation (PEM): {identify.STATIC_CONTRADICTED}"
-    assert estimate["kA_fixed"] is None
-    assert estimate["k_eq10"] == pytest.approx(k["k"])  # the static test is still reported
+    assert estimate.content["k_source"] == f"joint estimation (PEM): {identify.STATIC_CONTRADICTED}"
+    assert estimate.content["kA_fixed"] is None
+    assert estimate.content["k_eq10"] == pytest.approx(k["k"])  # the static test is still reported
     # the reported joint fit's kA agrees with the static test: a note, not a verdict reason
-    assert "contradict the two-stage fit" in estimate["method_notes"][-1]
-    assert not any("contradict the two-stage fit" in n for n in estimate["notes"])
-    parameters = estimate["fit"]["parameters"]
+    assert "contradict the two-stage fit" in estimate.content["method_notes"][-1]
+    assert not any("contradict the two-stage fit" in n for n in estimate.content["notes"])
+    parameters = estimate.content["fit"]["parameters"]
     for p in ("kA", "C", "K_veh", "C_veh"):
         lo, hi = parameters[p]["ci95"]
         assert parameters[p]["identified"] and lo <= TRUTH[p] <= hi, p
@@ -259,11 +263,11 @@ def test_a_static_kA_far_outside_its_own_uncertainty_is_not_replaced():
     either explains; the joint kA does not replace the static one (a heat source the model
     lacks would move it as far), the two-stage fit stays with the disagreement as a note."""
     k, estimate = static_stage(1.03)
-    check = estimate["fit"]["static_kA_check"]
+    check = estimate.content["fit"]["static_kA_check"]
     assert check["use_joint"] is False and check["reason"] == identify.STATIC_CONFLICT
-    assert estimate["k_source"] == "static test (eq. 10)"
-    assert estimate["kA_fixed"] == pytest.approx(k["kA"])
-    assert "the static test and the records disagree" in estimate["notes"][-1]
+    assert estimate.content["k_source"] == "static test (eq. 10)"
+    assert estimate.content["kA_fixed"] == pytest.approx(k["kA"])
+    assert "the static test and the records disagree" in estimate.content["notes"][-1]
 
 
 def test_static_kA_leaving_parameters_undetermined_gets_the_joint_fit(monkeypatch):
@@ -278,8 +282,8 @@ def test_static_kA_leaving_parameters_undetermined_gets_the_joint_fit(monkeypatc
 
     monkeypatch.setattr(identify, "_not_identified", first_call_undetermined)
     _, estimate = static_stage(1.0)
-    assert estimate["k_source"] == f"joint estimation (PEM): {identify.STATIC_UNDETERMINED}"
-    assert "left C_veh not identified" in estimate["method_notes"][-1]
+    assert estimate.content["k_source"] == f"joint estimation (PEM): {identify.STATIC_UNDETERMINED}"
+    assert "left C_veh not identified" in estimate.content["method_notes"][-1]
 
 
 def test_a_runaway_alternation_is_solved_by_the_secant_method(monkeypatch):
@@ -306,8 +310,8 @@ def test_a_runaway_alternation_is_solved_by_the_secant_method(monkeypatch):
     assert storage["iterations"] > 4
     # the end is a fixed point of the steep map: stage two at the corrected kA gives
     # capacities whose balance returns that kA
-    assert estimate["kA_fixed"] == pytest.approx(storage["kA_corrected"])
-    theta = {p: estimate["fit"]["parameters"][p]["value"] for p in ("C", "K_veh", "C_veh")}
+    assert estimate.content["kA_fixed"] == pytest.approx(storage["kA_corrected"])
+    theta = {p: estimate.content["fit"]["parameters"][p]["value"] for p in ("C", "K_veh", "C_veh")}
     again = steep(k_window(0.3), **theta).kA
     assert abs(again - storage["kA_corrected"]) < storage["u_kA_corrected"]
 

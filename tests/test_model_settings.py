@@ -37,7 +37,7 @@ def fit_of(tmp_path: Path, vehicle, order: int) -> dict:
     estimate, _ = identify.identify(
         {name: tables[name] for name in windows}, vehicle.data, None, order
     )
-    return estimate["fit"]
+    return estimate.content["fit"]
 
 
 def test_kA_and_aperture_bounds_reach_the_fit(tmp_path):

@@ -24,6 +24,7 @@ from railtherm.cli import main
 from railtherm.config import load_vehicle, metadata_classes, section_defaults
 from railtherm.errors import ConfigError
 from railtherm.estimation import kvalue
+from railtherm.records import EstimateRecord
 from railtherm.report import audit, plots, tableformat
 from railtherm.study import aggregate, fitsettings, identify, quality
 from railtherm.study.fit import read_fit
@@ -142,14 +143,14 @@ def test_two_stage_fit_without_surface_takes_kA_from_the_static_test():
         "budget": {"scatter": 0.0, "storage": 0.0, "unit": "W/K"},
     }
     estimate, series = identify.identify(TABLES, bare(), k, 2)
-    params = estimate["fit"]["parameters"]
+    params = estimate.content["fit"]["parameters"]
     assert params["kA"] == {"value": pytest.approx(TRUTH["kA"]), "estimated": False}
     for p in ("C", "K_veh", "C_veh"):
         assert params[p]["value"] == pytest.approx(TRUTH[p], rel=1e-5)
-    assert estimate["A"] is None and estimate["mass_kg"] is None
+    assert estimate.content["A"] is None and estimate.content["mass_kg"] is None
     result = quality.check(estimate, series, section_defaults("check"))
-    assert result["verdict"] == "fit acceptable", result["reasons"]
-    notes = " ".join(result["notes"])
+    assert result.content["verdict"] == "fit acceptable", result.content["reasons"]
+    notes = " ".join(result.content["notes"])
     assert "k_range_W_m2K) not checked: no surface_m2" in notes
     assert "min_capacity_per_kg_J_kgK" in notes and "no mass_kg" in notes
 
@@ -160,18 +161,22 @@ def test_joint_fit_without_surface_starts_from_the_energy_balance():
     assert start == pytest.approx(rows["Q_H"].mean() / (rows["T"] - rows["T_o"]).mean())
     assert fitsettings.energy_balance_kA({"w": TABLES["up"].assign(Q_H=0.0)}) is None
     estimate, _ = identify.identify(TABLES, bare(mode="joint"), None, 2)
-    assert estimate["fit"]["parameters"]["kA"]["value"] == pytest.approx(TRUTH["kA"], rel=1e-5)
+    assert estimate.content["fit"]["parameters"]["kA"]["value"] == pytest.approx(
+        TRUTH["kA"], rel=1e-5
+    )
 
 
 @pytest.mark.bad_input
 def test_an_implausible_fit_of_a_rail_vehicle_is_still_caught():
     """The skipped checks skip only where the metadata is absent."""
     estimate, _ = identify.identify(TABLES, vehicle(), None, 2)
-    light = {**estimate, "mass_kg": 5_000.0}
-    assert any("more than water" in r for r in quality.plausibility(light, {}))
+    light = {**estimate.content, "mass_kg": 5_000.0}
+    assert any(
+        "more than water" in r for r in quality.plausibility(EstimateRecord.from_dict(light), {})
+    )
     assert quality.skipped_checks(estimate) == []
-    assert quality.plausibility({**light, "mass_kg": None}, {}) == []
-    assert len(quality.skipped_checks({**light, "mass_kg": None})) == 1
+    assert quality.plausibility(EstimateRecord.from_dict({**light, "mass_kg": None}), {}) == []
+    assert len(quality.skipped_checks(EstimateRecord.from_dict({**light, "mass_kg": None}))) == 1
 
 
 # --- the tables --------------------------------------------------------------------------------

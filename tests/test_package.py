@@ -196,22 +196,15 @@ def test_no_function_of_the_package_is_longer_than_one_step_needs():
 
 
 # A fit travels above the estimators as its record (railtherm.records.FitRecord, or the Fit
-# built on it). What is left untyped: the identify stage's estimate on its way to the fit
-# file (the fit's parameters judged and their intervals combined in place, then the verdict),
-# each entry (module, function, parameter); the list only shrinks.
+# built on it; the identify stage's EstimateRecord before the verdict). What is left untyped:
+# the estimator's result inside the identify stage, while its parameters are judged and their
+# intervals combined (each entry: module, function, parameter); the list only shrinks.
 UNTYPED_FITS = {
     ("study/identifiability.py", "total_capacity", "fitted"),
     ("study/identify.py", "_not_identified", "fitted"),
     ("study/identify.py", "unit_checks", "fitted"),
     ("study/identify.py", "derived_kA", "fitted"),
     ("study/identify.py", "judge_identification", "fitted"),
-    ("study/quality.py", "outlying_samples", "estimate"),
-    ("study/quality.py", "innovation_reasons", "estimate"),
-    ("study/quality.py", "skipped_checks", "estimate"),
-    ("study/quality.py", "plausibility", "estimate"),
-    ("study/quality.py", "check", "estimate"),
-    ("study/quality.py", "_measures", "estimate"),
-    ("study/quality.py", "_record", "estimate"),
 }
 FIT_NAMES = {"fit", "fits", "fitted", "first_order", "estimate"}
 

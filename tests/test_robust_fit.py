@@ -182,21 +182,21 @@ def test_the_bounded_initial_state_puts_the_verdict_in_doubt():
         "budget": {"scatter": 0.0, "storage": 0.0},
     }
     estimate, series = identify.identify({"run": table}, vehicle, k, 2)
-    codes = [f["code"] for f in estimate["fit"]["flags"]]
+    codes = [f["code"] for f in estimate.content["fit"]["flags"]]
     assert "x0_at_bound" in codes
     # with kA free the hidden source moves kA far from the static test's: the two-stage fit
     # stays, and the disagreement is a reason of its own
-    assert estimate["k_source"] == "static test (eq. 10)"
-    assert estimate["fit"]["static_kA_check"]["reason"] == identify.STATIC_CONFLICT
+    assert estimate.content["k_source"] == "static test (eq. 10)"
+    assert estimate.content["fit"]["static_kA_check"]["reason"] == identify.STATIC_CONFLICT
     checked = quality.check(estimate, series, section_defaults("check"))
-    assert checked["verdict"] == "assumptions in doubt"
-    assert any("the static test and the records disagree" in r for r in checked["reasons"])
-    assert any("estimated initial T_veh" in reason for reason in checked["reasons"])
+    assert checked.content["verdict"] == "assumptions in doubt"
+    assert any("the static test and the records disagree" in r for r in checked.content["reasons"])
+    assert any("estimated initial T_veh" in reason for reason in checked.content["reasons"])
     # the paper's two-stage fit alone (model.two_stage_check: false): no such check
     vehicle["model"]["two_stage_check"] = False
     estimate, series = identify.identify({"run": table}, vehicle, k, 2)
-    assert "static_kA_check" not in estimate["fit"]
-    assert "x0_at_bound" in [f["code"] for f in estimate["fit"]["flags"]]
+    assert "static_kA_check" not in estimate.content["fit"]
+    assert "x0_at_bound" in [f["code"] for f in estimate.content["fit"]["flags"]]
     checked = quality.check(estimate, series, section_defaults("check"))
-    assert checked["verdict"] == "assumptions in doubt"
-    assert any("estimated initial T_veh" in reason for reason in checked["reasons"])
+    assert checked.content["verdict"] == "assumptions in doubt"
+    assert any("estimated initial T_veh" in reason for reason in checked.content["reasons"])

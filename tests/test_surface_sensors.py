@@ -104,14 +104,14 @@ def test_measured_initial_envelope_state_with_x0_measured(case):
     tables = tidy_tables(vehicle, path.parent)
     windows = {"run": tables["run"]}
     estimate, series = identify.identify(windows, vehicle.data, None, "interior_envelope")
-    assert estimate["fit"]["experiments"][0]["x0_estimated"] == []
-    assert estimate["fit"]["experiments"][0]["x0"]["T_e"] == tables["run"]["T_veh"].iloc[0]
+    assert estimate.content["fit"]["experiments"][0]["x0_estimated"] == []
+    assert estimate.content["fit"]["experiments"][0]["x0"]["T_e"] == tables["run"]["T_veh"].iloc[0]
     assert series["T_e"].equals(tables["run"]["T_veh"].rename("T_e"))
     # without the key the same data leave T_e unmeasured: its initial state is estimated
     plain = variant(case, "x0_plain", lambda d: d["model"].update(x0="measured"))
     vehicle = load_vehicle(plain, workdir=plain.parent)
     estimate, _ = identify.identify(windows, vehicle.data, None, "interior_envelope")
-    assert estimate["fit"]["experiments"][0]["x0_estimated"] == ["T_e"]
+    assert estimate.content["fit"]["experiments"][0]["x0_estimated"] == ["T_e"]
 
 
 def test_second_order_and_unmeasured_tables_are_left_as_they_are():

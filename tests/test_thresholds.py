@@ -17,6 +17,7 @@ from test_optional_metadata import armadillo_copy
 from railtherm.cli import main
 from railtherm.config import load_study, load_vehicle, section_defaults
 from railtherm.errors import ConfigError, DataError
+from railtherm.records import EstimateRecord
 from railtherm.study import identify, quality
 from railtherm.study.fit import read_fit
 from railtherm.yamlio import packaged_schema
@@ -162,7 +163,7 @@ def with_residuals(estimate, series, e: np.ndarray):
 
 
 def reasons(estimate, series, **check) -> list[str]:
-    return quality.check(estimate, series, check)["reasons"]
+    return quality.check(estimate, series, check).content["reasons"]
 
 
 def test_rmse_limit_and_r2_min(exact):
@@ -174,7 +175,7 @@ def test_rmse_limit_and_r2_min(exact):
     assert not any("RMSE" in r for r in field)
     tight = reasons(*noisy, max_rmse_K=0.25)
     assert any("more than 0.25 K, check.max_rmse_K" in r for r in tight)
-    r2 = quality.check(*noisy, {})["R2"]
+    r2 = quality.check(*noisy, {}).content["R2"]
     assert not any("R^2" in r for r in field)
     assert any(
         f"below {r2 + 1e-4:g}" in r for r in reasons(*noisy, max_rmse_K=1.0, r2_min=r2 + 1e-4)
@@ -183,10 +184,11 @@ def test_rmse_limit_and_r2_min(exact):
 
 def test_whiteness_is_judged_only_when_required_and_at_its_level(exact):
     estimate, series = exact
-    estimate = {**estimate, "outputs": ["T"]}  # T_veh's residuals are round-off here
+    # T_veh's residuals are round-off here
+    estimate = EstimateRecord.from_dict({**estimate.content, "outputs": ["T"]})
     e = np.random.default_rng(3).normal(0.0, 0.05, len(series))  # white, within the limit
     white = with_residuals(estimate, series, e)
-    p = quality.check(*white, {})["measures"]["T"]["overall"]["ljung_box_p"]
+    p = quality.check(*white, {}).content["measures"]["T"]["overall"]["ljung_box_p"]
     assert 0.01 < p < 0.99
     assert reasons(*white) == []
     assert reasons(*white, require_white=True, whiteness_alpha=p / 2) == []

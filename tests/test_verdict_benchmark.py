@@ -86,13 +86,13 @@ def test_a_two_stage_kalman_fit_is_judged_white_on_its_joint_fit(fa, tmp_path):
         return diagnostics.residual_tests(z.to_numpy(float)).to_dict()["ljung_box_p"]
 
     estimate, series, checked = fa.fitted(path, setting)
-    assert "joint" not in estimate["k_source"]  # the two-stage fit is the one reported
-    assert estimate["kA_fixed"] / truth.kA - 1 == pytest.approx(-0.004, abs=0.0005)
+    assert "joint" not in estimate.k_source  # the two-stage fit is the one reported
+    assert estimate.kA_fixed / truth.kA - 1 == pytest.approx(-0.004, abs=0.0005)
     assert own_ljung_box(series) < 0.01
-    assert estimate["innovations_of"] == checked["innovations_of"]
-    assert "joint fit" in checked["innovations_of"]
-    assert checked["innovations"]["T"]["ljung_box_p"] > 0.05
-    assert checked["verdict"] == "fit acceptable", checked["reasons"]
+    assert estimate.innovations_of == checked.content["innovations_of"]
+    assert "joint fit" in estimate.innovations_of
+    assert checked.section("innovations")["T"]["ljung_box_p"] > 0.05
+    assert checked.verdict == "fit acceptable", checked.reasons
 
     _, at_truth, _ = fa.fitted(path, setting, kA=truth.kA)
     assert own_ljung_box(at_truth) > 0.05

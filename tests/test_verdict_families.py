@@ -11,6 +11,7 @@ import pytest
 from scipy.stats import binomtest
 
 from railtherm.estimation import diagnostics, metrics
+from railtherm.records import EstimateRecord
 from railtherm.study import identify, quality
 
 ALPHA = 0.05
@@ -62,8 +63,10 @@ def test_two_whiteness_tests_of_white_noise_reject_at_most_at_their_level():
     assert k_family / n <= ALPHA + 0.02
 
 
-def innovations_estimate(series: pd.DataFrame, outputs: list[str]) -> dict:
-    return {"innovations": identify.innovation_tests(series, outputs, ALPHA)}
+def innovations_estimate(series: pd.DataFrame, outputs: list[str]) -> EstimateRecord:
+    return EstimateRecord.from_dict(
+        {"innovations": identify.innovation_tests(series, outputs, ALPHA)}
+    )
 
 
 def test_kalman_innovations_of_two_white_outputs_put_a_fit_in_doubt_at_most_at_alpha():
@@ -84,7 +87,8 @@ def test_kalman_innovations_of_two_white_outputs_put_a_fit_in_doubt_at_most_at_a
         estimate = innovations_estimate(series, ["T", "T_veh"])
         failed += bool(quality.innovation_reasons(estimate, {"whiteness_alpha": ALPHA}))
         union += any(
-            min(t["ljung_box_p"], t["cpg_p"]) < ALPHA for t in estimate["innovations"].values()
+            min(t["ljung_box_p"], t["cpg_p"]) < ALPHA
+            for t in estimate.section("innovations").values()
         )
     assert union > 2 * failed
     assert failed / runs <= ALPHA + 0.02
@@ -102,7 +106,8 @@ def test_a_single_test_below_alpha_is_no_reason_unless_holm_rejects_it():
                 "T_veh": {"ljung_box_p": 0.6, "cpg_p": 0.7, "white": True},
             }
         }
-        return quality.innovation_reasons(estimate, {"whiteness_alpha": ALPHA})
+        record = EstimateRecord.from_dict(estimate)
+        return quality.innovation_reasons(record, {"whiteness_alpha": ALPHA})
 
     assert reasons(0.03) == []
     (reason,) = reasons(0.004)

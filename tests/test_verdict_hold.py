@@ -94,14 +94,14 @@ def fit(tmp_path: Path, switching: bool, hold: str) -> tuple[dict, dict]:
 
 
 def codes(estimate: dict) -> set[str]:
-    return {f["code"] for f in estimate["fit"]["flags"]}
+    return {f["code"] for f in estimate.content["fit"]["flags"]}
 
 
 def test_first_order_hold_on_a_switching_heater_resampled_is_flagged_with_the_fix(tmp_path):
     estimate, checked = fit(tmp_path, switching=True, hold="first_order")
     assert "first_order_hold_on_switching_input" in codes(estimate)
-    assert checked["verdict"] == "assumptions in doubt"
-    reason = next(r for r in checked["reasons"] if "first_order" in r)
+    assert checked.verdict == "assumptions in doubt"
+    reason = next(r for r in checked.reasons if "first_order" in r)
     assert "Q_H" in reason and "cleaning.step_s 1800" in reason
     assert "model.input_hold: zero_order" in reason  # the fix is named
 

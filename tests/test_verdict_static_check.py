@@ -28,10 +28,10 @@ def contradicted():
 
 def test_the_note_states_each_yardstick_with_its_own_number(contradicted):
     estimate, _ = contradicted
-    check = estimate["fit"]["static_kA_check"]
+    check = estimate.content["fit"]["static_kA_check"]
     assert check["reason"] == identify.STATIC_CONTRADICTED and check["use_joint"]
     assert abs(check["z"]["kA"]) > fitsettings.CONTRADICTION_Z  # the case of the two yardsticks
-    (note,) = [n for n in estimate["method_notes"] if "contradict the two-stage fit" in n]
+    (note,) = [n for n in estimate.content["method_notes"] if "contradict the two-stage fit" in n]
     # no bare "within the static test's uncertainty" beside "more than 3 standard
     # uncertainties of the difference": each claim names its yardstick and its number
     assert "within the static test's uncertainty)" not in note
@@ -49,10 +49,10 @@ def test_the_note_states_each_yardstick_with_its_own_number(contradicted):
 def test_a_replacement_whose_kA_agrees_is_a_note_not_a_reason(contradicted):
     estimate, series = contradicted
     checked = quality.check(estimate, series, {})
-    k_method = next(c for c in checked["criteria"] if c["criterion"] == "k_stage")
+    k_method = next(c for c in checked.content["criteria"] if c["criterion"] == "k_stage")
     assert k_method["applies"] and k_method["passed"]
-    assert not any("contradict the two-stage fit" in r for r in checked["reasons"])
-    assert any("contradict the two-stage fit" in n for n in checked["notes"])
+    assert not any("contradict the two-stage fit" in r for r in checked.content["reasons"])
+    assert any("contradict the two-stage fit" in n for n in checked.content["notes"])
 
 
 def test_the_agreement_sentence_in_each_case():

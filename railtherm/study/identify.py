@@ -20,6 +20,7 @@ import pandas as pd
 from railtherm.data import plausibility as units_plausibility
 from railtherm.errors import ConfigError
 from railtherm.estimation import common, metrics, models, pem
+from railtherm.records import EstimateRecord
 from railtherm.study import identifiability
 from railtherm.study.budget import combine_uncertainty, systematic_budget
 from railtherm.study.fitsettings import (
@@ -255,7 +256,7 @@ def identify(
     kvalue: Mapping[str, Any] | None,
     order: int,
     storage: Mapping[str, Any] | None = None,
-) -> tuple[dict[str, Any], pd.DataFrame]:
+) -> tuple[EstimateRecord, pd.DataFrame]:
     """Fit the model of ``order`` to all identification windows jointly (one parameter set,
     own initial states); cross-validate when there are two or more windows.
 
@@ -264,7 +265,8 @@ def identify(
     uncertainty replaces the k stage's storage bound in the type-B budget. Without it (or not
     applied) kA is that of eq. 10.
 
-    Returns the estimate (a plain dict for YAML) and the series table (per window: time,
+    Returns the estimate (:class:`~railtherm.records.EstimateRecord`, the content of
+    identify/<model>.yaml) and the series table (per window: time,
     measured and simulated states, residuals and inputs).
     """
     structure = model_structure(order, vehicle_data)
@@ -357,7 +359,7 @@ def identify(
         estimate["innovations"] = innovation_tests(judged, outputs, alpha)
         estimate["fit"]["loglik"] = float(result.loglik)
         estimate["fit"]["n_params"] = int(result.n_params)
-    return estimate, series
+    return EstimateRecord.from_dict(estimate), series
 
 
 def _clocks(structure, tables, vehicle_data, options, result) -> dict[str, Any]:

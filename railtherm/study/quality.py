@@ -19,6 +19,7 @@ import pandas as pd
 from railtherm import structures
 from railtherm.estimation import outliers
 from railtherm.estimation.metrics import Whiteness, aic, bic, ljung_box, nrmse_fit, paired, r2, rmse
+from railtherm.records import EstimateRecord, FitRecord
 from railtherm.study import identifiability
 from railtherm.yamlio import packaged_schema, validate_schema
 
@@ -179,14 +180,14 @@ K_STAGE_FIELDS = (
 
 
 def outlying_samples(
-    estimate: Mapping[str, Any], series: pd.DataFrame, thresholds: Mapping[str, Any]
+    estimate: EstimateRecord, series: pd.DataFrame, thresholds: Mapping[str, Any]
 ) -> dict[str, Any]:
     """Each compared output's outlying samples
     (:class:`railtherm.estimation.outliers.OutlyingSamples`): a Kalman fit's standardised
     one-step innovations, an output-error fit's simulation residuals over their RMSE, beyond
     the Bonferroni threshold at ``check.outlier_alpha`` over the record's samples. Reported
     in the fit's notes and ``outliers``; they do not judge the verdict."""
-    estimator = estimate.get("estimator", "output_error")
+    estimator = estimate.estimator
     alpha = float(thresholds["outlier_alpha"])
     # a series without times (a hand-built one) names its samples by their row
     times = series["time"] if "time" in series else pd.Series(range(len(series)))
@@ -199,12 +200,12 @@ def outlying_samples(
             estimator,
             alpha,
         )
-        for state in estimate["outputs"]
+        for state in estimate.outputs
         if outliers.has_columns(series, state, estimator)
     }
 
 
-def innovation_reasons(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
+def innovation_reasons(estimate: EstimateRecord, thresholds: Mapping[str, Any]) -> list[str]:
     """The verdict's reasons of a kalman fit: an output whose one-step innovations are not
     white (:func:`innovation_tests`) - the stochastic model misses a dynamic or an input.
 
@@ -217,13 +218,13 @@ def innovation_reasons(estimate: Mapping[str, Any], thresholds: Mapping[str, Any
     in the reason."""
     from railtherm.estimation import diagnostics
 
-    tests = estimate.get("innovations", {})
+    tests = estimate.section("innovations")
     alpha = float(thresholds["whiteness_alpha"])
     names = [(state, key) for state in tests for key in ("ljung_box_p", "cpg_p")]
     adjusted = diagnostics.holm([float(tests[state][key]) for state, key in names])
     held = dict(zip(names, adjusted, strict=True))
     family = f"Holm over {len(names)} tests" if len(names) > 1 else "one test"
-    of = f" of {estimate['innovations_of']}" if estimate.get("innovations_of") else ""
+    of = f" of {estimate.innovations_of}" if estimate.innovations_of else ""
     reasons = []
     for state, t in tests.items():
         lb, cpg = held[(state, "ljung_box_p")], held[(state, "cpg_p")]
@@ -255,16 +256,16 @@ def check_thresholds(thresholds: Mapping[str, Any] | None) -> dict[str, Any]:
     return data
 
 
-def skipped_checks(estimate: Mapping[str, Any]) -> list[str]:
+def skipped_checks(estimate: EstimateRecord) -> list[str]:
     """The plausibility checks a fit could not make, each a note: an object of class other
     may give no ``surface_m2`` (then k = kA / A and ``check.k_range_W_m2K``) or no ``mass_kg``
     (then c_veh and the stored heat per kg) - nothing is wrong, there is nothing to judge."""
     out = []
-    if estimate.get("A") is None:
+    if estimate.A is None:
         out.append(
             "k = kA / A not given, and its range (check.k_range_W_m2K) not checked: no surface_m2"
         )
-    if estimate.get("mass_kg") is None:
+    if estimate.mass_kg is None:
         out.append(
             "c_veh = C_veh / m_veh not given, and the heat stored per kg "
             "(check.min_capacity_per_kg_J_kgK, max_capacity_per_kg_J_kgK) not checked: no mass_kg"
@@ -272,7 +273,7 @@ def skipped_checks(estimate: Mapping[str, Any]) -> list[str]:
     return out
 
 
-def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> list[str]:
+def plausibility(estimate: EstimateRecord, thresholds: Mapping[str, Any]) -> list[str]:
     """Physical plausibility of a fit's numbers, each failure a sentence for the verdict
     (a unit mistake in a channel leaves every other check silent):
 
@@ -305,7 +306,7 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
     C_veh (``fit.totals``), the sum stands for the capacities, and for the air node's as an
     upper bound (C <= C_total)."""
     thresholds = check_thresholds(thresholds)
-    par = estimate["fit"]["parameters"]
+    par = estimate.section("fit")["parameters"]
 
     def value(p):
         entry = par.get(p)
@@ -313,14 +314,14 @@ def plausibility(estimate: Mapping[str, Any], thresholds: Mapping[str, Any]) -> 
             return None
         return float(entry["value"])
 
-    total = (estimate["fit"].get("totals") or {}).get("C_total")
+    total = (estimate.section("fit").get("totals") or {}).get("C_total")
     if total is not None and not identifiability.parameter_identification(total)["identified"]:
         total = None
     return [
-        *_against_surface(value, par, estimate.get("A"), thresholds),
-        *_against_mass(value, par, total, estimate.get("mass_kg"), thresholds),
-        *_against_air(value, par, total, estimate.get("volume_m3"), thresholds),
-        *(estimate.get("unit_checks") or ()),
+        *_against_surface(value, par, estimate.A, thresholds),
+        *_against_mass(value, par, total, estimate.mass_kg, thresholds),
+        *_against_air(value, par, total, estimate.volume_m3, thresholds),
+        *estimate.unit_checks,
     ]
 
 
@@ -457,8 +458,8 @@ def judged_by(criteria: Sequence[Mapping[str, Any]]) -> str:
 
 
 def check(
-    estimate: Mapping[str, Any], series: pd.DataFrame, thresholds: Mapping[str, Any]
-) -> dict[str, Any]:
+    estimate: EstimateRecord, series: pd.DataFrame, thresholds: Mapping[str, Any]
+) -> FitRecord:
     """Diagnostics and verdict of one fit (rule check): R^2 (eq. 21), NRMSE fit, RMSE, residual
     whiteness and AIC/BIC per compared output, overall and per window; cross-validation R^2;
     the identifiability flags.
@@ -487,13 +488,14 @@ def check(
     ``thresholds``: the vehicle's ``check`` section; what it leaves out takes the schema's
     default (:func:`check_thresholds`). The notes list what does not put the fit in doubt:
     high correlations, the checks skipped for metadata the config does not give, and the
-    record's outlying samples (:func:`outlying_samples`, also in ``outliers``).
+    record's outlying samples (:func:`outlying_samples`, also in ``outliers``). Returns the
+    checked fit's record (the content of ``fit_<model>.yaml``).
     """
     thresholds = check_thresholds(thresholds)
-    fit = estimate["fit"]
+    fit = estimate.section("fit")
     p = int(fit["n_unknowns"])  # every estimated quantity, whatever the estimator
     measures = _measures(estimate, series, p)
-    kalman = estimate.get("estimator") == "kalman"
+    kalman = estimate.estimator == "kalman"
     criteria: list[dict[str, Any]] = []
     reasons: list[str] = []
 
@@ -502,7 +504,7 @@ def check(
         reasons.extend(failed)
 
     r2 = {"T": measures["T"]["overall"]["r2"]}
-    r2 |= {f"{cv['train']} -> {cv['test']}": cv["r2_T"] for cv in estimate["cross_validation"]}
+    r2 |= {f"{cv['train']} -> {cv['test']}": cv["r2_T"] for cv in estimate.cross_validation}
     judge("r2", verdict(r2, thresholds={"r2_min": thresholds["r2_min"]})[1])
     judge("rmse", _rmse_reasons(measures, thresholds))
     judge("innovations_white", innovation_reasons(estimate, thresholds) if kalman else [], kalman)
@@ -511,22 +513,22 @@ def check(
     severe = [f for f in fit["flags"] if f["code"] not in NOTE_ONLY_FLAGS]
     judge("flags", verdict(1.0, severe)[1])
     judge("plausibility", plausibility(estimate, thresholds))
-    judge("k_stage", list(estimate["notes"]))
+    judge("k_stage", list(estimate.notes))
     clock_notes: list[str] = []
-    if "clocks" in estimate:  # a record of several sources: their clocks checked
+    if "clocks" in estimate.content:  # a record of several sources: their clocks checked
         from railtherm.study import clocks
 
-        judge("clocks", clocks.reasons(estimate["clocks"]))
-        clock_notes = clocks.notes(estimate["clocks"])
+        judge("clocks", clocks.reasons(estimate.section("clocks")))
+        clock_notes = clocks.notes(estimate.section("clocks"))
     notes = [f["message"] for f in fit["flags"] if f["code"] in NOTE_ONLY_FLAGS]
     notes += clock_notes
-    notes += estimate.get("method_notes", [])
+    notes += estimate.method_notes
     notes += skipped_checks(estimate)
     outlying = outlying_samples(estimate, series, thresholds)
     for found in outlying.values():
         notes += found.texts()
     head, tail = _record(estimate, measures, kalman)
-    return {
+    content = {
         **head,
         "verdict": IN_DOUBT if reasons else ACCEPTABLE,
         "reasons": reasons,
@@ -535,14 +537,15 @@ def check(
         "notes": notes,
         **tail,
         "outliers": {state: found.to_dict() for state, found in outlying.items()},
-        **({"clocks": estimate["clocks"]} if "clocks" in estimate else {}),
+        **({"clocks": estimate.to_dict()["clocks"]} if "clocks" in estimate.content else {}),
     }
+    return FitRecord.from_dict(content)
 
 
-def _measures(estimate: Mapping[str, Any], series: pd.DataFrame, p: int) -> dict[str, Any]:
+def _measures(estimate: EstimateRecord, series: pd.DataFrame, p: int) -> dict[str, Any]:
     """:func:`summary` of each compared output, overall and per window (``p`` unknowns)."""
     measures: dict[str, Any] = {}
-    for state in estimate["outputs"]:
+    for state in estimate.outputs:
         overall = summary(series[state], series[f"{state}_sim"], p)
         windows = {
             name: summary(w[state], w[f"{state}_sim"], p)
@@ -590,21 +593,23 @@ def _colour_reasons(measures: Mapping[str, Any], thresholds: Mapping[str, Any]) 
 
 
 def _record(
-    estimate: Mapping[str, Any], measures: Mapping[str, Any], kalman: bool
+    estimate: EstimateRecord, measures: Mapping[str, Any], kalman: bool
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """What a fit file records of the estimate and its measures besides the verdict: the
-    entries before the verdict's, and those after them (the fit file's order)."""
-    fit = estimate["fit"]
+    entries before the verdict's, and those after them (the fit file's order), copied from
+    the estimate file's content."""
+    content = estimate.to_dict()
+    fit = content["fit"]
     head = {
-        "vehicle": estimate["vehicle"],
-        "synthetic": estimate["synthetic"],
-        "order": estimate["order"],
-        "model": estimate["model"],
-        "estimator": estimate.get("estimator", "output_error"),
-        "structure": estimate["structure"],
-        "input_hold": estimate.get("input_hold", "zero_order"),
-        "k_source": estimate["k_source"],
-        **{key: estimate.get(key) for key in K_STAGE_FIELDS},
+        "vehicle": content["vehicle"],
+        "synthetic": content["synthetic"],
+        "order": content["order"],
+        "model": content["model"],
+        "estimator": content.get("estimator", "output_error"),
+        "structure": content["structure"],
+        "input_hold": content.get("input_hold", "zero_order"),
+        "k_source": content["k_source"],
+        **{key: content.get(key) for key in K_STAGE_FIELDS},
     }
     tail = {
         "parameters": fit["parameters"],
@@ -617,15 +622,15 @@ def _record(
         "R2": measures["T"]["overall"]["r2"],
         "nrmse_fit": measures["T"]["overall"]["nrmse_fit"],
         "measures": measures,
-        "cross_validation": estimate["cross_validation"],
+        "cross_validation": content["cross_validation"],
         "flags": fit["flags"],
-        "systematic": estimate["systematic"],
-        "windows": estimate["windows"],
-        "rows": estimate["rows"],
-        "outputs": estimate["outputs"],
+        "systematic": content["systematic"],
+        "windows": content["windows"],
+        "rows": content["rows"],
+        "outputs": content["outputs"],
         **({key: fit[key] for key in ("loglik", "n_params", "n_obs")} if kalman else {}),
-        **({"innovations": estimate["innovations"]} if kalman else {}),
-        **({"innovations_of": estimate["innovations_of"]} if "innovations_of" in estimate else {}),
+        **({"innovations": content["innovations"]} if kalman else {}),
+        **({"innovations_of": content["innovations_of"]} if "innovations_of" in content else {}),
         **({"noise": fit["noise"]} if kalman and "noise" in fit else {}),
     }
     return head, tail

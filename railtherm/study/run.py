@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
+from railtherm import io as rt_io
 from railtherm import structures
 from railtherm.config import Vehicle
 from railtherm.data import ingest
@@ -92,10 +93,9 @@ def fit_vehicle(
             if err.file != f"vehicle {vehicle.id}":
                 raise
             raise ConfigError(vehicle.path, err.key, err.value, err.reason) from None
-        checked = quality.check(estimate, series, vehicle.data["check"])
-        fit = Fit.from_dict(checked, series)
+        fit = Fit.of(quality.check(estimate, series, vehicle.data["check"]), series)
         if base is not None:
-            write_yaml(estimate, os.path.join(base, "identify", f"{model}.yaml"))
+            rt_io.write_estimate(estimate, os.path.join(base, "identify", f"{model}.yaml"))
             ingest.write_tidy(series, os.path.join(base, "identify", f"{model}_series.csv"))
             fit.write(os.path.join(base, f"fit_{model}.yaml"))
         result.fits[model] = fit

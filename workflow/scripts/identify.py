@@ -27,12 +27,12 @@ if storage and storage["applied"]:
     )
 for model in snakemake.params.models:
     estimate, series = identify.identify(tables, snakemake.params.vehicle, kvalue, model, storage)
-    rt_io.write_result(estimate, snakemake.output[f"estimate_{model}"])
+    rt_io.write_estimate(estimate, snakemake.output[f"estimate_{model}"])
     ingest.write_tidy(series, snakemake.output[f"series_{model}"])
-    fit = estimate["fit"]
+    fit = estimate.section("fit")
     criterion = (
         f"log-likelihood {fit['loglik']:.6g}"
         if fit["estimator"] == "kalman"
         else f"cost {fit['cost']:.6g}"
     )
-    log.info("%s: %s, %s", model, estimate["k_source"], criterion)
+    log.info("%s: %s, %s", model, estimate.k_source, criterion)
