@@ -463,7 +463,12 @@ def _study_options(parser: argparse.ArgumentParser, results: str) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with one subparser per command."""
+    """The argument parser with one subparser per command.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+    """
     parser = argparse.ArgumentParser(
         prog="railtherm",
         description="Thermal parameters of rail vehicles from climatic-wind-tunnel data.",
@@ -793,7 +798,18 @@ def _add_simulate(commands: Any) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 1 user mistake, 2 usage)."""
+    """Run the command line; returns the exit status (0 ok, 1 user mistake, 2 usage).
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:

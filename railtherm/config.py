@@ -118,11 +118,28 @@ class Vehicle:
     def record(self, name: str) -> str | dict[str, str]:
         """The file of one part of the record (a key of ``raw_files``), or with sources the
         file of each source ({source: path}), relative to the working directory: what
-        :func:`railtherm.data.ingest.clean_windows` reads."""
+        :func:`railtherm.data.ingest.clean_windows` reads.
+
+        Parameters
+        ----------
+        name : str
+            A key of the vehicle's ``raw_files``.
+
+        Returns
+        -------
+        str or dict of str
+            The file's path, or with sources {source: path}.
+        """
         return self.source_files.get(name) or self.raw_files[name]
 
     def files(self) -> list[str]:
-        """Every raw file of the vehicle (each source's), relative to the working directory."""
+        """Every raw file of the vehicle (each source's), relative to the working directory.
+
+        Returns
+        -------
+        list of str
+            The paths, in the config's order.
+        """
         if self.source_files:
             return [p for part in self.source_files.values() for p in part.values()]
         return list(self.raw_files.values())
@@ -256,6 +273,27 @@ def load_vehicle(
     used for raw files that do not exist yet.
     Raises :class:`ConfigError` naming this file, the key path and the value on the first
     problem found.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The vehicle YAML file.
+    defaults : mapping, optional
+        The study config's ``defaults`` section, merged under the vehicle's own.
+    layouts : mapping, optional
+        Planned raw-file layouts by normalised path (a campaign's files not yet written).
+    workdir : str or os.PathLike
+        The directory the vehicle's paths are relative to.
+
+    Returns
+    -------
+    Vehicle
+        The validated vehicle config.
+
+    Raises
+    ------
+    ConfigError
+        On the first problem, naming the file, the key path and the value.
     """
     path = str(path)
     workdir = str(workdir)
@@ -277,25 +315,7 @@ def load_vehicle(
     _check_metadata(file, data)
     validate_schema(file, data, vehicle_schema())
 
-    for section, key in (
-        ("cleaning", "temperature_range_degC"),
-        ("check", "k_range_W_m2K"),
-        ("check", "heated_air_range_degC"),
-    ):
-        lo, hi = data[section][key]
-        if not lo < hi:
-            raise ConfigError(
-                file, f"{section}.{key}", [lo, hi], "must be [lower, upper] with lower < upper"
-            )
-    check = data["check"]
-    if not check["min_capacity_per_kg_J_kgK"] < check["max_capacity_per_kg_J_kgK"]:
-        raise ConfigError(
-            file,
-            "check.max_capacity_per_kg_J_kgK",
-            check["max_capacity_per_kg_J_kgK"],
-            "must be above check.min_capacity_per_kg_J_kgK = "
-            f"{check['min_capacity_per_kg_J_kgK']:g}",
-        )
+    _check_ranges(file, data)
 
     yaml_dir = os.path.dirname(path)
     raw_files: dict[str, str] = {}
@@ -354,6 +374,30 @@ def load_vehicle(
         source_files=source_files,
         source_layouts=source_layouts,
     )
+
+
+def _check_ranges(file: str, data: Mapping[str, Any]) -> None:
+    """Each [lower, upper] range of a vehicle's cleaning and check sections with lower <
+    upper, and the capacity per kg's minimum below its maximum."""
+    for section, key in (
+        ("cleaning", "temperature_range_degC"),
+        ("check", "k_range_W_m2K"),
+        ("check", "heated_air_range_degC"),
+    ):
+        lo, hi = data[section][key]
+        if not lo < hi:
+            raise ConfigError(
+                file, f"{section}.{key}", [lo, hi], "must be [lower, upper] with lower < upper"
+            )
+    check = data["check"]
+    if not check["min_capacity_per_kg_J_kgK"] < check["max_capacity_per_kg_J_kgK"]:
+        raise ConfigError(
+            file,
+            "check.max_capacity_per_kg_J_kgK",
+            check["max_capacity_per_kg_J_kgK"],
+            "must be above check.min_capacity_per_kg_J_kgK = "
+            f"{check['min_capacity_per_kg_J_kgK']:g}",
+        )
 
 
 def _json_type(value: Any) -> str:
@@ -730,6 +774,27 @@ def load_study(
     ``cache`` is a file (e.g. ``.snakemake/railtherm/vehicles.pickle``) keeping the validated
     vehicles for the next load (:class:`VehicleCache`): a vehicle whose file, raw files and
     context are unchanged is taken from it, neither its YAML nor its raw files read again.
+
+    Parameters
+    ----------
+    config : mapping
+        The study config (``config/config.yaml`` as read).
+    workdir : str or os.PathLike
+        The directory the config's paths are relative to.
+    config_file : str
+        The study config's name, for messages.
+    cache : str or os.PathLike, optional
+        A file keeping the validated vehicles for the next load.
+
+    Returns
+    -------
+    Study
+        The study: its vehicles by id, in the config's order, and its settings.
+
+    Raises
+    ------
+    ConfigError
+        Naming the study config or the vehicle file and the key at fault.
     """
     workdir = str(workdir)
     study = study_context(config, workdir, config_file)

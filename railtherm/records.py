@@ -71,7 +71,19 @@ class ParameterEstimate:
     def from_entry(cls, name: str, entry: Mapping[str, Any]) -> ParameterEstimate:
         """The estimate of an entry ``parameters.<name>`` (or ``totals.<name>``) of a fit
         file. An entry written without its identification is judged from its interval
-        (:func:`railtherm.estimation.common.identification`); a fixed one is identified."""
+        (:func:`railtherm.estimation.common.identification`); a fixed one is identified.
+
+        Parameters
+        ----------
+        name : str
+            The parameter's (or total's) name.
+        entry : mapping
+            Its entry in the fit file.
+
+        Returns
+        -------
+        ParameterEstimate
+        """
         ci = _interval(entry.get("ci95"))
         if "identified" in entry:
             ident = Identification(
@@ -139,19 +151,53 @@ class _Record:
     @classmethod
     def from_dict(cls, content: Mapping[str, Any]) -> Self:
         """The record of a file's content (a deep copy: the record does not change with the
-        mapping it was made from)."""
+        mapping it was made from).
+
+        Parameters
+        ----------
+        content : mapping
+            The file's content.
+
+        Returns
+        -------
+        the record
+        """
         return cls(MappingProxyType(copy.deepcopy(dict(content))))
 
     def to_dict(self) -> dict[str, Any]:
-        """The file's content, as written (a deep copy)."""
+        """The file's content, as written (a deep copy).
+
+        Returns
+        -------
+        dict
+        """
         return copy.deepcopy(dict(self.content))
 
     def section(self, key: str) -> Mapping[str, Any]:
-        """A section of the file as a read-only mapping (empty where it is absent)."""
+        """A section of the file as a read-only mapping (empty where it is absent).
+
+        Parameters
+        ----------
+        key : str
+            The section's key (``measures``, ``systematic``, ``innovations``, ...).
+
+        Returns
+        -------
+        mapping
+        """
         return _section(self.content, key)
 
     def has(self, key: str) -> bool:
-        """Whether the file holds ``key`` with a value."""
+        """Whether the file holds ``key`` with a value.
+
+        Parameters
+        ----------
+        key : str
+
+        Returns
+        -------
+        bool
+        """
         return self.content.get(key) is not None
 
     # --- who and what

@@ -241,3 +241,38 @@ def test_no_fit_travels_as_a_dict_above_the_estimators():
         if ("read_result(" in line or "read_yaml(" in line) and "fit" in line.lower()
     ]
     assert not readers, readers
+
+
+def test_the_public_api_documents_its_parameters_and_returns():
+    """Every public function of railtherm's API (``railtherm.__all__``, their classes' public
+    methods, inherited ones included, and the command line's ``build_parser`` and ``main``)
+    has numpydoc sections: Parameters where it takes arguments, Returns where it returns."""
+    import inspect
+
+    import railtherm
+    import railtherm.cli as cli
+
+    def public(obj):
+        if inspect.isfunction(obj):
+            yield obj.__qualname__, obj
+        elif inspect.isclass(obj) and not issubclass(obj, BaseException):
+            for name, member in inspect.getmembers(obj):
+                function = getattr(member, "__func__", member)
+                if name.startswith("_") or not inspect.isfunction(function):
+                    continue
+                if (function.__module__ or "").startswith("railtherm"):
+                    yield f"{obj.__name__}.{name}", function
+
+    functions = dict(p for n in railtherm.__all__ for p in public(getattr(railtherm, n)))
+    functions |= {f"cli.{n}": getattr(cli, n) for n in ("build_parser", "main")}
+    missing = []
+    for name, function in sorted(functions.items()):
+        doc = inspect.getdoc(function) or ""
+        signature = inspect.signature(function)
+        takes = [p for p in signature.parameters if p not in ("self", "cls")]
+        if takes and "Parameters\n----------" not in doc:
+            missing.append(f"{name}: Parameters")
+        returns = signature.return_annotation
+        if returns not in (None, "None", inspect.Signature.empty) and "Returns\n-------" not in doc:
+            missing.append(f"{name}: Returns")
+    assert len(functions) > 20 and not missing, missing

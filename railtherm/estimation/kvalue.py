@@ -183,7 +183,13 @@ class KValue:
 
     def to_dict(self) -> dict[str, Any]:
         """A plain dict for YAML: Python floats/bools/str (None for k, u_k and A without a
-        surface), keys in a fixed order."""
+        surface), keys in a fixed order.
+
+        Returns
+        -------
+        dict
+            The content of ``kvalue.yaml``.
+        """
         return {
             "k": _optional(self.k),
             "u_k": _optional(self.u_k),
@@ -214,7 +220,18 @@ class KValue:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> KValue:
-        """The inverse of :meth:`to_dict` (a kvalue.yaml read back)."""
+        """The inverse of :meth:`to_dict` (a kvalue.yaml read back).
+
+        Parameters
+        ----------
+        data : mapping
+            The content of a ``kvalue.yaml``.
+
+        Returns
+        -------
+        KValue
+            The static test's result.
+        """
         names = {f.name for f in dataclasses.fields(cls)} - {
             "budget",
             "reasons",

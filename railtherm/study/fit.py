@@ -39,7 +39,18 @@ class StateSpace:
     outputs: tuple[str, ...]
 
     def discretize(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """(A_d, B_d) of the exact zero-order-hold discretisation over ``dt`` s (eq. 15)."""
+        """(A_d, B_d) of the exact zero-order-hold discretisation over ``dt`` s (eq. 15).
+
+        Parameters
+        ----------
+        dt : float
+            The sample step (s).
+
+        Returns
+        -------
+        tuple of ndarray
+            (A_d, B_d).
+        """
         return models.discretize_zoh(self.A, self.B, dt)
 
 
@@ -54,12 +65,36 @@ class Fit(FitRecord):
 
     @classmethod
     def from_dict(cls, content: Mapping[str, Any], series: pd.DataFrame | None = None) -> Fit:
-        """The fit of a fit file's content (the rule check's output), with its series."""
+        """The fit of a fit file's content (the rule check's output), with its series.
+
+        Parameters
+        ----------
+        content : mapping
+            The content of a ``fit_<model>.yaml``.
+        series : DataFrame, optional
+            Its measured and simulated series.
+
+        Returns
+        -------
+        Fit
+        """
         return cls(FitRecord.from_dict(content).content, series)
 
     @classmethod
     def of(cls, record: FitRecord, series: pd.DataFrame | None = None) -> Fit:
-        """The fit of a record, with its series."""
+        """The fit of a record, with its series.
+
+        Parameters
+        ----------
+        record : FitRecord
+            The fit's record (:func:`railtherm.io.read_fit`).
+        series : DataFrame, optional
+            Its measured and simulated series.
+
+        Returns
+        -------
+        Fit
+        """
         return cls(record.content, series)
 
     @property
@@ -77,7 +112,13 @@ class Fit(FitRecord):
 
     def to_statespace(self) -> StateSpace:
         """The identified model as (A, B, C, D): eqs. 7-8 (second order), eq. 9 (first order)
-        or the interior-envelope structure, inputs T_o, Q_H and any irradiance."""
+        or the interior-envelope structure, inputs T_o, Q_H and any irradiance.
+
+        Returns
+        -------
+        StateSpace
+            A, B, C, D with the names of states, inputs and outputs.
+        """
         s = self.structure
         A, B = s.matrices(self.theta)
         n, m = B.shape
@@ -100,7 +141,22 @@ class Fit(FitRecord):
         """The states for inputs ``u`` (rows every ``dt`` s; columns T_o, Q_H and any
         irradiance, by name if a DataFrame) under the fit's input hold (:attr:`hold`: held
         over each step, eq. 15, or linear between rows), from ``x0`` (default: the steady
-        state of the first input row). Returns time and states."""
+        state of the first input row). Returns time and states.
+
+        Parameters
+        ----------
+        u : DataFrame or ndarray
+            The inputs, one row per step.
+        dt : float
+            The step (s).
+        x0 : sequence of float, optional
+            The initial states (K or degC, as the fit's).
+
+        Returns
+        -------
+        DataFrame
+            ``time`` (s) and one column per state.
+        """
         s = self.structure
         if isinstance(u, pd.DataFrame):
             missing = [c for c in s.inputs if c not in u.columns]
@@ -125,13 +181,24 @@ class Fit(FitRecord):
 
     # --- on disk
     def write(self, path: str | os.PathLike[str]) -> None:
-        """Write ``fit_<model>.yaml`` (plain YAML, keys in the order of the fit)."""
+        """Write ``fit_<model>.yaml`` (plain YAML, keys in the order of the fit).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (its directory made if needed).
+        """
         results_io.write_fit(self, path)
 
     def summary(self) -> str:
         """A few lines for people: the model, each parameter, R^2, the verdict with its
         reasons (-), each source's clock as the fit judges it (~; a record of several
-        sources) and the record's outlying samples (!)."""
+        sources) and the record's outlying samples (!).
+
+        Returns
+        -------
+        str
+        """
         lines = [
             f"{self.vehicle} {self.model} ({self.k_source}): {self.verdict}, R2 = {self.R2:.4f}"
         ]
@@ -146,7 +213,12 @@ class Fit(FitRecord):
 
     def outlying_samples(self) -> list[str]:
         """The record's outlying samples (``outliers`` of the fit file,
-        :mod:`railtherm.estimation.outliers`), one sentence each."""
+        :mod:`railtherm.estimation.outliers`), one sentence each.
+
+        Returns
+        -------
+        list of str
+        """
         return [
             text
             for state, found in self.section("outliers").items()
@@ -161,7 +233,24 @@ def write_yaml(data: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
 
 def read_fit(path: str | os.PathLike[str], series: str | os.PathLike[str] | None = None) -> Fit:
     """A :class:`Fit` from ``fit_<model>.yaml`` (read by :func:`railtherm.io.read_fit`)
-    and its series CSV, if given."""
+    and its series CSV, if given.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``fit_<model>.yaml``.
+    series : str or os.PathLike, optional
+        Its ``identify/<model>_series.csv``.
+
+    Returns
+    -------
+    Fit
+
+    Raises
+    ------
+    ConfigError
+        A missing file, bad YAML or one that holds no mapping, naming the file.
+    """
     return Fit.of(results_io.read_fit(path), None if series is None else pd.read_csv(series))
 
 

@@ -58,7 +58,24 @@ def fit_vehicle(
     """Clean, static k, fit and check ``models`` (default: every model the config asks for,
     :func:`railtherm.study.fitsettings.model_keys`). ``out``: a results directory to write the
     rules' files into (``vehicles/<id>/clean/<window>.csv``, ``kvalue.yaml``,
-    ``identify/<model>.yaml`` and ``_series.csv``, ``fit_<model>.yaml``)."""
+    ``identify/<model>.yaml`` and ``_series.csv``, ``fit_<model>.yaml``).
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle config (:func:`railtherm.load_vehicle`).
+    models : sequence of str, optional
+        Model keys (``order1``, ``order2``, ``order2_kalman``, ...).
+    out : str or os.PathLike, optional
+        A results directory to write into.
+    workdir : str or os.PathLike
+        The directory the vehicle's raw files are relative to.
+
+    Returns
+    -------
+    VehicleResult
+        The tidy tables, the static k and each model's :class:`Fit`.
+    """
     keys = list(models) if models else fitsettings.model_keys(vehicle.data)
     for key in keys:  # a refused structure module stops here, naming its file and the fix
         for refused in structures.refused(fitsettings.split_key(key)[0]):
