@@ -346,8 +346,7 @@ def fit(
     if any(levels):
         v, sol, H, meat = _compensated(lik, v, sol, levels, lo, hi)
     result = _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost, meat)
-    if v_ml is not v:  # the one-step predictor is the maximum-likelihood one
-        _one_step_series(result, lik, v_ml)
+    _one_step_series(result, lik, v_ml)  # the one-step predictor is the maximum-likelihood one
     result.input_noise_sd = [dict(level) for level in levels] if any(levels) else []
     return result
 
@@ -867,7 +866,7 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         }
         for t, j in enumerate(lik.offset_out)
     }
-    result = KalmanResult(
+    return KalmanResult(
         structure=structure.name,
         theta={p: float(th[p]) for p in structure.parameters},
         free=free,
@@ -908,7 +907,6 @@ def _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_c
         nfev=int(sol.nfev),
         njev=int(sol.njev),
     )
-    return _one_step_series(result, lik, v)
 
 
 def _covariance(H: np.ndarray, keep: np.ndarray, U: int, meat: np.ndarray | None):

@@ -303,13 +303,13 @@ def identify(
         ) from None
     method_notes: list[str] = []
     checked = bool(vehicle_data["model"].get("two_stage_check", True))
-    whiteness_of = result, None
+    whiteness_fit = None  # a two-stage fit's whiteness: its check's joint fit (kA free)
     if checked and "kA" in fixed and kvalue is not None and structure.coupled:
         check, joint, joint_result = _static_kA_check(
             structure, exps, options, vehicle_data, kvalue, storage_used, (result, fitted, budget)
         )
-        if joint_result is not None and joint is None:
-            whiteness_of = joint_result, WHITENESS_OF_JOINT
+        if joint is None:
+            whiteness_fit = joint_result
         if joint is not None:
             result, fitted, budget, options = joint
             fixed = options["fixed"]
@@ -350,13 +350,11 @@ def identify(
     if estimator == "kalman":
         series = _innovation_series(structure, series, result)
         alpha = float(check_thresholds(vehicle_data.get("check"))["whiteness_alpha"])
-        judged, of = whiteness_of
-        if of is not None:  # the joint fit's innovations, beside the reported fit's rows
-            judged = _innovation_series(structure, series.iloc[:, :0], judged)
-            estimate["innovations_of"] = of
-        else:
-            judged = series
-        estimate["innovations"] = innovation_tests(judged, outputs, alpha)
+        tested = series
+        if whiteness_fit is not None:  # the joint fit's innovations, beside the reported rows
+            tested = _innovation_series(structure, series.iloc[:, :0], whiteness_fit)
+            estimate["innovations_of"] = WHITENESS_OF_JOINT
+        estimate["innovations"] = innovation_tests(tested, outputs, alpha)
         estimate["fit"]["loglik"] = float(result.loglik)
         estimate["fit"]["n_params"] = int(result.n_params)
     return EstimateRecord.from_dict(estimate), series

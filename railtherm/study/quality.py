@@ -537,7 +537,7 @@ def check(
         "notes": notes,
         **tail,
         "outliers": {state: found.to_dict() for state, found in outlying.items()},
-        **({"clocks": estimate.to_dict()["clocks"]} if "clocks" in estimate.content else {}),
+        **({"clocks": estimate.content["clocks"]} if "clocks" in estimate.content else {}),
     }
     return FitRecord.from_dict(content)
 
@@ -596,9 +596,9 @@ def _record(
     estimate: EstimateRecord, measures: Mapping[str, Any], kalman: bool
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """What a fit file records of the estimate and its measures besides the verdict: the
-    entries before the verdict's, and those after them (the fit file's order), copied from
-    the estimate file's content."""
-    content = estimate.to_dict()
+    entries before the verdict's, and those after them (the fit file's order), taken from
+    the estimate file's content (the fit's record copies them, :func:`check`)."""
+    content = estimate.content
     fit = content["fit"]
     head = {
         "vehicle": content["vehicle"],
