@@ -25,7 +25,7 @@ import numpy as np
 from railtherm.estimation.common import identification
 from railtherm.estimation.estimate import Identification
 
-__all__ = ["EstimateRecord", "FitRecord", "ParameterEstimate"]
+__all__ = ["EstimateRecord", "FitRecord", "JudgedEstimate", "ParameterEstimate"]
 
 
 def _interval(value: Any) -> tuple[float, float] | None:
@@ -141,10 +141,8 @@ def _section(content: Mapping[str, Any], key: str) -> Mapping[str, Any]:
 
 
 @dataclass(frozen=True, eq=False)
-class _Record:
-    """What the identify stage's estimate and the checked fit share: the content of the file
-    as written (read-only), and typed names for the vehicle, the model, how k was obtained
-    and the records fitted."""
+class _Content:
+    """A file's content as written (read-only), made from a mapping by a deep copy."""
 
     content: Mapping[str, Any] = field(repr=False)
 
@@ -199,6 +197,13 @@ class _Record:
         bool
         """
         return self.content.get(key) is not None
+
+
+@dataclass(frozen=True, eq=False)
+class _Record(_Content):
+    """What the identify stage's estimate and the checked fit share: the content of the file
+    as written (read-only), and typed names for the vehicle, the model, how k was obtained
+    and the records fitted."""
 
     # --- who and what
     @property
@@ -269,41 +274,12 @@ class _Record:
         return tuple(self.content.get("windows") or ())
 
 
-@dataclass(frozen=True, eq=False)
-class FitRecord(_Record):
-    """A checked fit of one grey-box model to one vehicle: the content of
-    ``fit_<model>.yaml`` (the workflow's rule ``check``), typed.
+class _Estimates:
+    """The estimates a fit gives, read from its content: each parameter and total as a
+    :class:`ParameterEstimate`, the values (``theta``), the ``free`` log parameters with
+    their statistical ``correlation``, and the estimator's ``flags``."""
 
-    The vehicle, the model key and its ``estimator`` and ``structure``; how k was obtained
-    (``k_source``, ``kA_fixed`` and the static test's ``k_eq10`` / ``k_corrected`` with their
-    standard uncertainties); the ``verdict`` with its ``reasons`` and ``notes``; each
-    parameter and total as a :class:`ParameterEstimate`; the statistical ``correlation`` of the
-    ``free`` log parameters; R^2 of eq. 21 (``R2``) and the NRMSE fit. The sections a reader
-    rarely needs whole (``measures``, ``systematic``, ``cross_validation``, ``innovations``,
-    ``storage_correction``, ...) are read-only mappings of the file's text
-    (:meth:`section`)."""
-
-    # --- the verdict
-    @property
-    def verdict(self) -> str:
-        return str(self.content["verdict"])
-
-    @property
-    def reasons(self) -> tuple[str, ...]:
-        return tuple(self.content.get("reasons") or ())
-
-    @property
-    def flags(self) -> tuple[Mapping[str, Any], ...]:
-        return tuple(MappingProxyType(dict(f)) for f in self.content.get("flags") or ())
-
-    @property
-    def judged_by(self) -> str:
-        """The criteria that judged the fit, as the tables print them."""
-        return str(self.content.get("judged_by", ""))
-
-    @property
-    def criteria(self) -> tuple[Mapping[str, Any], ...]:
-        return tuple(MappingProxyType(dict(c)) for c in self.content.get("criteria") or ())
+    content: Mapping[str, Any]
 
     # --- the estimates
     @property
@@ -339,6 +315,43 @@ class FitRecord(_Record):
         n = len(self.free)
         return np.asarray(corr, dtype=float) if corr is not None else np.eye(n)
 
+    @property
+    def flags(self) -> tuple[Mapping[str, Any], ...]:
+        return tuple(MappingProxyType(dict(f)) for f in self.content.get("flags") or ())
+
+
+@dataclass(frozen=True, eq=False)
+class FitRecord(_Record, _Estimates):
+    """A checked fit of one grey-box model to one vehicle: the content of
+    ``fit_<model>.yaml`` (the workflow's rule ``check``), typed.
+
+    The vehicle, the model key and its ``estimator`` and ``structure``; how k was obtained
+    (``k_source``, ``kA_fixed`` and the static test's ``k_eq10`` / ``k_corrected`` with their
+    standard uncertainties); the ``verdict`` with its ``reasons`` and ``notes``; each
+    parameter and total as a :class:`ParameterEstimate`; the statistical ``correlation`` of the
+    ``free`` log parameters; R^2 of eq. 21 (``R2``) and the NRMSE fit. The sections a reader
+    rarely needs whole (``measures``, ``systematic``, ``cross_validation``, ``innovations``,
+    ``storage_correction``, ...) are read-only mappings of the file's text
+    (:meth:`section`)."""
+
+    # --- the verdict
+    @property
+    def verdict(self) -> str:
+        return str(self.content["verdict"])
+
+    @property
+    def reasons(self) -> tuple[str, ...]:
+        return tuple(self.content.get("reasons") or ())
+
+    @property
+    def judged_by(self) -> str:
+        """The criteria that judged the fit, as the tables print them."""
+        return str(self.content.get("judged_by", ""))
+
+    @property
+    def criteria(self) -> tuple[Mapping[str, Any], ...]:
+        return tuple(MappingProxyType(dict(c)) for c in self.content.get("criteria") or ())
+
     # --- the fit measures
     @property
     def R2(self) -> float:
@@ -365,6 +378,15 @@ class FitRecord(_Record):
         """The Kalman fit's count of scalar measurements (None for an output-error fit)."""
         n = self.content.get("n_obs")
         return None if n is None else int(n)
+
+
+@dataclass(frozen=True, eq=False)
+class JudgedEstimate(_Content, _Estimates):
+    """The estimator's result as the identify stage judges it (an estimate file's ``fit``
+    section, :attr:`EstimateRecord.fit`): each parameter with its combined (statistical and
+    systematic) 95 % interval and whether the data determine it, a kA derived from the
+    structure's steady state where it has no parameter kA, the totals (C_total = C + C_veh),
+    the ``free`` log parameters with their ``correlation``, and the estimator's ``flags``."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -395,10 +417,14 @@ class EstimateRecord(_Record):
         return _number(self.content.get("volume_m3"))
 
     @property
+    def fit(self) -> JudgedEstimate:
+        """The estimator's result, judged (the ``fit`` section)."""
+        return JudgedEstimate(self.section("fit"))
+
+    @property
     def parameters(self) -> dict[str, ParameterEstimate]:
         """Every parameter of the estimate, judged (the ``fit`` section's ``parameters``)."""
-        entries = self.section("fit").get("parameters") or {}
-        return {p: ParameterEstimate.from_entry(p, e) for p, e in entries.items()}
+        return self.fit.parameters
 
     @property
     def method_notes(self) -> tuple[str, ...]:

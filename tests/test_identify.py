@@ -7,7 +7,7 @@ import pytest
 from railtherm.config import section_defaults
 from railtherm.errors import DataError
 from railtherm.estimation import models
-from railtherm.records import EstimateRecord
+from railtherm.records import EstimateRecord, JudgedEstimate
 from railtherm.study import fitsettings, identify, quality
 
 TRUTH = {"kA": 979.2, "C": 1.8e7, "K_veh": 974.0, "C_veh": 1.0e7}
@@ -327,19 +327,41 @@ def test_an_estimate_at_the_physical_bound_says_so_and_takes_its_coupled_paramet
         "flags": [{"code": "at_bound", "parameters": ["C"], "message": ""}],
     }
     bounds = {"C": (floor, 1e10), "K_veh": (1e-2, 1e7), "C_veh": (1e4, 1e10)}
-    identify.judge_identification(
-        fitted,
+    judged = identify.judge_identification(
+        JudgedEstimate.from_dict(fitted),
         bounds,
         models.STRUCTURES["second_order"],
         physical={"C": fitsettings.AIR_CAPACITY},
         budget={"effects_log": {"C_veh": {"scale_Q_H": 0.05}}},
     )
-    par = fitted["parameters"]
+    assert "identified" not in fitted["parameters"]["C"]  # judged into a new record
+    par = judged.content["parameters"]
     assert par["C"]["reason"].startswith("at its physical lower bound (the air's capacity ρ c_p V")
     assert par["C"]["limit"] == "none"
     assert not par["K_veh"]["identified"] and not par["C_veh"]["identified"]
     assert par["C_veh"]["reason"] == "coupled to C, which is not identified"
-    total = fitted["totals"]["C_total"]
+    total = judged.content["totals"]["C_total"]
     assert total["identified"] and total["value"] == pytest.approx(1.3e7 + floor)
     w = 1.3e7 / (1.3e7 + floor)
     assert total["sd_log_total"] == pytest.approx(w * np.hypot(0.2, 0.05))
+
+
+def test_combined_intervals_are_new_entries_beside_the_statistical_ones():
+    """The combined interval (statistical and systematic sds of log theta in quadrature)
+    replaces ``ci95`` in new entries; the statistical one is kept as ``ci95_statistical``
+    and the estimator's entries are left as they are."""
+    from railtherm.study.budget import combine_uncertainty
+
+    stat = [2.0e5 * np.exp(-1.96 * 0.03), 2.0e5 * np.exp(1.96 * 0.03)]
+    parameters = {
+        "kA": {"value": 900.0, "estimated": False},
+        "C": {"value": 2.0e5, "estimated": True, "sd_log": 0.03, "ci95": stat},
+    }
+    combined = combine_uncertainty(parameters, {"effects_log": {"C": {"a": 0.04}}})
+    assert parameters["C"]["ci95"] == stat and "sd_log_total" not in parameters["C"]
+    assert combined["kA"] == parameters["kA"]
+    assert combined["C"]["sd_log_total"] == pytest.approx(0.05)
+    assert combined["C"]["ci95_statistical"] == stat
+    lo, hi = combined["C"]["ci95"]
+    z = 1.959964  # the normal's 97.5 % quantile
+    assert (lo, hi) == pytest.approx((2.0e5 * np.exp(-z * 0.05), 2.0e5 * np.exp(z * 0.05)))

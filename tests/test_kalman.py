@@ -13,6 +13,7 @@ from scipy.integrate import quad_vec
 from scipy.linalg import expm
 
 from railtherm.estimation import diagnostics, filtering, kalman, models, pem
+from railtherm.records import JudgedEstimate
 from railtherm.study import fitsettings, identify
 
 REPO = Path(__file__).resolve().parents[1]
@@ -409,7 +410,7 @@ def armadillo_experiment():
 
 def pysip_terms(r):
     th = r.theta
-    kA = identify.derived_kA(r.to_dict(), SIE)
+    kA = identify.derived_kA(JudgedEstimate.from_dict(r.to_dict()), SIE)
     return {
         "R_o": (1 / th["K_o"], 1 / r.ci95["K_o"][1], 1 / r.ci95["K_o"][0]),
         "R_i": (1 / th["K_i"], 1 / r.ci95["K_i"][1], 1 / r.ci95["K_i"][0]),

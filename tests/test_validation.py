@@ -19,7 +19,7 @@ from snakemake_run import snakemake
 from railtherm import config, structures
 from railtherm.data import ingest
 from railtherm.errors import ConfigError
-from railtherm.records import FitRecord
+from railtherm.records import FitRecord, JudgedEstimate
 from railtherm.study import fitsettings, identify, reference
 
 REPO = Path(__file__).resolve().parents[1]
@@ -253,7 +253,9 @@ def test_derived_kA_interval_matches_monte_carlo(rho):
         "free": ["C", "K_i", "K_o"],
         "correlation": [[1.0, 0.0, 0.0], [0.0, 1.0, rho], [0.0, rho, 1.0]],
     }
-    kA = identify.derived_kA(fitted, structures.STRUCTURES["interior_envelope"])
+    kA = identify.derived_kA(
+        JudgedEstimate.from_dict(fitted), structures.STRUCTURES["interior_envelope"]
+    )
     assert kA["value"] == pytest.approx(320.0 * 65.0 / 385.0)
     cov = np.array([[sd["K_i"] ** 2, rho * 0.04 * 0.02], [rho * 0.04 * 0.02, sd["K_o"] ** 2]])
     draws = np.random.default_rng(8).multivariate_normal([np.log(320.0), np.log(65.0)], cov, 50_000)

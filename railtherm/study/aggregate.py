@@ -147,7 +147,7 @@ def fit_totals(fit: FitRecord) -> dict[str, ParameterEstimate]:
     for name, parts in (structure.totals if structure is not None else {}).items():
         if all(p in params and params[p].estimated for p in parts):
             effects = fit.section("systematic").get("effects_log")
-            entry = identifiability.total_capacity(fit.content, parts, effects)
+            entry = identifiability.total_capacity(fit, parts, effects)
             out[name] = ParameterEstimate.from_entry(name, entry)
     return out
 

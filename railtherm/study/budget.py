@@ -198,12 +198,17 @@ def systematic_budget(
     }
 
 
-def combine_uncertainty(parameters: dict[str, Any], budget: Mapping[str, Any]) -> None:
-    """Replace each estimated parameter's 95 % interval by the combined one: the statistical
-    sd of log(theta) (from the fit) and the effects of the independent error sources added in
-    quadrature. The statistical interval is kept as ``ci95_statistical``."""
+def combine_uncertainty(
+    parameters: Mapping[str, Mapping[str, Any]], budget: Mapping[str, Any]
+) -> dict[str, dict[str, Any]]:
+    """The parameter entries (an estimator's ``parameters``, :meth:`Estimate.to_dict`) with
+    each estimated parameter's 95 % interval ``ci95`` the combined one: the statistical sd of
+    log(theta) (from the fit) and the effects of the independent error sources added in
+    quadrature (``sd_log_total``). The statistical interval is kept as ``ci95_statistical``.
+    Returns new entries; ``parameters`` is left as it is."""
+    combined = {p: dict(entry) for p, entry in parameters.items()}
     for p, effects in budget["effects_log"].items():
-        entry = parameters[p]
+        entry = combined[p]
         sd = float(np.sqrt(entry["sd_log"] ** 2 + sum(e**2 for e in effects.values())))
         log_value = np.log(entry["value"])
         entry["ci95_statistical"] = entry["ci95"]
@@ -213,3 +218,4 @@ def combine_uncertainty(parameters: dict[str, Any], budget: Mapping[str, Any]) -
                 float(np.exp(log_value - pem.Z95 * sd)),
                 float(np.exp(log_value + pem.Z95 * sd)),
             ]
+    return combined

@@ -2,7 +2,8 @@
 estimated parameter (as recorded by :func:`railtherm.estimation.pem.identification`, or judged
 from its interval), of the parameters a structure couples (``Structure.coupled``), and of the
 sums the data determine however the capacity splits between the nodes (``Structure.totals``).
-These read the parameter entries of a fit file (fit_<model>.yaml, ``parameters.<p>``)."""
+These read the parameter entries of a fit file (fit_<model>.yaml, ``parameters.<p>``) or of
+an estimate being judged (:class:`~railtherm.records.JudgedEstimate`)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from railtherm.estimation.common import Z95, identification
+from railtherm.records import FitRecord, JudgedEstimate
 
 __all__ = ["coupled_identification", "parameter_identification", "total_capacity"]
 
@@ -44,7 +46,7 @@ def coupled_identification(judged: Mapping[str, Mapping[str, Any]], coupled) -> 
 
 
 def total_capacity(
-    fitted: Mapping[str, Any],
+    fitted: JudgedEstimate | FitRecord,
     parts: Sequence[str],
     effects_log: Mapping[str, Mapping[str, float]] | None = None,
 ) -> dict[str, Any]:
@@ -62,17 +64,17 @@ def total_capacity(
     every part at a bound, leaves the sum not identified, and a part with an unbounded
     variance not at a bound leaves it unbounded. Judged by :func:`identification` like a
     parameter."""
-    params = fitted["parameters"]
-    at_bounds = {p: params[p]["at_bound"] for p in parts if params[p].get("at_bound")}
-    values = np.array([float(params[p]["value"]) for p in parts])
+    params = fitted.parameters
+    at_bounds = {p: params[p].at_bound for p in parts if params[p].at_bound}
+    values = np.array([params[p].value for p in parts])
     S = float(values.sum())
     w = values / S
-    free = list(fitted.get("free", []))
-    corr = np.asarray(fitted.get("correlation", []), dtype=float)
+    free = list(fitted.free)
+    corr = fitted.correlation
     effects = effects_log or {}
-    varying = [i for i, p in enumerate(parts) if params[p].get("estimated") and p not in at_bounds]
+    varying = [i for i, p in enumerate(parts) if params[p].estimated and p not in at_bounds]
     # w^T Sigma w over the varying parts, Sigma = diag(sd) R diag(sd)
-    g = np.array([w[i] * float(params[parts[i]]["sd_log"]) for i in varying])
+    g = np.array([w[i] * float(params[parts[i]].sd_log) for i in varying])
     at = [free.index(parts[i]) for i in varying]
     R = np.nan_to_num(corr[np.ix_(at, at)], nan=0.0) if at else np.zeros((0, 0))
     np.fill_diagonal(R, 1.0)

@@ -20,7 +20,7 @@ import pandas as pd
 from railtherm.data import plausibility as units_plausibility
 from railtherm.errors import ConfigError
 from railtherm.estimation import common, metrics, models, pem
-from railtherm.records import EstimateRecord
+from railtherm.records import EstimateRecord, JudgedEstimate, ParameterEstimate
 from railtherm.study import identifiability
 from railtherm.study.budget import combine_uncertainty, systematic_budget
 from railtherm.study.fitsettings import (
@@ -49,15 +49,18 @@ from railtherm.study.quality import check_thresholds
 
 
 def _judged_fit(structure, exps, options, vehicle_data, kvalue, storage):
-    """One fit of ``structure`` with ``options``: the estimate, its dict with the combined
-    (statistical and type-B) intervals judged for identification, and the type-B budget."""
+    """One fit of ``structure`` with ``options``: the estimator's result, the
+    :class:`~railtherm.records.JudgedEstimate` of it (the combined, statistical and type-B,
+    intervals judged for identification) and the type-B budget."""
     result = estimate_parameters(structure, exps, options)
-    fitted = result.to_dict()
     budget = systematic_budget(structure, exps, options, result, vehicle_data, kvalue, storage)
-    combine_uncertainty(fitted["parameters"], budget)
-    if "kA" not in fitted["parameters"]:
-        fitted["parameters"]["kA"] = derived_kA(fitted, structure)
-    judge_identification(
+    content = result.to_dict()
+    content["parameters"] = combine_uncertainty(content["parameters"], budget)
+    fitted = JudgedEstimate.from_dict(content)
+    if "kA" not in fitted.parameters:
+        content["parameters"]["kA"] = derived_kA(fitted, structure)
+        fitted = JudgedEstimate.from_dict(content)
+    fitted = judge_identification(
         fitted,
         {**structure.bounds, **options["bounds"]},
         structure,
@@ -71,13 +74,13 @@ def _judged_fit(structure, exps, options, vehicle_data, kvalue, storage):
     return result, fitted, budget
 
 
-def _not_identified(fitted: Mapping[str, Any], structure: models.Structure) -> list[str]:
+def _not_identified(fitted: JudgedEstimate, structure: models.Structure) -> list[str]:
     """The estimated parameters of ``fitted`` judged not identified, in the structure's order."""
-    params = fitted["parameters"]
+    params = fitted.parameters
     return [
         p
         for p in structure.parameters
-        if params.get(p, {}).get("estimated") and not params[p].get("identified", True)
+        if p in params and params[p].estimated and not params[p].identified
     ]
 
 
@@ -85,7 +88,7 @@ def _static_kA_check(
     structure, exps, options, vehicle_data, kvalue, storage, static
 ) -> tuple[dict[str, Any], tuple | None, Any]:
     """Whether the identification records accept the two-stage fit (``static``: its result,
-    judged dict and budget), which holds the static kA fixed.
+    judged estimate and budget), which holds the static kA fixed.
 
     The same structure is fitted with kA free (the joint fit, started at the static kA), and
     kA and each coupled parameter are compared between the two (:func:`_differences`: z of
@@ -104,7 +107,7 @@ def _static_kA_check(
     so (a verdict reason). Returns the check's record for the fit file (``kA_static``,
     ``kA_joint``, ``z`` per parameter, ``kA_within_static_u``, ``use_joint`` and its
     ``reason``; with ``note`` where the fit is replaced or in conflict), where the joint
-    fit replaces the two-stage one its (result, judged dict, budget, options), else None, and
+    fit replaces the two-stage one its (result, judged estimate, budget, options), else None, and
     the joint fit's result (None where it failed)."""
     _, fitted, budget = static
     kA_static = float(options["fixed"]["kA"])
@@ -119,7 +122,7 @@ def _static_kA_check(
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:
         record["reason"] = f"the joint fit failed ({err})"
         return record, None, None
-    kA_joint = float(joint[1]["parameters"]["kA"]["value"])
+    kA_joint = joint[1].parameters["kA"].value
     z = _differences(structure, (fitted, budget), joint, kA_static)
     undetermined = _not_identified(fitted, structure)
     joint_undetermined = _not_identified(joint[1], structure)
@@ -160,8 +163,8 @@ def _static_kA_check(
         )
     else:
         record["reason"] = STATIC_CONTRADICTED
-        static_value = kA_static if worst == "kA" else fitted["parameters"][worst]["value"]
-        joint_value = joint[1]["parameters"][worst]["value"]
+        static_value = kA_static if worst == "kA" else fitted.parameters[worst].value
+        joint_value = joint[1].parameters[worst].value
         if worst == "kA":
             what = f"with kA free (the joint fit) {agreement}"
         else:
@@ -175,12 +178,10 @@ def _static_kA_check(
             "held fixed does not hold against kA's own uncertainty, so the joint fit is "
             "reported"
         )
-    own = [f["message"] for f in fitted["flags"]]
+    own = [f["message"] for f in fitted.flags]
     if own:  # what the two-stage fit showed stays in view (a misfit shows in it first)
         note += "; the two-stage fit's own flags: " + "; ".join(own)
-    record["two_stage"] = {
-        p: float(fitted["parameters"][p]["value"]) for p in ("kA", *structure.coupled)
-    }
+    record["two_stage"] = {p: fitted.parameters[p].value for p in ("kA", *structure.coupled)}
     record.update(use_joint=True, note=note)
     return record, (*joint, joint_options), joint[0]
 
@@ -222,17 +223,17 @@ def _differences(structure, static, joint, kA_static: float) -> dict[str, float]
             value, sd = kA_static, 0.0
             effects = budget.get("effects_log_fixed", {}).get("kA", {})
         else:
-            value = float(fitted["parameters"][p]["value"])
-            sd = float(fitted["parameters"][p]["sd_log"])
+            value = fitted.parameters[p].value
+            sd = float(fitted.parameters[p].sd_log)
             effects = budget["effects_log"].get(p, {})
-        entry = joint_fitted["parameters"][p]
+        entry = joint_fitted.parameters[p]
         joint_effects = joint_budget["effects_log"].get(p, {})
-        variance = sd**2 + float(entry["sd_log"]) ** 2
+        variance = sd**2 + float(entry.sd_log) ** 2
         variance += sum(
             (joint_effects.get(s, 0.0) - effects.get(s, 0.0)) ** 2
             for s in sorted(set(effects) | set(joint_effects))
         )
-        d = math.log(float(entry["value"]) / value)
+        d = math.log(entry.value / value)
         finite = variance > 0 and math.isfinite(variance)
         if abs(d) <= SAME_ESTIMATE:  # one estimate, as far as the optimiser resolves it
             z[p] = 0.0
@@ -304,6 +305,7 @@ def identify(
     method_notes: list[str] = []
     checked = bool(vehicle_data["model"].get("two_stage_check", True))
     whiteness_fit = None  # a two-stage fit's whiteness: its check's joint fit (kA free)
+    static_check = None
     if checked and "kA" in fixed and kvalue is not None and structure.coupled:
         check, joint, joint_result = _static_kA_check(
             structure, exps, options, vehicle_data, kvalue, storage_used, (result, fitted, budget)
@@ -319,8 +321,11 @@ def identify(
             # fit's replacing a two-stage fit whose kA agrees with it is a note: nothing in
             # the reported fit's assumptions is in doubt (the joint fit is judged itself)
             (method_notes if check["use_joint"] else notes).append(check["note"])
-        fitted["static_kA_check"] = check
-    fitted["flags"] = [*fitted["flags"], *hold_flags(structure, vehicle_data, tables)]
+        static_check = check
+    fit_section = fitted.to_dict()
+    if static_check is not None:
+        fit_section["static_kA_check"] = static_check
+    fit_section["flags"] = [*fit_section["flags"], *hold_flags(structure, vehicle_data, tables)]
     estimate = {
         "vehicle": vehicle_data["id"],
         "synthetic": bool(vehicle_data.get("synthetic", False)),
@@ -339,7 +344,7 @@ def identify(
         "rows": rows,
         "notes": notes,
         "method_notes": method_notes,
-        "fit": fitted,
+        "fit": fit_section,
         "systematic": budget,
         "cross_validation": _cross_validate(structure, exps, options) if len(exps) > 1 else [],
         "unit_checks": unit_checks(fitted, vehicle_data, tables),
@@ -381,19 +386,17 @@ def _clocks(structure, tables, vehicle_data, options, result) -> dict[str, Any]:
 
 
 def unit_checks(
-    fitted: Mapping[str, Any], vehicle_data: Mapping[str, Any], tables: Mapping[str, pd.DataFrame]
+    fitted: JudgedEstimate, vehicle_data: Mapping[str, Any], tables: Mapping[str, pd.DataFrame]
 ) -> list[str]:
     """The plausibility of the records and of the fitted k against a temperature channel's
     unit (:mod:`railtherm.data.plausibility`): a heated cabin colder than the tunnel or never
     at a heated cabin's temperature, and k = kA / A far from the vehicle class's; sentences
     naming the raw files, the channels and their declared units, for the verdict."""
     out = units_plausibility.record_reasons(tables, vehicle_data)
-    entry = fitted["parameters"].get("kA")
+    entry = fitted.parameters.get("kA")
     A = surface(vehicle_data)
-    if entry is not None and A and identifiability.parameter_identification(entry)["identified"]:
-        far = units_plausibility.k_class_reason(
-            float(entry["value"]) / A, vehicle_data, "the fit's"
-        )
+    if entry is not None and A and entry.identified:
+        far = units_plausibility.k_class_reason(entry.value / A, vehicle_data, "the fit's")
         if far is not None:
             out.append(far)
     return out
@@ -463,20 +466,20 @@ def innovation_tests(
     return tests
 
 
-def derived_kA(fitted: Mapping[str, Any], structure: models.Structure) -> dict[str, Any]:
+def derived_kA(fitted: JudgedEstimate, structure: models.Structure) -> dict[str, Any]:
     """The overall heat-loss coefficient of a structure without a parameter kA (e.g. losses
     in series, kA = K_i K_o / (K_i + K_o)), from its steady state
     (:meth:`~railtherm.structures.Structure.kA_log_gradient`), with a 95 % interval by the
     delta method on the log parameters (their combined sds and the fit's correlation):
-    d log kA = sum_p (d log kA / d log p) d log p."""
-    par = fitted["parameters"]
-    theta = {p: par[p]["value"] for p in structure.parameters}
+    d log kA = sum_p (d log kA / d log p) d log p. Returns the entry of kA."""
+    par = fitted.parameters
+    theta = {p: par[p].value for p in structure.parameters}
     value, gradient = structure.kA_log_gradient(theta)
-    free = list(fitted["free"])
-    corr = np.asarray(fitted["correlation"], dtype=float)
+    free = list(fitted.free)
+    corr = fitted.correlation
     moving = [p for p in free if gradient.get(p, 0.0) != 0.0]
     g = np.array([gradient[p] for p in moving])
-    sd = np.array([par[p].get("sd_log_total", par[p].get("sd_log", 0.0)) for p in moving])
+    sd = np.array([_sd_log_total(par[p]) for p in moving])
     idx = [free.index(p) for p in moving]
     gs = g * sd
     var = float(gs @ corr[np.ix_(idx, idx)] @ gs) if moving else 0.0
@@ -492,30 +495,40 @@ def derived_kA(fitted: Mapping[str, Any], structure: models.Structure) -> dict[s
     }
 
 
+def _sd_log_total(entry: ParameterEstimate) -> float:
+    """The combined sd of a parameter's log, its statistical one where no budget combined it."""
+    if entry.sd_log_total is not None:
+        return entry.sd_log_total
+    return 0.0 if entry.sd_log is None else entry.sd_log
+
+
 def judge_identification(
-    fitted: dict[str, Any],
+    fitted: JudgedEstimate,
     bounds: Mapping[str, tuple],
     structure: models.Structure | None = None,
     physical: Mapping[str, str] | None = None,
     budget: Mapping[str, Any] | None = None,
-) -> None:
-    """Mark every estimated parameter of ``fitted`` (a ``FitResult.to_dict()`` with combined
-    intervals) with :func:`railtherm.estimation.pem.identification`, and judge the width of the
-    interval a reader sees - the combined one - rather than the fit's statistical one: the
-    ``wide_interval`` flags are replaced by flags on the combined intervals.
+) -> JudgedEstimate:
+    """``fitted`` (an estimator's result with combined intervals) with every estimated
+    parameter marked with :func:`railtherm.estimation.pem.identification`; the width judged
+    is that of the interval a reader sees - the combined one - rather than the fit's
+    statistical one: the ``wide_interval`` flags are replaced by flags on the combined
+    intervals.
 
     With the ``structure``: its coupled parameters (``Structure.coupled``, the dynamic part)
     are judged together (:func:`railtherm.study.identifiability.coupled_identification`), and each
     of its totals (``Structure.totals``: C_total = C + C_veh, the capacity eq. 9 lumps into C_bar)
-    is written under ``fitted["totals"]`` with its 95 % interval
+    is written under ``totals`` with its 95 % interval
     (:func:`railtherm.study.identifiability.total_capacity`, ``budget`` the systematic budget).
     ``physical``:
     {param: what its lower bound is} for a bound the metadata make physical
-    (:func:`physical_bounds`), named in the reason."""
+    (:func:`physical_bounds`), named in the reason. Returns the judged estimate; ``fitted``
+    is left as it is."""
     physical = dict(physical or {})
-    pinned = {p for f in fitted["flags"] if f["code"] == "at_bound" for p in f["parameters"]}
-    flags = [f for f in fitted["flags"] if f["code"] != "wide_interval"]
-    for p, entry in fitted["parameters"].items():
+    content = fitted.to_dict()
+    pinned = {p for f in content["flags"] if f["code"] == "at_bound" for p in f["parameters"]}
+    flags = [f for f in content["flags"] if f["code"] != "wide_interval"]
+    for p, entry in content["parameters"].items():
         if not entry.get("estimated"):
             continue
         at_bound = None
@@ -527,7 +540,7 @@ def judge_identification(
                 at_bound = ("lower", lo_b, physical[p])
         entry.update(pem.identification(entry["value"], entry["ci95"], at_bound))
         lo, hi = entry["ci95"]
-        if not (lo > 0 and hi / lo <= common.WIDE_RATIO) and p in fitted["free"]:
+        if not (lo > 0 and hi / lo <= common.WIDE_RATIO) and p in content["free"]:
             flags.append(
                 pem.Flag(
                     "wide_interval",
@@ -536,21 +549,23 @@ def judge_identification(
                     f"{hi:.3g}): the data hardly determine it",
                 ).to_dict()
             )
-    fitted["flags"] = flags
+    content["flags"] = flags
     if structure is None:
-        return
-    params = fitted["parameters"]
+        return JudgedEstimate.from_dict(content)
+    params = content["parameters"]
     estimated = {p: params[p] for p in structure.coupled if params.get(p, {}).get("estimated")}
     for p, judged in identifiability.coupled_identification(estimated, structure.coupled).items():
         params[p].update(judged)
+    marked = JudgedEstimate.from_dict(content)
     totals = {}
     for name, parts in structure.totals.items():
         if all(p in params for p in parts):
             totals[name] = identifiability.total_capacity(
-                fitted, parts, (budget or {}).get("effects_log")
+                marked, parts, (budget or {}).get("effects_log")
             )
     if totals:
-        fitted["totals"] = totals
+        content["totals"] = totals
+    return JudgedEstimate.from_dict(content)
 
 
 def _series(structure, exps, result) -> pd.DataFrame:
