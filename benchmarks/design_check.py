@@ -70,9 +70,10 @@ def fitted(yaml_path: Path):
 
 def realised_sd(fit, p: str) -> float:
     par = fit.parameters[p]
-    if not par.identified or par.ci95 is None or par.ci95[0] <= 0:
+    if not par.identified or par.ci95_combined is None or par.ci95_combined[0] <= 0:
         return math.inf
-    return (math.log(par.ci95[1]) - math.log(par.ci95[0])) / (2 * design.Z95)
+    lo, hi = par.ci95_combined
+    return (math.log(hi) - math.log(lo)) / (2 * design.Z95)
 
 
 def rows_of(generator, vehicle, length_h, prediction, fit, truth, hours) -> list[dict]:
@@ -137,8 +138,21 @@ def calibration_programme(truth, prior, plan) -> design.Programme:
         "power_rel": cb.U_POWER_REL,
     }
     limits = {"max_power_W": top}
+    inputs = {
+        "T_o": cb.NOISE_T_K / math.sqrt(cb.N_OUTDOOR),
+        # four meters, each of its share of Q_H: the sum's noise is the shares' quadrature
+        "power_rel": cb.NOISE_POWER_REL / math.sqrt(cb.N_HEATER),
+    }
     return design.Programme(
-        f"bench {truth.vehicle}", phases, cb.STEP_S, noise, systematic, limits, "steady"
+        f"bench {truth.vehicle}",
+        phases,
+        cb.STEP_S,
+        noise,
+        systematic,
+        limits,
+        "steady",
+        inputs,
+        cb.KWINDOW_H,
     )
 
 

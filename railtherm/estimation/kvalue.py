@@ -80,12 +80,14 @@ from railtherm.estimation.acf import autocorrelation_time
 __all__ = [
     "Budget",
     "KValue",
+    "StorageBalance",
     "StorageCorrection",
     "autocorrelation_time",
     "effective_count",
     "sensor_counts",
     "sensor_u_K",
     "static_k",
+    "storage_balance",
     "storage_corrected_kA",
 ]
 
@@ -674,6 +676,67 @@ def _body_response(T: np.ndarray, s: np.ndarray, tau_veh: float) -> np.ndarray:
     return models.recursion(a, np.append(forcing, 0.0), T[0])
 
 
+@dataclass(frozen=True)
+class StorageBalance:
+    """The k window's energy balance of :func:`storage_corrected_kA` as a linear regression
+    y = X beta, beta = (kA, [D0 C_veh,] c): the time from the window's start ``s`` (s), the
+    heat supplied ``E`` (J) and the integral of T - T_o (K s, trapezoidal) from the start,
+    the stored-heat-corrected energy ``y`` (J) and the regressors ``X``; ``T_veh_from`` says
+    whether T_veh was measured ("T_veh") or follows eq. 8 ("model (eq. 8)")."""
+
+    s: np.ndarray
+    E: np.ndarray
+    integral: np.ndarray
+    y: np.ndarray
+    X: np.ndarray
+    T_veh_from: str
+
+
+def storage_balance(
+    window: pd.DataFrame, C: float, K_veh: float, C_veh: float, *, source: str = "k window"
+) -> StorageBalance:
+    """The regression of :func:`storage_corrected_kA` for the k window ``window`` (columns
+    time, T, T_o, Q_H and, where measured, T_veh) given the capacities (SI).
+
+    Parameters
+    ----------
+    window : DataFrame
+        The k window's rows.
+    C, K_veh, C_veh : float
+        The second-order model's capacities and body conductance (eqs. 7-8), all > 0.
+    source : str
+        The window's name in errors.
+
+    Returns
+    -------
+    StorageBalance
+    """
+    if not (C > 0 and K_veh > 0 and C_veh > 0):
+        raise ValueError(f"C, K_veh and C_veh must be > 0, got {C}, {K_veh}, {C_veh}")
+    t = _column(window, "time", source)
+    T = _column(window, "T", source)
+    T_o = _column(window, "T_o", source)
+    Q_H = _column(window, "Q_H", source)
+    T_veh = _column(window, "T_veh", source, required=False)
+    s = t - t[0]
+    E = np.concatenate([[0.0], np.cumsum(Q_H[:-1] * np.diff(t))])
+    # the trapezoidal rule cumulated, as scipy.integrate.cumulative_trapezoid(T - T_o, t,
+    # initial=0) evaluates it (the same operations), without scipy.integrate's 0.2-0.4 s import
+    excess = T - T_o
+    integral = np.concatenate([[0.0], np.cumsum(np.diff(t) * (excess[1:] + excess[:-1]) / 2.0)])
+    tau_veh = C_veh / K_veh
+    y = E - C * (T - T[0])
+    if np.all(np.isfinite(T_veh)):
+        T_veh_from = "T_veh"
+        y -= C_veh * (T_veh - T_veh[0])
+        X = np.column_stack([integral, np.ones_like(s)])
+    else:
+        T_veh_from = "model (eq. 8)"
+        y -= C_veh * (_body_response(T, s, tau_veh) - T[0])
+        X = np.column_stack([integral, C_veh * -np.expm1(-s / tau_veh), np.ones_like(s)])
+    return StorageBalance(s, E, integral, y, X, T_veh_from)
+
+
 def storage_corrected_kA(
     window: pd.DataFrame,
     C: float,
@@ -711,29 +774,9 @@ def storage_corrected_kA(
     D0 column approaches the kA column (both grow about linearly in t), the two are confounded
     and u(kA) grows accordingly. With a steady body (D0 = 0, T constant) the balance is eq. 10.
     """
-    if not (C > 0 and K_veh > 0 and C_veh > 0):
-        raise ValueError(f"C, K_veh and C_veh must be > 0, got {C}, {K_veh}, {C_veh}")
-    t = _column(window, "time", source)
-    T = _column(window, "T", source)
-    T_o = _column(window, "T_o", source)
-    Q_H = _column(window, "Q_H", source)
-    T_veh = _column(window, "T_veh", source, required=False)
-    s = t - t[0]
-    E = np.concatenate([[0.0], np.cumsum(Q_H[:-1] * np.diff(t))])
-    # the trapezoidal rule cumulated, as scipy.integrate.cumulative_trapezoid(T - T_o, t,
-    # initial=0) evaluates it (the same operations), without scipy.integrate's 0.2-0.4 s import
-    excess = T - T_o
-    integral = np.concatenate([[0.0], np.cumsum(np.diff(t) * (excess[1:] + excess[:-1]) / 2.0)])
-    tau_veh = C_veh / K_veh
-    y = E - C * (T - T[0])
-    if np.all(np.isfinite(T_veh)):
-        T_veh_from = "T_veh"
-        y -= C_veh * (T_veh - T_veh[0])
-        X = np.column_stack([integral, np.ones_like(s)])
-    else:
-        T_veh_from = "model (eq. 8)"
-        y -= C_veh * (_body_response(T, s, tau_veh) - T[0])
-        X = np.column_stack([integral, C_veh * -np.expm1(-s / tau_veh), np.ones_like(s)])
+    balance = storage_balance(window, C, K_veh, C_veh, source=source)
+    s, E, integral, y, X = balance.s, balance.E, balance.integral, balance.y, balance.X
+    T_veh_from, tau_veh = balance.T_veh_from, C_veh / K_veh
     beta, *_ = np.linalg.lstsq(X, y, rcond=None)
     residuals = y - X @ beta
     n, p = X.shape

@@ -30,7 +30,6 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -39,7 +38,18 @@ from railtherm.errors import ConfigError
 from railtherm.estimation import models
 from railtherm.estimation.acf import autocorrelation_time
 from railtherm.estimation.common import Z95, identification
-from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_schema
+from railtherm.study import kwindow
+from railtherm.study.programme import (
+    Phase,
+    Programme,
+    compared_rows,
+    fit_windows,
+    initial_state,
+    k_window_rows,
+    load_programme,
+    prbs_steps,
+    programme_inputs,
+)
 
 __all__ = [
     "Assessment",
@@ -62,6 +72,7 @@ __all__ = [
     "prior_from_reference",
     "record_runs",
     "compared_rows",
+    "k_window_rows",
     "fit_windows",
     "initial_state",
     "programme_inputs",
@@ -75,344 +86,6 @@ __all__ = [
 # an information matrix whose condition number exceeds this leaves some direction of the
 # parameters undetermined by the record: those parameters are "not identifiable" by it
 COND_MAX = 1e12
-
-
-@dataclass(frozen=True)
-class Phase:
-    """One phase of a programme: ``hours`` long at tunnel temperature ``T_o_C``, heating
-    ``power_W`` held, or ``steps``: [(hours from the phase's start, W), ...] with the first at
-    0, or a thermostat holding the air at ``set_point_C`` (``steps`` empty). ``identify``:
-    whether the fit compares the phase's records (a phase that only brings the vehicle to its
-    state is left out), or a number of hours: its last hours compared; ``window``: the fit
-    window (a record of its own, its initial states estimated anew) the phase belongs to."""
-
-    name: str
-    hours: float
-    T_o_C: float
-    steps: tuple[tuple[float, float], ...]
-    set_point_C: float | None = None
-    identify: bool | float = True
-    window: str = "record"
-
-    def describe(self) -> str:
-        """The phase in a line: its duration, tunnel temperature and heating."""
-        if self.set_point_C is not None:
-            heating = f"thermostat at {self.set_point_C:g} degC"
-        elif len(self.steps) == 1:
-            heating = f"{self.steps[0][1]:,.0f} W"
-        else:
-            heating = ", ".join(f"{w:,.0f} W from {at:.3g} h" for at, w in self.steps)
-        return f"{self.name}: {self.hours:.3g} h at {self.T_o_C:g} degC, {heating}"
-
-
-@dataclass(frozen=True)
-class Programme:
-    """A planned tunnel programme: its phases in order, the logger step ``step_s``, and the
-    measurement noise (K, one standard deviation) of each compared state ``noise_K``, and the
-    standard uncertainties of its systematic errors ``systematic``: an offset (K) of a
-    compared state's sensors or of T_o, and ``power_rel``, the relative scale error of Q_H;
-    ``limits``: what the heaters and the tunnel can do (``max_power_W``, ``min_T_o_C``,
-    ``max_T_o_C``); ``start``: the vehicle's state when the programme starts, ``soaked``
-    (every state at the first T_o) or ``steady`` (the equilibrium of the first inputs)."""
-
-    name: str
-    phases: tuple[Phase, ...]
-    step_s: float
-    noise_K: Mapping[str, float] = field(default_factory=dict)
-    systematic: Mapping[str, float] = field(default_factory=dict)
-    limits: Mapping[str, float] = field(default_factory=dict)
-    start: str = "soaked"
-
-    @property
-    def hours(self) -> float:
-        return sum(p.hours for p in self.phases)
-
-
-def load_programme(path: str | Path) -> Programme:
-    """Read and check a programme file (YAML, ``railtherm/schemas/programme.schema.yaml``):
-    ``name``, ``step_s``, ``noise_K`` ({state: K}), ``systematic`` ({T or T_veh or T_o:
-    offset K, power_rel: scale}, standard uncertainties), ``limits`` (``max_power_W``,
-    ``min_T_o_C``, ``max_T_o_C``) and ``phases``, each with ``hours``, ``T_o_C`` and either
-    ``power_W`` or ``steps`` (a list of [hours from the phase's start, W], the first at 0,
-    rising within the phase). Any mistake, or a phase beyond the limits, is a
-    :class:`ConfigError` naming the file, the key and the value."""
-    file = str(path)
-    data = read_yaml(path, display=file)
-    given = set(data) if isinstance(data, dict) else set()
-    validate_schema(file, data, packaged_schema("programme"))
-    check_finite(file, data)
-    limits = {k: float(v) for k, v in data["limits"].items()}
-    phases = [_phase(file, i, ph, limits) for i, ph in enumerate(data["phases"])]
-    if not any(ph.identify for ph in phases):
-        raise ConfigError(file, "phases", "identify: false", "no phase is compared by the fit")
-    _check_step(file, float(data["step_s"]), phases)
-    _check_windows(file, phases)
-    noise, systematic = _noise_and_offsets(file, data, given)
-    name = str(data.get("name", Path(file).stem))
-    start = str(data.get("start", "soaked"))
-    return Programme(name, tuple(phases), float(data["step_s"]), noise, systematic, limits, start)
-
-
-def _phase(file: str, i: int, ph: Mapping[str, Any], limits: Mapping[str, float]) -> Phase:
-    """Phase ``i`` of a programme file checked against the tunnel's ``limits``: a held power,
-    steps or a pseudo-random sequence (``prbs``, turned into steps), or a thermostat."""
-    key = f"phases[{i}]"
-    if "prbs" in ph:
-        prbs = ph["prbs"]
-        if prbs["low_W"] >= prbs["high_W"]:
-            raise ConfigError(file, f"{key}.prbs.low_W", prbs["low_W"], "below high_W")
-        if 2 * prbs["hold_h"] > ph["hours"]:
-            # one bit fills the phase: a held power, not a sequence that excites
-            raise ConfigError(
-                file,
-                f"{key}.prbs.hold_h",
-                prbs["hold_h"],
-                f"a bit held this long leaves the {ph['hours']:g} h phase at most one "
-                f"switch, no pseudo-random sequence: give hold_h of at most "
-                f"{ph['hours'] / 2:g} h (e.g. 1), or power_W / steps for a held power",
-            )
-        ph = {**ph, "steps": prbs_steps(ph["hours"], **prbs)}
-    identify = ph.get("identify", True)
-    if not isinstance(identify, bool) and identify > ph["hours"]:
-        raise ConfigError(
-            file,
-            f"{key}.identify",
-            identify,
-            f"more hours than the phase's {ph['hours']:g}: the fit compares at most the "
-            f"whole phase; give identify of at most {ph['hours']:g}, or true",
-        )
-    steps = (
-        [(0.0, ph["power_W"])]
-        if "power_W" in ph
-        else ph.get("steps", [(0.0, limits.get("max_power_W", 0.0))])
-    )
-    if "set_point_C" in ph and "max_power_W" not in limits:
-        raise ConfigError(
-            file,
-            f"{key}.set_point_C",
-            ph["set_point_C"],
-            "a thermostat needs limits.max_power_W",
-        )
-    for j, (at, _) in enumerate(steps):
-        if (j == 0 and at != 0) or (j and at <= steps[j - 1][0]) or at >= ph["hours"]:
-            raise ConfigError(
-                file,
-                f"{key}.steps[{j}][0]",
-                at,
-                "steps start at 0 and rise strictly within the phase's hours",
-            )
-    top = max(w for _, w in steps)
-    if top > limits.get("max_power_W", math.inf):
-        raise ConfigError(
-            file, key, top, f"more power than limits.max_power_W {limits['max_power_W']:g} W"
-        )
-    if not limits.get("min_T_o_C", -math.inf) <= ph["T_o_C"] <= limits.get("max_T_o_C", math.inf):
-        raise ConfigError(
-            file, f"{key}.T_o_C", ph["T_o_C"], "outside the tunnel's limits.min/max_T_o_C"
-        )
-    thermostat = "set_point_C" in ph
-    steps = () if thermostat else tuple((float(at), float(w)) for at, w in steps)
-    return Phase(
-        str(ph.get("name", f"phase {i + 1}")),
-        float(ph["hours"]),
-        float(ph["T_o_C"]),
-        steps,
-        float(ph["set_point_C"]) if thermostat else None,
-        ph.get("identify", True),
-        str(ph.get("window", "record")),
-    )
-
-
-def _check_windows(file: str, phases: Sequence[Phase]) -> None:
-    """The compared phases of one window follow each other."""
-    seen: list[str] = []
-    for i, ph in enumerate(phases):
-        if ph.identify and seen and ph.window != seen[-1] and ph.window in seen:
-            raise ConfigError(
-                file, f"phases[{i}].window", ph.window, "a window's phases follow each other"
-            )
-        if ph.identify and (not seen or ph.window != seen[-1]):
-            seen.append(ph.window)
-
-
-def _noise_and_offsets(
-    file: str, data: Mapping[str, Any], given: set[str]
-) -> tuple[dict[str, float], dict[str, float]]:
-    """``noise_K`` and ``systematic`` of a programme file, with each ``sensors`` group's noise
-    and offset per sensor divided by the square root of its count (one reading averages
-    them); a state given both ways is refused."""
-    noise = {str(s): float(v) for s, v in data["noise_K"].items()}
-    systematic = {str(k): float(v) for k, v in data["systematic"].items()}
-    if "sensors" in data:
-        if "noise_K" not in given:
-            noise = {}
-        for state, group in data["sensors"].items():
-            n = float(group["count"])
-            for found, entry, value in (
-                (noise, "noise_K", group.get("noise_K")),
-                (systematic, "systematic", group.get("offset_K")),
-            ):
-                if value is None:
-                    continue
-                if state in found and entry in given:
-                    raise ConfigError(
-                        file, f"{entry}.{state}", found[state], f"given by sensors.{state} too"
-                    )
-                found[state] = float(value) / math.sqrt(n)
-        if not noise:
-            raise ConfigError(file, "sensors", data["sensors"], "no group with a noise_K")
-    return noise, systematic
-
-
-def _check_step(file: str, step_s: float, phases: Sequence[Phase]) -> None:
-    """Every phase, and every compared part of one, holds at least one logger sample of
-    ``step_s``: a step longer than a phase (a logger step of a day against phases of hours)
-    leaves it no sample, and a fit without samples determines nothing."""
-    samples = [int(round(ph.hours * 3600.0 / step_s)) for ph in phases]
-    for i, (ph, n) in enumerate(zip(phases, samples, strict=True)):
-        if n < 1:
-            raise ConfigError(
-                file,
-                "step_s",
-                step_s,
-                f"longer than phases[{i}] ({ph.name}, {ph.hours:g} h = {ph.hours * 3600:g} s), "
-                f"which gets no logger sample: give a step_s of at most "
-                f"{min(p.hours for p in phases) * 3600 / 10:g} s (ten samples in the shortest "
-                "phase), e.g. 60",
-            )
-    for i, (ph, n) in enumerate(zip(phases, samples, strict=True)):
-        if not isinstance(ph.identify, bool) and _compared(ph, n, step_s) < 1:
-            raise ConfigError(
-                file,
-                f"phases[{i}].identify",
-                ph.identify,
-                f"the compared {ph.identify:g} h hold no logger sample of step_s {step_s:g} s: "
-                f"compare at least {step_s / 3600:g} h or give a shorter step_s",
-            )
-
-
-def prbs_steps(hours: float, low_W: float, high_W: float, hold_h: float) -> list:
-    """A pseudo-random binary sequence of heating for a phase of ``hours``: a maximum-length
-    sequence (``scipy.signal.max_len_seq``, the shortest whose period covers the phase) with
-    each bit held ``hold_h``, high or low; as steps [hours from the phase's start, W], equal
-    neighbours merged."""
-    from scipy.signal import max_len_seq
-
-    bits = max(2, math.ceil(math.log2(hours / hold_h + 1.0)))
-    sequence = max_len_seq(bits)[0]
-    steps: list[tuple[float, float]] = []
-    for k in range(math.ceil(hours / hold_h)):
-        level = float(high_W if sequence[k % len(sequence)] else low_W)
-        if not steps or steps[-1][1] != level:
-            steps.append((k * hold_h, level))
-    return steps
-
-
-def _phase_samples(programme: Programme) -> list[int]:
-    return [int(round(ph.hours * 3600.0 / programme.step_s)) for ph in programme.phases]
-
-
-def _compared(phase: Phase, n: int, step_s: float) -> int:
-    """How many of the phase's ``n`` samples, at its end, the fit compares."""
-    if isinstance(phase.identify, bool):
-        return n if phase.identify else 0
-    return min(n, int(round(float(phase.identify) * 3600.0 / step_s)))
-
-
-def compared_rows(programme: Programme) -> np.ndarray:
-    """Boolean (N,): the logger samples the fit compares (each phase's ``identify``)."""
-    rows = []
-    for ph, n in zip(programme.phases, _phase_samples(programme), strict=True):
-        c = _compared(ph, n, programme.step_s)
-        rows.append(np.arange(n) >= n - c)
-    return np.concatenate(rows)
-
-
-def fit_windows(programme: Programme) -> list[tuple[str, int, int]]:
-    """The fit's windows as (name, first sample, end sample): consecutive compared samples of
-    one ``window`` name form one record."""
-    out: list[tuple[str, int, int]] = []
-    start = 0
-    for ph, n in zip(programme.phases, _phase_samples(programme), strict=True):
-        c = _compared(ph, n, programme.step_s)
-        if c:
-            a = start + n - c
-            if out and out[-1][0] == ph.window and out[-1][2] == a:
-                out[-1] = (ph.window, out[-1][1], start + n)
-            else:
-                out.append((ph.window, a, start + n))
-        start += n
-    return out
-
-
-def initial_state(
-    programme: Programme,
-    structure: models.Structure,
-    theta: Mapping[str, float],
-    u0: Sequence[float],
-) -> np.ndarray:
-    """The state at the programme's start: every state at the first T_o (``soaked``), or the
-    equilibrium of the first inputs ``u0`` (``steady``; under a thermostat, the equilibrium at
-    its set point)."""
-    if programme.start != "steady":
-        return np.full(len(structure.states), float(u0[0]))
-    A, B = structure.matrices(theta)
-    T_o, Q_H = float(u0[0]), float(u0[1])
-    first = programme.phases[0]
-    if first.set_point_C is not None:  # the thermostat's equilibrium at its set point
-        cold = models.steady_state(A, B, np.array([T_o, 0.0])).reshape(-1)
-        per_watt = models.steady_state(A, B, np.array([0.0, 1.0])).reshape(-1)
-        Q_H = (first.set_point_C - cold[0]) / per_watt[0]
-    return models.steady_state(A, B, np.array([T_o, Q_H])).reshape(-1)
-
-
-def programme_inputs(
-    programme: Programme,
-    structure: models.Structure | None = None,
-    theta: Mapping[str, float] | None = None,
-) -> np.ndarray:
-    """The inputs u = [T_o, Q_H] (N x 2) of the programme on its logger grid, each held over
-    the step that follows its sample (the paper's zero-order hold, eq. 15). A thermostat
-    phase sets, each step, the power that brings T to its set point at the step's end, within
-    0 and ``limits.max_power_W``: that power follows the vehicle, so ``structure`` and
-    ``theta`` (the model it is predicted with) are needed; the fit takes the power as logged,
-    an input like any other."""
-    rows = []
-    rate = programme.limits.get("max_T_o_rate_K_per_h", math.inf)
-    T_o = programme.phases[0].T_o_C  # the tunnel air at the phase's start
-    for phase, n in zip(programme.phases, _phase_samples(programme), strict=True):
-        t_h = np.arange(n) * programme.step_s / 3600.0
-        if phase.set_point_C is not None:
-            power = np.full(n, math.nan)  # set below, once the state is known
-        else:
-            at = np.array([s[0] for s in phase.steps])
-            watts = np.array([s[1] for s in phase.steps])
-            power = watts[np.searchsorted(at, t_h, side="right") - 1]
-        # the tunnel ramps to the phase's temperature at its rate limit at most
-        change = phase.T_o_C - T_o
-        if math.isinf(rate):
-            air, T_o = np.full(n, phase.T_o_C), phase.T_o_C
-        else:
-            air = T_o + np.sign(change) * np.minimum(rate * t_h, abs(change))
-            T_o = T_o + math.copysign(min(rate * phase.hours, abs(change)), change)
-        rows.append(np.column_stack([air, power]))
-    u = np.concatenate(rows)
-    if not np.isnan(u[:, 1]).any():
-        return u
-    if structure is None or theta is None:
-        raise ValueError("a thermostat phase needs the structure and theta to set its power")
-    A, B = structure.matrices(theta)
-    Ad, Bd = models.discretize_zoh(A, B, programme.step_s)
-    top = float(programme.limits["max_power_W"])
-    x = initial_state(programme, structure, theta, u[0])
-    ends = np.cumsum(_phase_samples(programme))
-    for n in range(len(u)):
-        if math.isnan(u[n, 1]):
-            phase = programme.phases[int(np.searchsorted(ends, n, side="right"))]
-            free = Ad[0] @ x + Bd[0, 0] * u[n, 0]
-            u[n, 1] = min(max((phase.set_point_C - free) / Bd[0, 1], 0.0), top)
-        x = Ad @ x + Bd @ u[n, :2]
-    return u
 
 
 @dataclass(frozen=True)
@@ -443,13 +116,17 @@ class Run:
     windows: tuple[tuple[int, int], ...]
 
 
-def _systematic_shifts(structure, theta, run, x, step_s, outputs, systematic, dT_k, sens):
+def _systematic_shifts(
+    structure, theta, run, x, step_s, outputs, systematic, dT_k, sens, power_share=1.0
+):
     """The shift dy (N x outputs) of the run's record relative to the model, one per
     systematic source: an offset b of a compared state's sensors (dy = b), of T_o or a scale
     error of Q_H (the model driven by the biased inputs departs from the record by dx: dy =
     -dx). With ``sens`` (the sensitivities, kA among them) kA is fixed by the static test on
     the same instruments, Q_H / (T - T_o) with T - T_o = ``dT_k``, and its move shifts the
-    model too; ``kA_rel`` is a random error of that kA of its own (relative)."""
+    model too (a power scale error by ``power_share`` of itself: 1 for eq. 10, less for the
+    storage-corrected balance, :attr:`railtherm.study.kwindow.StaticK.power_share`);
+    ``kA_rel`` is a random error of that kA of its own (relative)."""
     idx = [structure.states.index(s) for s in outputs]
     for source, u_sys in systematic.items():
         dy = np.zeros((len(x), len(outputs)))
@@ -465,7 +142,7 @@ def _systematic_shifts(structure, theta, run, x, step_s, outputs, systematic, dT
             continue
         if sens is not None and dT_k:  # d log kA of eq. 10's Q_H / (T - T_o)
             dlog_kA = {
-                "power_rel": u_sys,
+                "power_rel": u_sys * power_share,
                 "T": -u_sys / dT_k,
                 "T_o": u_sys / dT_k,
                 "kA_rel": u_sys,
@@ -474,9 +151,171 @@ def _systematic_shifts(structure, theta, run, x, step_s, outputs, systematic, dT
         yield dy
 
 
+def _input_noise_covariance(
+    structure: models.Structure,
+    theta: Mapping[str, float],
+    runs: Sequence[Run],
+    step_s: float,
+    idx: Sequence[int],
+    R: np.ndarray,
+    input_noise: Mapping[str, float],
+) -> np.ndarray:
+    """The covariance the logged inputs' white noise gives the fit: the fit simulates from
+    the logged T_o and Q_H, so a sample's noise moves every later compared output of its
+    window by the model's impulse response h, dy = G du, and the fit by R dy (``R``: its
+    linear response, rows the unknowns, columns the compared samples output by output as
+    :func:`predict_runs` stacks them). Cov = sum_inputs (R G s)(R G s)^T, s the noise of each
+    sample (``T_o`` K; ``power_rel`` times Q_H)."""
+    from scipy.signal import fftconvolve
+
+    sizes = [b - a for run in runs for a, b in run.windows]
+    per_output = sum(sizes)
+    columns = []
+    for i, name in enumerate(structure.inputs):
+        level = float(input_noise.get("power_rel" if name == "Q_H" else name, 0.0))
+        if level <= 0 or name not in ("T_o", "Q_H"):
+            continue
+        w = 0
+        for run in runs:
+            impulse = np.zeros_like(run.u)
+            impulse[0, i] = 1.0
+            zero = np.zeros(len(structure.states))
+            h = models.simulate(structure, theta, impulse, step_s, zero)[:, list(idx)]
+            for a, b in run.windows:
+                L = b - a
+                start = sum(sizes[:w])
+                moved = np.zeros((R.shape[0], L))
+                for k in range(len(idx)):  # sum_n>m R[:, n] h[n - m], per output
+                    v = R[:, k * per_output + start : k * per_output + start + L]
+                    moved += fftconvolve(v[:, ::-1], h[None, :L, k], axes=1)[:, :L][:, ::-1]
+                sd = level * np.abs(run.u[a:b, i]) if name == "Q_H" else np.full(L, level)
+                columns.append(moved * sd)
+                w += 1
+    if not columns:
+        return np.zeros((R.shape[0], R.shape[0]))
+    C = np.concatenate(columns, axis=1)
+    return C @ C.T
+
+
+def _static_columns(
+    runs: Sequence[Run], outputs: Sequence[str], static_test: kwindow.StaticK
+) -> np.ndarray:
+    """The static test's weights d log kA / d y on the compared samples, each times its
+    sensors' white noise variance, stacked as :func:`predict_runs` stacks the samples (output
+    by output, window by window; the k window lies in the first run): the covariance of the
+    fit's samples with the static kA. The balance shares the sensors' white noise with the
+    fit, not the colour of the fit's residuals (a slow misfit its regression absorbs)."""
+    a, b = static_test.rows
+    stacked = []
+    for state in outputs:
+        weight = static_test.weights.get(state, np.zeros(b - a))
+        weight = weight * static_test.noise_K.get(state, 0.0) ** 2
+        for r, run in enumerate(runs):
+            for lo, hi in run.windows:
+                column = np.zeros(hi - lo)
+                at, to = max(lo, a), min(hi, b)
+                if r == 0 and to > at:
+                    column[at - lo : to - lo] = weight[at - a : to - a]
+                stacked.append(column)
+    return np.concatenate(stacked)
+
+
+def _static_feedback(
+    cov: np.ndarray,
+    moved: list[np.ndarray],
+    S: np.ndarray,
+    free: Sequence[str],
+    static_test: kwindow.StaticK,
+    shared: np.ndarray,
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The fit's statistical covariance ``cov`` and systematic shifts ``moved`` (of the log
+    parameters ``free`` first, then the windows' states) with kA the static test's. Its
+    random error b (sd ``static_test.sd_log_random``) moves the estimates by S b; where the k
+    window's samples are compared too, b and the fit's error F share their sensors' noise
+    (``shared``: cov(F, b), the fit's response to :func:`_static_columns`). Where the
+    balance depends on the capacities (gradient g) the two settle at the fixed point
+    d log theta = M (F + S b), M = I + S g^T / (1 - g . S) (:mod:`railtherm.study.kwindow`)."""
+    g = np.zeros(len(S))
+    for i, p in enumerate(free):
+        g[i] = static_test.gradient.get(p, 0.0)
+    loop = 1.0 - float(g @ S)
+    if abs(loop) < 1e-6:  # balance and fit do not settle: kA is not determined this way
+        loop = math.copysign(1e-6, loop) if loop else 1e-6
+    M = np.eye(len(S)) + np.outer(S, g) / loop
+    var_b = static_test.sd_log_random**2
+    joint = cov + np.outer(S, shared) + np.outer(shared, S) + var_b * np.outer(S, S)
+    return M @ joint @ M.T, [M @ m for m in moved]
+
+
 def _undetermined(structure: models.Structure, free: Sequence[str]) -> Prediction:
     inf = dict.fromkeys(free, math.inf)
     return Prediction(structure.name, inf, dict(inf), dict.fromkeys(free, False), math.inf, inf)
+
+
+def _record_rows(
+    structure: models.Structure,
+    theta: Mapping[str, float],
+    runs: Sequence[Run],
+    step_s: float,
+    outputs: Sequence[str],
+    free: Sequence[str],
+    sources: Mapping[str, float],
+    static_k: tuple[float, float],
+    static: bool,
+) -> tuple[list, list, list] | None:
+    """The rows of :func:`predict_runs` per compared output, window by window: d y / d (log
+    theta, window states) (J), d y / d log kA where ``static`` (the static test fixes kA;
+    ``static_k``: its T - T_o and power share), and per systematic source its shift dy; None
+    where the logger step cannot resolve the parameter set (a heavy-tailed draw with a time
+    constant of 1e-20 s)."""
+    idx = [structure.states.index(s) for s in outputs]
+    n_x = len(structure.states)
+    n_w = sum(len(run.windows) for run in runs)
+    dT_k, power_share = static_k
+    params = free + (("kA",) if static else ())
+    blocks: list[list[np.ndarray]] = [[] for _ in outputs]  # J rows per output
+    kA_rows: list[list[np.ndarray]] = [[] for _ in outputs]  # d y / d log kA per output
+    shifts: list[list[np.ndarray]] = [[] for _ in sources]  # dy rows per source
+    w = 0
+    for run in runs:
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                x, sens, free_resp = models.sensitivities(
+                    structure, theta, run.u, step_s, run.x0, params=params
+                )
+        except FloatingPointError:  # a parameter set the logger step cannot resolve (a
+            # heavy-tailed draw with a time constant of 1e-20 s) determines nothing
+            return None
+        dys = list(
+            _systematic_shifts(
+                structure,
+                theta,
+                run,
+                x,
+                step_s,
+                outputs,
+                sources,
+                dT_k,
+                sens if static else None,
+                power_share,
+            )
+        )
+        for a, b in run.windows:
+            # the window's initial states: the response of its samples to a state at its
+            # first sample (the free response, shifted), zero in every other window
+            starts = np.zeros((b - a, n_w * n_x, n_x))
+            starts[:, w * n_x : (w + 1) * n_x, :] = free_resp[: b - a].transpose(0, 2, 1)
+            for k, j in enumerate(idx):
+                blocks[k].append(
+                    np.column_stack([theta[p] * sens[p][a:b, j] for p in free] + [starts[:, :, j]])
+                )
+                if static:
+                    kA_rows[k].append(theta["kA"] * sens["kA"][a:b, j])
+            for k, dy in enumerate(dys):
+                if dy is not None:
+                    shifts[k].append(dy[a:b])
+            w += 1
+    return blocks, kA_rows, shifts
 
 
 def predict_runs(
@@ -491,6 +330,8 @@ def predict_runs(
     outputs: Sequence[str] | None = None,
     systematic: Mapping[str, float] | None = None,
     dT_k: float = 0.0,
+    static_test: kwindow.StaticK | None = None,
+    input_noise: Mapping[str, float] | None = None,
 ) -> Prediction:
     """The Fisher-information prediction of the module docstring for the records of
     ``runs`` (:class:`Run`), logged every ``step_s``: the parameters ``free`` (default every
@@ -498,7 +339,12 @@ def predict_runs(
     (default the states ``noise_K`` names: the residual sd per output, ``tau_samples`` its
     autocorrelation time in samples), each window's initial states estimated (nuisance
     unknowns). ``systematic``: standard uncertainties of the sources of
-    :func:`_systematic_shifts`; ``dT_k``: T - T_o of the static test that fixes kA."""
+    :func:`_systematic_shifts`; ``dT_k``: T - T_o of the static test that fixes kA; ``static_test``:
+    the static test's random error and, for the storage-corrected balance, its dependence on
+    the capacities (:func:`railtherm.study.kwindow.static_k`; its ``dT`` replaces ``dT_k``),
+    carried to the parameters through the fixed point of the balance and the fit;
+    ``input_noise``: the white noise of the logged inputs (``T_o`` K, ``power_rel``), which
+    the fit's simulation follows (:func:`_input_noise_covariance`)."""
     tau = {s: float((tau_samples or {}).get(s, 1.0)) for s in noise_K}
     free = tuple(p for p in structure.parameters if p != "kA") if free is None else tuple(free)
     outputs = (
@@ -510,41 +356,19 @@ def predict_runs(
     # a kA held fixed comes from the static test (eq. 10) on the same instruments: it moves
     # with their systematic errors, and the fit with it
     static = "kA" in structure.parameters and "kA" not in free
-    params = free + (("kA",) if static else ())
-    idx = [structure.states.index(s) for s in outputs]
-    n_x = len(structure.states)
-    n_w = sum(len(run.windows) for run in runs)
-    sources = dict(systematic or {})
-    blocks: list[list[np.ndarray]] = [[] for _ in outputs]  # J rows per output
-    shifts: list[list[np.ndarray]] = [[] for _ in sources]  # dy rows per source
-    w = 0
-    for run in runs:
-        try:
-            with np.errstate(over="ignore", invalid="ignore"):
-                x, sens, free_resp = models.sensitivities(
-                    structure, theta, run.u, step_s, run.x0, params=params
-                )
-        except FloatingPointError:  # a parameter set the logger step cannot resolve (a
-            # heavy-tailed draw with a time constant of 1e-20 s) determines nothing
+    power_share = 1.0
+    if static and static_test is not None:
+        if not math.isfinite(static_test.sd_log_random):  # the static test gives no kA
             return _undetermined(structure, free)
-        dys = list(
-            _systematic_shifts(
-                structure, theta, run, x, step_s, outputs, sources, dT_k, sens if static else None
-            )
-        )
-        for a, b in run.windows:
-            # the window's initial states: the response of its samples to a state at its
-            # first sample (the free response, shifted), zero in every other window
-            starts = np.zeros((b - a, n_w * n_x, n_x))
-            starts[:, w * n_x : (w + 1) * n_x, :] = free_resp[: b - a].transpose(0, 2, 1)
-            for k, j in enumerate(idx):
-                blocks[k].append(
-                    np.column_stack([theta[p] * sens[p][a:b, j] for p in free] + [starts[:, :, j]])
-                )
-            for k, dy in enumerate(dys):
-                if dy is not None:
-                    shifts[k].append(dy[a:b])
-            w += 1
+        dT_k, power_share = static_test.dT, static_test.power_share
+    idx = [structure.states.index(s) for s in outputs]
+    sources = dict(systematic or {})
+    rows = _record_rows(
+        structure, theta, runs, step_s, outputs, free, sources, (dT_k, power_share), static
+    )
+    if rows is None:  # a parameter set the logger step cannot resolve determines nothing
+        return _undetermined(structure, free)
+    blocks, kA_rows, shifts = rows
     if not any(len(r) for rows in blocks for r in rows):  # no compared sample (a programme
         # scaled, or a phase shortened, below its logger step) determines nothing
         return _undetermined(structure, free)
@@ -569,9 +393,20 @@ def predict_runs(
         weight = np.repeat([noise_K[s] ** 2 * max(tau[s], 1.0) for s in outputs], n_rows)
         cov = A @ (Jn.T @ (weight[:, None] * Jn)) @ A / np.outer(scale, scale)
         response = A @ Jn.T  # the fit's linear response to a shift of the record
+        if input_noise:
+            cov = cov + _input_noise_covariance(
+                structure, theta, runs, step_s, idx, response / scale[:, None], input_noise
+            )
         moved = [
             (response @ np.concatenate(parts).T.reshape(-1)) / scale for parts in shifts if parts
         ]
+        if static and static_test is not None:
+            # the static kA's own random error and, for the storage-corrected balance, the
+            # fixed point of balance and fit (railtherm.study.kwindow)
+            kA_col = np.concatenate([np.concatenate(rows) for rows in kA_rows])
+            S = -(response @ kA_col) / scale  # d (log theta, x0) / d log kA of the fit
+            shared = (response @ _static_columns(runs, outputs, static_test)) / scale
+            cov, moved = _static_feedback(cov, moved, S, free, static_test, shared)
         systematic_var = np.sum(np.square(moved), axis=0) if moved else np.zeros(len(scale))
         sd = {
             p: float(math.sqrt(max(cov[i, i] + systematic_var[i], 0.0))) for i, p in enumerate(free)
@@ -622,11 +457,23 @@ def predict(
     u = programme_inputs(programme, structure, theta)
     x0 = initial_state(programme, structure, theta, u[0]) if x0 is None else np.asarray(x0, float)
     run = Run(u, x0, windows)
-    dT_k = 0.0
+    static_test = None
     if "kA" in structure.parameters and (free is None or "kA" not in free):
-        k_end = int(round(programme.phases[0].hours * 3600.0 / programme.step_s)) - 1
         x = models.simulate(structure, theta, u, programme.step_s, x0)
-        dT_k = float(x[k_end, 0] - u[k_end, 0])  # T - T_o at the first phase's end
+        sensors = {s: programme.noise_K.get(s, v) for s, v in noise.items() if s in outputs}
+        default = tuple(p for p in structure.parameters if p != "kA")
+        static_test = kwindow.static_k(
+            structure,
+            theta,
+            u,
+            x,
+            programme.step_s,
+            k_window_rows(programme),
+            sensors,
+            programme.input_noise,
+            storage_correction=programme.storage_correction,
+            free=default if free is None else free,
+        )
     return predict_runs(
         structure,
         theta,
@@ -637,7 +484,8 @@ def predict(
         free=free,
         outputs=outputs,
         systematic=programme.systematic,
-        dT_k=dT_k,
+        static_test=static_test,
+        input_noise=programme.input_noise,
     )
 
 
