@@ -48,6 +48,7 @@ import math
 import os
 import sys
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 from railtherm import __version__, structures
@@ -250,6 +251,10 @@ def _design(args: argparse.Namespace) -> int:
         raise ConfigError("--probability", "probability", args.probability, "expected 0 < p <= 1")
     if args.draws < 1:
         raise ConfigError("--draws", "draws", args.draws, "expected 1 or more")
+    if args.out and args.optimise == (args.length_h is not None):
+        raise ConfigError(
+            "--out", "out", args.out, "writes the programme of --optimise or --length-h: give one"
+        )
     if args.vehicle:
         path = os.path.join(workdir, args.vehicle)
         data = read_yaml(path, display=args.vehicle)
@@ -262,7 +267,7 @@ def _design(args: argparse.Namespace) -> int:
             args.mass_kg, args.surface_m2 = data["mass_kg"], data["surface_m2"]
             args.vehicle = None
     if args.vehicle:
-        prior = design.prior_from_fit_file(path)
+        prior = design.prior_from_fit_file(path, args.draws, args.seed)
     else:
         given = (("--mass-kg", args.mass_kg), ("--surface-m2", args.surface_m2))
         missing = [option for option, value in given if value is None]
@@ -281,20 +286,24 @@ def _design(args: argparse.Namespace) -> int:
             args.seed,
         )
     assessment = design.assess(prior, programme, target)
-    found = design.shortest(prior, programme, target, args.probability) if args.optimise else None
+    found = None
+    if args.optimise:  # the first phase as given: its end is the static k window
+        found = design.shortest(prior, programme, target, args.probability, keep_first=True)
     best = None
     if args.length_h is not None:
         best = design.best_of_length(
             prior, programme, target[0], args.length_h, args.max_power_w, args.min_phase_h
         )
     print(design.markdown(assessment))
+    proposed = None
     if best is not None:
         chosen, assessed = best
+        proposed = chosen
         print(f"\nBest programme of {chosen.hours:g} h for {target[0]} (the first phase kept):")
         for ph in chosen.phases:
             print(f"  {ph.describe()}")
         print()
-        print(design.markdown(design.assess(prior, chosen, target)))
+        print(design.markdown(replace(design.assess(prior, chosen, target), notes=assessed.notes)))
         name = target[0]
         before, after = assessment.central.half_width[name], assessed.central.half_width[name]
         print(
@@ -304,18 +313,31 @@ def _design(args: argparse.Namespace) -> int:
     if args.optimise:
         name, goal = target
         if found is None:
+            longest = design.assess(prior, design.scaled(programme, 4.0), target)
+            why = "".join(f"; at 4 times, {v}" for v in longest.violations)
             print(
                 f"\nNo programme of this shape up to 4 times as long reaches {name} within "
-                f"±{100 * goal:g} % with probability {args.probability:g}."
+                f"±{100 * goal:g} % with probability {args.probability:g} within the "
+                f"programme's limits{why}."
             )
         else:
             factor, best = found
+            proposed = best.programme
             hours = best.programme.hours
             print(
-                f"\nShortest programme of this shape: {hours:g} h ({factor:g} times "
-                f"{programme.hours:g} h), {name} within ±{100 * goal:g} % with probability "
-                f"{best.probability:.2f}."
+                f"\nShortest programme of this shape (the first phase kept): {hours:.4g} h "
+                f"(the later phases {factor:g} times as long), {name} within "
+                f"±{100 * goal:g} % with probability {best.probability:.2f}:"
             )
+            for ph in best.programme.phases:
+                print(f"  {ph.describe()}")
+            print()
+            print(design.markdown(best))
+    if args.out:
+        if proposed is None:
+            raise ConfigError("--out", "out", args.out, "no programme was found to write")
+        written = design.write_programme(proposed, os.path.join(workdir, args.out))
+        print(f"\nWrote {written[0]} and its set-point schedule {written[1]}.")
     return 0
 
 
@@ -689,8 +711,20 @@ def _add_design(commands: Any) -> None:
         default=1.0,
         help="the shortest phase of --length-h (default: %(default)s)",
     )
-    design.add_argument("--draws", type=int, default=200, help="class draws (default: %(default)s)")
+    design.add_argument(
+        "--draws",
+        type=int,
+        default=200,
+        help="draws of the prior: the class model's, or the fit's own intervals (default: "
+        "%(default)s)",
+    )
     design.add_argument("--seed", type=int, default=0, help="seed of the draws (default: 0)")
+    design.add_argument(
+        "--out",
+        metavar="PROGRAMME.yaml",
+        help="write the programme --optimise or --length-h proposes (YAML, which design "
+        "reads back) and its set-point schedule beside it (.csv)",
+    )
     _study_options(design, "the study's results: tables/table2.csv and the class's fits")
     design.set_defaults(run=_design)
 

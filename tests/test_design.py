@@ -78,41 +78,61 @@ def test_predicted_widths_match_the_spread_of_repeated_fits(tmp_path):
 
 def two_stage_storage_corrected(record, window, start):
     """The study's two-stage fit of one record with kA from the k window's storage-corrected
-    balance (railtherm.study.storage): kA and the fit alternate until they agree."""
+    balance (railtherm.study.storage): the kA at which the balance of the fit's capacities
+    gives kA back (the secant method, as the study solves a steep alternation)."""
+    from scipy.optimize import root_scalar
+
     from railtherm.estimation import kvalue
 
-    kA, theta = start["kA"], dict(start)
-    for _ in range(30):
-        free = {p: theta[p] for p in ("C", "K_veh", "C_veh")}
-        fit = pem.fit(SECOND, [record], fixed={"kA": kA}, x0="estimated", initial=free)
-        theta = fit.theta
-        new = kvalue.storage_corrected_kA(window, theta["C"], theta["K_veh"], theta["C_veh"]).kA
-        if abs(new / kA - 1.0) < 1e-7:
-            break
-        kA = new
-    return theta, kA
+    fits = {}
+
+    def fitted(kA):
+        if kA not in fits:
+            free = {p: start[p] for p in ("C", "K_veh", "C_veh")}
+            fits[kA] = pem.fit(SECOND, [record], fixed={"kA": kA}, x0="estimated", initial=free)
+        return fits[kA].theta
+
+    def gap(kA):
+        theta = fitted(kA)
+        balance = kvalue.storage_corrected_kA(window, theta["C"], theta["K_veh"], theta["C_veh"])
+        return balance.kA / kA - 1.0
+
+    kA0 = start["kA"]
+    root = root_scalar(gap, x0=kA0, x1=kA0 * 1.001, method="secant", xtol=1e-6 * kA0)
+    return fitted(root.root), root.root
 
 
-def test_the_static_k_window_and_its_storage_correction_widen_the_prediction(tmp_path):
+SLOW_BODY = {"kA": 400.0, "C": 3.0e5, "K_veh": 250.0, "C_veh": 6.0e6}  # C_veh / K_veh 6.7 h
+
+
+@pytest.mark.parametrize(
+    ("truth", "first_h"), [(TRUTH, 30.0), (SLOW_BODY, 8.0)], ids=["steady", "body still heating"]
+)
+def test_the_static_k_window_and_its_storage_correction_widen_the_prediction(
+    tmp_path, truth, first_h
+):
     """The fit holds kA from the k window's energy balance corrected for the heat the body
     stores, which depends on the capacities the fit gives in turn: 40 records with white
     noise on T, T_veh (0.05 K), the tunnel air (0.05 K) and the power (0.5 %), each k window
     balanced and fitted alternately until the two agree. The spread of the capacities is the
     prediction's (ratio 0.7-1.35); the prediction that holds kA exact and the inputs as
-    planned is too narrow for C_veh."""
+    planned is too narrow for C_veh. Where the body still heats over the k window (8 h from
+    a soak, C_veh / K_veh of 6.7 h) the balance follows the capacities, and the two settle
+    at a fixed point: the core of its spread is the prediction's, and the prediction flags
+    the loop (g . S > 0.5) whose amplification gives the estimates tails."""
     from railtherm.study import kwindow
 
     data = {**PAPER_LIKE, "input_noise": {"T_o": 0.05, "power_rel": 0.005}}
-    steady = {**PAPER_LIKE["phases"][0], "hours": 30, "identify": False}
+    steady = {**PAPER_LIKE["phases"][0], "hours": first_h, "identify": False}
     data["phases"] = [steady, *PAPER_LIKE["phases"][1:]]
     prog = programme(tmp_path, data)
-    prediction = design.predict(SECOND, TRUTH, prog)
+    prediction = design.predict(SECOND, truth, prog)
     bare = {k: v for k, v in data.items() if k != "input_noise"}
     naive = design.predict(
-        SECOND, TRUTH, programme(tmp_path, {**bare, "kvalue": {"storage_correction": False}})
+        SECOND, truth, programme(tmp_path, {**bare, "kvalue": {"storage_correction": False}})
     )
     u = design.programme_inputs(prog)
-    x = models.simulate(SECOND, TRUTH, u, prog.step_s, [-10.0, -10.0])
+    x = models.simulate(SECOND, truth, u, prog.step_s, [-10.0, -10.0])
     a, b = design.k_window_rows(prog)
     (_, first, end), *_ = design.fit_windows(prog)
     rng = np.random.default_rng(34)
@@ -124,15 +144,19 @@ def test_the_static_k_window_and_its_storage_correction_widen_the_prediction(tmp
         logged[:, 1] *= 1.0 + rng.normal(0.0, 0.005, len(u))
         window = kwindow.window_frame(logged[a:b], y[a:b], prog.step_s, measured_T_veh=True)
         record = pem.Experiment("run", prog.step_s, logged[first:end], y[first:end], x0=y[first])
-        theta, kA = two_stage_storage_corrected(record, window, TRUTH)
+        theta, kA = two_stage_storage_corrected(record, window, truth)
         logs.append([np.log(kA), *(np.log(theta[p]) for p in ("C", "K_veh", "C_veh"))])
-    realised = np.std(np.array(logs), axis=0, ddof=1)
+    # the spread of the core of the estimates (1.4826 MAD: the sd of a normal sample): where
+    # static kA and fit amplify each other (loop gain near 1) the tails go further still
+    logs = np.array(logs)
+    realised = 1.4826 * np.median(np.abs(logs - np.median(logs, axis=0)), axis=0)
     for p, sd in zip(("C", "K_veh", "C_veh"), realised[1:], strict=True):
         ratio = sd / prediction.sd_log[p]
         assert 0.7 < ratio < 1.35, (p, ratio)
     # without the k window's noise and the inputs' (kA exact, inputs as planned) the
     # prediction of C_veh is too narrow
     assert realised[3] / naive.sd_log["C_veh"] > 1.35
+    assert (prediction.loop_gain > design.LOOP_GAIN_FLAG) == (first_h < 10)
 
 
 def test_a_programme_that_never_moves_the_vehicle_determines_no_capacity(tmp_path):
@@ -292,7 +316,7 @@ def test_the_command_takes_a_measured_vehicle_and_optimises(fit_files, capsys):
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "the fit order2 of Metro2" in out and "residuals as the prior's fits show them" in out
-    assert "Shortest programme of this shape:" in out or "No programme of this shape" in out
+    assert "Shortest programme of this shape (the first phase kept)" in out or "No programme" in out
     assert main([*args[:-1], "--length-h", "48", "--max-power-w", "40000"]) == 0
     best = capsys.readouterr().out
     assert "Best programme of 48 h for C_veh (the first phase kept):" in best

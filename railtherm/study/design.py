@@ -38,7 +38,7 @@ from railtherm.errors import ConfigError
 from railtherm.estimation import models
 from railtherm.estimation.acf import autocorrelation_time
 from railtherm.estimation.common import Z95, identification
-from railtherm.study import kwindow
+from railtherm.study import kwindow, limits
 from railtherm.study.programme import (
     Phase,
     Programme,
@@ -49,6 +49,7 @@ from railtherm.study.programme import (
     load_programme,
     prbs_steps,
     programme_inputs,
+    write_programme,
 )
 
 __all__ = [
@@ -66,6 +67,9 @@ __all__ = [
     "predict",
     "predict_runs",
     "prior_for_class",
+    "fit_draws",
+    "within_limits",
+    "write_programme",
     "prior_from_fit",
     "prior_from_fit_file",
     "prbs_steps",
@@ -86,6 +90,9 @@ __all__ = [
 # an information matrix whose condition number exceeds this leaves some direction of the
 # parameters undetermined by the record: those parameters are "not identifiable" by it
 COND_MAX = 1e12
+# a loop gain g . S of static kA and fit beyond this is flagged (a k window that is not
+# steady): the errors are amplified by 1 / (1 - g . S), 2 and more, with tails
+LOOP_GAIN_FLAG = 0.5
 
 
 @dataclass(frozen=True)
@@ -95,7 +102,10 @@ class Prediction:
     ``half_width`` (the interval exp(+-1.96 sd_log), half its log width as a fraction:
     exp(1.96 sd_log) - 1), and whether the record determines it (``identifiable``);
     ``condition`` the condition number of the information matrix; ``sd_log_systematic`` the
-    share of ``sd_log`` the programme's systematic errors give."""
+    share of ``sd_log`` the programme's systematic errors give; ``loop_gain`` g . S of the
+    storage-corrected static kA and the fit (:mod:`railtherm.study.kwindow`): near 1 the two
+    amplify each other's errors by 1 / (1 - g . S), and the estimates' spread has tails
+    beyond this linear prediction (a k window that is not steady)."""
 
     structure: str
     sd_log: dict[str, float]
@@ -103,6 +113,7 @@ class Prediction:
     identifiable: dict[str, bool]
     condition: float
     sd_log_systematic: dict[str, float] = field(default_factory=dict)
+    loop_gain: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -227,14 +238,15 @@ def _static_feedback(
     free: Sequence[str],
     static_test: kwindow.StaticK,
     shared: np.ndarray,
-) -> tuple[np.ndarray, list[np.ndarray]]:
+) -> tuple[np.ndarray, list[np.ndarray], float]:
     """The fit's statistical covariance ``cov`` and systematic shifts ``moved`` (of the log
     parameters ``free`` first, then the windows' states) with kA the static test's. Its
     random error b (sd ``static_test.sd_log_random``) moves the estimates by S b; where the k
     window's samples are compared too, b and the fit's error F share their sensors' noise
     (``shared``: cov(F, b), the fit's response to :func:`_static_columns`). Where the
     balance depends on the capacities (gradient g) the two settle at the fixed point
-    d log theta = M (F + S b), M = I + S g^T / (1 - g . S) (:mod:`railtherm.study.kwindow`)."""
+    d log theta = M (F + S b), M = I + S g^T / (1 - g . S) (:mod:`railtherm.study.kwindow`).
+    Returns both transformed and the loop gain g . S."""
     g = np.zeros(len(S))
     for i, p in enumerate(free):
         g[i] = static_test.gradient.get(p, 0.0)
@@ -244,7 +256,7 @@ def _static_feedback(
     M = np.eye(len(S)) + np.outer(S, g) / loop
     var_b = static_test.sd_log_random**2
     joint = cov + np.outer(S, shared) + np.outer(shared, S) + var_b * np.outer(S, S)
-    return M @ joint @ M.T, [M @ m for m in moved]
+    return M @ joint @ M.T, [M @ m for m in moved], 1.0 - loop
 
 
 def _undetermined(structure: models.Structure, free: Sequence[str]) -> Prediction:
@@ -384,6 +396,7 @@ def predict_runs(
     H = Jn.T @ Jn
     eig = np.linalg.eigvalsh(H)
     condition = float(eig[-1] / eig[0]) if eig[0] > 0 else math.inf
+    loop_gain = 0.0
     if not math.isfinite(condition) or condition > COND_MAX:
         sd = sd_sys = dict.fromkeys(free, math.inf)
     else:
@@ -406,7 +419,7 @@ def predict_runs(
             kA_col = np.concatenate([np.concatenate(rows) for rows in kA_rows])
             S = -(response @ kA_col) / scale  # d (log theta, x0) / d log kA of the fit
             shared = (response @ _static_columns(runs, outputs, static_test)) / scale
-            cov, moved = _static_feedback(cov, moved, S, free, static_test, shared)
+            cov, moved, loop_gain = _static_feedback(cov, moved, S, free, static_test, shared)
         systematic_var = np.sum(np.square(moved), axis=0) if moved else np.zeros(len(scale))
         sd = {
             p: float(math.sqrt(max(cov[i, i] + systematic_var[i], 0.0))) for i, p in enumerate(free)
@@ -421,7 +434,7 @@ def predict_runs(
         ]
         for (p, v), h in zip(sd.items(), half.values(), strict=True)
     }
-    return Prediction(structure.name, sd, half, identifiable, condition, sd_sys)
+    return Prediction(structure.name, sd, half, identifiable, condition, sd_sys, loop_gain)
 
 
 def predict(
@@ -636,13 +649,43 @@ def residual_noise(fit) -> tuple[dict[str, float], dict[str, float]] | None:
     return noise, tau
 
 
-def prior_from_fit(fit) -> Prior:
+def fit_draws(fit, n: int, seed: int = 0) -> dict[str, np.ndarray] | None:
+    """``n`` parameter sets a fit's own uncertainty allows: its estimated parameters drawn
+    log-normal about the estimates with their combined standard deviations of log theta
+    (``sd_log_total``, statistical and systematic) and the fit's correlation of the free log
+    parameters; the parameters it held (kA from the static test) at their values.
+    Deterministic with ``seed``; None where ``n`` is 0 or a parameter is not identified (its
+    interval gives no spread to draw from)."""
+    params = fit.parameters
+    estimated = [p for p in fit.structure.parameters if params[p].estimated is True]
+    if n < 1 or not estimated or not all(params[p].identified for p in estimated):
+        return None
+    sd = np.array([params[p].sd_log_total or params[p].sd_log or 0.0 for p in estimated])
+    if not np.all(np.isfinite(sd)):
+        return None
+    free = list(fit.free)
+    corr = np.eye(len(estimated))
+    if all(p in free for p in estimated) and fit.correlation.shape == (len(free), len(free)):
+        at = [free.index(p) for p in estimated]
+        corr = np.nan_to_num(fit.correlation[np.ix_(at, at)], nan=0.0)
+        np.fill_diagonal(corr, 1.0)
+    rng = np.random.default_rng(seed)
+    z = rng.multivariate_normal(np.zeros(len(sd)), corr * np.outer(sd, sd), n, method="eigh")
+    draws = {p: np.full(n, float(params[p].value)) for p in fit.structure.parameters}
+    for i, p in enumerate(estimated):
+        draws[p] = float(params[p].value) * np.exp(z[:, i])
+    return draws
+
+
+def prior_from_fit(fit, n: int = 0, seed: int = 0) -> Prior:
     """The prior of a vehicle measured before (:class:`railtherm.study.fit.Fit`): its
     estimates, the parameters it estimated (kA fixed by the static test stays fixed), and per
     compared output the residual noise and autocorrelation time its record showed (in
     samples of that record: the programme is taken at the same logger step), with the slow
     shapes of its systematic errors taken out where the fit's series is at hand
-    (:func:`residual_noise`), else as its measures give them."""
+    (:func:`residual_noise`), else as its measures give them. With ``n`` the prior carries
+    ``n`` draws of the fit's own uncertainty (:func:`fit_draws`, seed ``seed``): a
+    prediction over them is not one pilot's chance."""
     measures = fit.section("measures")
     noise = {s: float(m["overall"]["rmse"]) for s, m in measures.items()}
     tau = {s: float(m["overall"].get("autocorrelation_time", 1.0)) for s, m in measures.items()}
@@ -653,7 +696,10 @@ def prior_from_fit(fit) -> Prior:
     structure = fit.structure
     free = tuple(p for p in structure.parameters if p in estimated)
     source = f"the fit {fit.model} of {fit.vehicle}"
-    return Prior(structure, dict(fit.theta), free, source, None, noise, tau)
+    draws = fit_draws(fit, n, seed)
+    if draws is not None:
+        source += f", {n} draws of its combined intervals"
+    return Prior(structure, dict(fit.theta), free, source, draws, noise, tau)
 
 
 def _read_with_series(path: str | Path):
@@ -667,9 +713,10 @@ def _read_with_series(path: str | Path):
     return read_fit(path, series) if series.is_file() else fit
 
 
-def prior_from_fit_file(path: str | Path) -> Prior:
-    """:func:`prior_from_fit` of a fit file, with its series where the study wrote it."""
-    return prior_from_fit(_read_with_series(path))
+def prior_from_fit_file(path: str | Path, n: int = 0, seed: int = 0) -> Prior:
+    """:func:`prior_from_fit` of a fit file, with its series where the study wrote it, and
+    ``n`` draws of its uncertainty (seed ``seed``)."""
+    return prior_from_fit(_read_with_series(path), n, seed)
 
 
 def residuals_of(fits) -> tuple[dict[str, float], dict[str, float]]:
@@ -764,7 +811,11 @@ class Assessment:
     (``central``), and over the prior's draws each parameter's median and 5 / 95 % quantiles
     of the relative 95 % half-width (``spread``: {param: (q05, median, q95)}), the share of
     draws in which it is identifiable (``identifiable``) and, for a ``target`` (param,
-    half-width), the probability to reach it (``probability``)."""
+    half-width), the probability to reach it (``probability``); what the programme does to
+    the vehicle: each state's highest temperature at the prior's upper band (``peaks``,
+    degC, :func:`railtherm.study.limits.peaks`), the limits they exceed (``violations``),
+    the share of the k window's heat that goes into storage (``k_storage_share``) and the
+    ``notes`` of a search (which limit binds)."""
 
     programme: Programme
     prior: Prior
@@ -773,6 +824,10 @@ class Assessment:
     identifiable: dict[str, float]
     target: tuple[str, float] | None = None
     probability: float | None = None
+    peaks: dict[str, float] = field(default_factory=dict)
+    violations: tuple[str, ...] = ()
+    k_storage_share: float = math.nan
+    notes: tuple[str, ...] = ()
 
 
 def assess(
@@ -794,15 +849,29 @@ def assess(
         probability = float(
             np.mean([r.identifiable[name] and r.half_width[name] <= goal for r in runs])
         )
-    return Assessment(programme, prior, central, widths, identifiable, target, probability)
+    highest = limits.peaks(prior.structure, prior.thetas() or [prior.theta], programme)
+    share = limits.k_window_storage_share(prior.structure, prior.theta, programme)
+    return Assessment(
+        programme,
+        prior,
+        central,
+        widths,
+        identifiable,
+        target,
+        probability,
+        highest,
+        tuple(limits.violations(highest, programme)),
+        share,
+    )
 
 
 def scaled(programme: Programme, factor: float, keep_first: bool = False) -> Programme:
     """The programme with every phase (and every step within it) ``factor`` times as long;
-    with ``keep_first`` the first phase (the static k window's steady state) as it is."""
+    the first phase (the static k window's steady state) as it is with ``keep_first``, or
+    where scaling would leave it shorter than the k window (``k_window_h``)."""
     phases = tuple(
         ph
-        if keep_first and i == 0
+        if (keep_first or ph.hours * factor < programme.k_window_h) and i == 0
         else replace(
             ph, hours=ph.hours * factor, steps=tuple((at * factor, w) for at, w in ph.steps)
         )
@@ -822,27 +891,42 @@ def shortest(
 ) -> tuple[float, Assessment] | None:
     """The shortest version of ``programme``'s shape (its phases in proportion, each scaled by
     one of ``factors``; the first kept as it is with ``keep_first``) whose :func:`assess`
-    reaches ``target`` with at least ``probability``; (factor, its assessment), or None when
-    even the longest does not. The factors are bisected: a longer programme of the same shape
-    is taken to inform no less."""
+    reaches ``target`` with at least ``probability`` within the programme's temperature
+    limits (:mod:`railtherm.study.limits`); (factor, its assessment), or None when even the
+    longest within them does not. The factors are bisected: a longer programme of the same
+    shape is taken to inform no less, and to heat the vehicle no less (the longest within
+    the limits is found first)."""
     ordered = sorted(float(f) for f in factors)
     found: dict[float, Assessment] = {}
+    caps = limits.temperature_limits(programme)
+    thetas = prior.thetas() or [prior.theta]
+
+    def within(factor: float) -> bool:
+        if not caps:
+            return True
+        highest = limits.peaks(prior.structure, thetas, scaled(programme, factor, keep_first))
+        return not limits.violations(highest, programme)
 
     def reaches(factor: float) -> bool:  # each factor assessed once
         if factor not in found:
             found[factor] = assess(prior, scaled(programme, factor, keep_first), target)
         return (found[factor].probability or 0.0) >= probability
 
-    if not reaches(ordered[-1]):
+    def first_true(test, lo: int, hi: int) -> int:  # test(ordered[hi]) holds, lo's does not
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            lo, hi = (lo, mid) if test(ordered[mid]) else (mid, hi)
+        return hi
+
+    top = len(ordered) - 1
+    if not within(ordered[top]):  # the longest within the limits
+        if not within(ordered[0]):
+            return None
+        top = first_true(lambda f: not within(f), 0, top) - 1
+    if not reaches(ordered[top]):
         return None
-    lo, hi = -1, len(ordered) - 1  # a longer programme of the same shape informs more:
-    while hi - lo > 1:  # bisect for the first factor that reaches the target
-        mid = (lo + hi) // 2
-        if reaches(ordered[mid]):
-            hi = mid
-        else:
-            lo = mid
-    return ordered[hi], found[ordered[hi]]
+    best = first_true(reaches, -1, top)
+    return ordered[best], found[ordered[best]]
 
 
 def best_of_length(
@@ -914,7 +998,75 @@ def best_of_length(
     options = {"maxfev": 400, "xatol": 1e-3, "fatol": 1e-4}
     found = minimize(width, z0, method="Nelder-Mead", options=options)
     best = build(found.x if found.fun < width(z0) else z0)
-    return best, assess(prior, best, (target, math.inf))
+    best, notes = within_limits(prior, best)
+    return best, replace(assess(prior, best, (target, math.inf)), notes=notes)
+
+
+def _powers_scaled(programme: Programme, factor: float) -> Programme:
+    """The programme with the heating of every phase after the first ``factor`` times."""
+    later = tuple(
+        replace(ph, steps=tuple((at, w * factor) for at, w in ph.steps))
+        for ph in programme.phases[1:]
+    )
+    return replace(programme, phases=(programme.phases[0], *later))
+
+
+def within_limits(prior: Prior, programme: Programme) -> tuple[Programme, tuple[str, ...]]:
+    """``programme`` kept within its temperature limits at the prior's upper band
+    (:mod:`railtherm.study.limits`): where the cabin air or the body would get hotter than
+    ``limits.max_T_C`` / ``max_T_veh_C``, the heating of every phase after the first is
+    scaled down (bisection) until the hottest is at its limit. Returns the programme and
+    notes saying which limit binds (the heaters' ``max_power_W`` too, where a phase holds
+    it). A first phase that exceeds a limit alone is a :class:`ConfigError`."""
+    notes = []
+    top = programme.limits.get("max_power_W")
+    at_top = [
+        ph.name
+        for ph in programme.phases[1:]
+        if top is not None and ph.steps and max(w for _, w in ph.steps) >= top * (1 - 1e-6)
+    ]
+    if at_top:
+        notes.append(f"limits.max_power_W binds: {top:g} W in {', '.join(at_top)}")
+    caps = limits.temperature_limits(programme)
+    if not caps:
+        return programme, tuple(notes)
+    thetas = prior.thetas() or [prior.theta]
+
+    def excess(factor: float) -> tuple[float, str]:
+        highest = limits.peaks(prior.structure, thetas, _powers_scaled(programme, factor))
+        over = {s: highest[s] - cap for s, cap in caps.items()}
+        state = max(over, key=lambda s: over[s] if math.isfinite(over[s]) else math.inf)
+        return over[state], state
+
+    first, state = excess(1.0)
+    if first <= 0:
+        return programme, tuple(notes)
+    key = limits.LIMIT_KEYS[state]
+    if excess(0.0)[0] > 0:
+        raise ConfigError(
+            programme.name,
+            f"limits.{key}",
+            caps[state],
+            f"{limits.WHAT[state]} exceeds it without any heating after the first phase: "
+            "the first phase or the tunnel's temperatures are beyond it",
+        )
+    lo, hi = 0.0, 1.0
+    for _ in range(20):  # the largest factor within the limit
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if excess(mid)[0] > 0 else (mid, hi)
+    notes = [n for n in notes if not n.startswith("limits.max_power_W")]
+    notes.append(
+        f"limits.{key} binds: the heating after the first phase scaled by {lo:.3g} keeps "
+        f"{limits.WHAT[state]} at most {caps[state]:g} degC at the prior's upper band"
+    )
+    return _powers_scaled(programme, lo), tuple(notes)
+
+
+def _quantity(key: str, value: float) -> str:
+    """An uncertainty of a programme with its unit: K for a temperature, % for a ratio."""
+    if key.endswith("_rel"):
+        return f"{key} {100 * value:.3g} %"
+    return f"{key} {value:.3g} K"
 
 
 def markdown(assessment: Assessment) -> str:
@@ -930,13 +1082,16 @@ def markdown(assessment: Assessment) -> str:
         )
         residuals = f"residuals as the prior's fits show them: {level}"
     else:
-        noise = ", ".join(f"{s} {v:g} K" for s, v in a.programme.noise_K.items())
+        noise = ", ".join(f"{s} {v:.3g} K" for s, v in a.programme.noise_K.items())
         residuals = f"residuals white at the programme's sensor noise: {noise}"
-    systematic = ", ".join(f"{k} {v:g}" for k, v in a.programme.systematic.items()) or "none"
+    systematic = ", ".join(_quantity(k, v) for k, v in a.programme.systematic.items()) or "none"
+    inputs = ", ".join(_quantity(k, v) for k, v in a.programme.input_noise.items()) or "none"
+    method = "eq. 10 corrected for the heat stored" if a.programme.storage_correction else "eq. 10"
     lines = [
-        f"Programme {a.programme.name} ({a.programme.hours:g} h, logger step "
+        f"Programme {a.programme.name} ({a.programme.hours:.4g} h, logger step "
         f"{a.programme.step_s:g} s) for {a.prior.source}; {residuals}; systematic "
-        f"uncertainties: {systematic}.",
+        f"uncertainties (1 sd): {systematic}; logged inputs' noise (1 sd): {inputs}; static "
+        f"k window: the first phase's last {a.programme.k_window_h:.3g} h, {method}.",
         "",
         "| parameter | predicted ± (95 %) | over the prior: median [5 %, 95 %] | identifiable |",
         "|---|---|---|---|",
@@ -948,11 +1103,38 @@ def markdown(assessment: Assessment) -> str:
     for p in a.prior.free:
         central = pct(a.central.half_width[p]) if a.central.identifiable[p] else "not identifiable"
         q05, q50, q95 = a.spread[p]
-        lines.append(
-            f"| {p} | {central} | {pct(q50)} [{pct(q05)}, {pct(q95)}] | "
-            f"{100 * a.identifiable[p]:.0f} % of draws |"
+        over = f"{pct(q50)} [{pct(q05)}, {pct(q95)}]" if a.prior.draws else "no draws"
+        share = (
+            f"{100 * a.identifiable[p]:.0f} % of draws"
+            if a.prior.draws
+            else ("yes" if a.central.identifiable[p] else "no")
         )
+        lines.append(f"| {p} | {central} | {over} | {share} |")
     if a.target is not None:
         name, goal = a.target
         lines += ["", f"{name} within ±{100 * goal:g} % with probability {a.probability:.2f}."]
+    highest = ", ".join(
+        f"{limits.WHAT.get(s, s)} {v:.1f} degC" for s, v in a.peaks.items() if math.isfinite(v)
+    )
+    if highest:
+        band = f"{100 * limits.UPPER_BAND:g} %" if a.prior.draws else "the central parameters"
+        lines += ["", f"Highest temperatures (at {band} of the prior): {highest}."]
+    for v in a.violations:
+        lines.append(f"Beyond a limit: {v}.")
+    if a.central.loop_gain > LOOP_GAIN_FLAG:
+        lines.append(
+            f"The storage-corrected static kA and the fit amplify each other's errors "
+            f"(g·S = {a.central.loop_gain:.2f}, a factor {1 / (1 - a.central.loop_gain):.2g}"
+            "): the estimates' spread has tails beyond this prediction."
+            if a.central.loop_gain < 1
+            else f"The storage-corrected static kA and the fit do not settle (g·S = "
+            f"{a.central.loop_gain:.2f}): the k window does not determine kA with them."
+        )
+    if a.k_storage_share > limits.NOT_STEADY_SHARE:
+        lines.append(
+            f"The static k window is not steady: {100 * a.k_storage_share:.2g} % of its heat "
+            "goes into storage, which eq. 10 books as loss (start the programme steady, or "
+            "lengthen the first phase)."
+        )
+    lines += [f"{n}." for n in a.notes]
     return "\n".join(lines)

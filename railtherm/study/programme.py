@@ -29,7 +29,10 @@ __all__ = [
     "k_window_rows",
     "load_programme",
     "prbs_steps",
+    "programme_dict",
     "programme_inputs",
+    "schedule",
+    "write_programme",
 ]
 
 
@@ -411,3 +414,82 @@ def k_window_rows(programme: Programme) -> tuple[int, int]:
     end = _phase_samples(programme)[0]
     n = int(round(programme.k_window_h * 3600.0 / programme.step_s))
     return max(end - max(n, 2), 0), end
+
+
+def programme_dict(programme: Programme) -> dict[str, Any]:
+    """The programme as its file holds it (:func:`load_programme` reads it back to the same
+    :class:`Programme`): every phase with its heating (``power_W``, ``steps`` or
+    ``set_point_C``), ``identify`` and ``window``; the noise, systematic uncertainties,
+    inputs' noise, limits, start and static k window."""
+    phases = []
+    for ph in programme.phases:
+        entry: dict[str, Any] = {"name": ph.name, "hours": float(ph.hours), "T_o_C": ph.T_o_C}
+        if ph.set_point_C is not None:
+            entry["set_point_C"] = float(ph.set_point_C)
+        elif len(ph.steps) == 1:
+            entry["power_W"] = float(ph.steps[0][1])
+        else:
+            entry["steps"] = [[float(at), float(w)] for at, w in ph.steps]
+        entry["identify"] = ph.identify if isinstance(ph.identify, bool) else float(ph.identify)
+        entry["window"] = ph.window
+        phases.append(entry)
+    return {
+        "name": programme.name,
+        "step_s": float(programme.step_s),
+        "noise_K": {s: float(v) for s, v in programme.noise_K.items()},
+        "systematic": {s: float(v) for s, v in programme.systematic.items()},
+        "input_noise": {s: float(v) for s, v in programme.input_noise.items()},
+        "limits": {s: float(v) for s, v in programme.limits.items()},
+        "start": programme.start,
+        "kvalue": {
+            "hours": float(programme.k_window_h),
+            "storage_correction": bool(programme.storage_correction),
+        },
+        "phases": phases,
+    }
+
+
+def schedule(programme: Programme) -> list[dict[str, Any]]:
+    """The set points a tunnel controller takes: one row per held stretch (a phase, or a
+    step within it), with its start and end (h from the programme's start), the tunnel air
+    set point (degC) and the heating (W), or the cabin's thermostat set point (degC)."""
+    rows, t0 = [], 0.0
+    for ph in programme.phases:
+        if ph.set_point_C is not None:
+            stretches = [(0.0, ph.hours, None)]
+        else:
+            ends = [at for at, _ in ph.steps[1:]] + [ph.hours]
+            stretches = [(at, end, w) for (at, w), end in zip(ph.steps, ends, strict=True)]
+        for at, end, watts in stretches:
+            rows.append(
+                {
+                    "start_h": round(t0 + at, 6),
+                    "end_h": round(t0 + end, 6),
+                    "phase": ph.name,
+                    "T_o_set_C": ph.T_o_C,
+                    "power_W": None if watts is None else round(float(watts), 3),
+                    "T_set_C": ph.set_point_C,
+                }
+            )
+        t0 += ph.hours
+    return rows
+
+
+def write_programme(programme: Programme, path: str | Path) -> tuple[Path, Path]:
+    """Write ``programme`` to ``path`` (YAML, :func:`programme_dict`) and its set-point
+    :func:`schedule` beside it (the same name, ``.csv``; hours at 6 decimals, watts at 3).
+    Returns both paths."""
+    import csv
+
+    import yaml
+
+    path = Path(path)
+    text = yaml.safe_dump(programme_dict(programme), sort_keys=False, allow_unicode=True)
+    path.write_text(text, encoding="utf-8")
+    table = path.with_suffix(".csv")
+    rows = schedule(programme)
+    with open(table, "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows({k: "" if v is None else v for k, v in r.items()} for r in rows)
+    return path, table
