@@ -156,6 +156,18 @@ def calibration_programme(truth, prior, plan) -> design.Programme:
     )
 
 
+def bench_plan(best: design.Programme) -> cb.Plan:
+    """A designed programme (the thermostat's heating, then two held phases) as the bench's
+    plan, its durations to the minute."""
+    up, down = best.phases[1:]
+    return cb.Plan(
+        cb.HEATING_H,
+        round(up.hours * 60) / 60,
+        round(down.hours * 60) / 60,
+        (up.steps[0][1], down.steps[0][1]),
+    )
+
+
 def calibration_run(seed: int, i: int, rng: np.random.Generator) -> list[dict]:
     truth = cb.draw_truth(cb.vehicle_rng(seed, i), i, cb.Generator())
     true = {"C": truth.C, "K_veh": truth.K_veh, "C_veh": truth.C_veh}
@@ -165,13 +177,7 @@ def calibration_run(seed: int, i: int, rng: np.random.Generator) -> list[dict]:
         prior = design.prior_from_fit(pilot)
         base = calibration_programme(truth, prior, cb.PLAN)
         best, _ = design.best_of_length(prior, base, TARGET, hours=length)
-        up, down = best.phases[1:]
-        plan = cb.Plan(
-            cb.HEATING_H,
-            round(up.hours * 60) / 60,
-            round(down.hours * 60) / 60,
-            (up.steps[0][1], down.steps[0][1]),
-        )
+        plan = bench_plan(best)
         designed = calibration_programme(truth, prior, plan)
         fit = fitted(calibration_record(truth, 2, seed, i, Path(tmp), plan))
         prediction = predict(prior, designed, fit)

@@ -240,13 +240,7 @@ def designed(name: str, hours: float, target: str, args) -> tuple[cb.Plan, dict]
     best, assessed = design.best_of_length(
         pilot, programme(truth, pilot, args.setting), target, hours
     )
-    up, down = best.phases[1:]
-    bench = cb.Plan(
-        cb.HEATING_H,
-        round(up.hours * 60) / 60,
-        round(down.hours * 60) / 60,
-        (up.steps[0][1], down.steps[0][1]),
-    )
+    bench = dc.bench_plan(best)
     final = design.assess(pilot, programme(truth, pilot, args.setting, bench))
     binds = "; ".join(assessed.notes) or "no limit binds"
     print(
