@@ -312,7 +312,8 @@ def test_the_command_takes_a_measured_vehicle_and_optimises(fit_files, capsys):
 
     fit, _ = fit_files("Metro2", "order2")
     programme = str(REPO_ROOT / "config" / "programmes" / "paper.yaml")
-    args = ["design", programme, "--vehicle", str(fit), "--target", "C_veh=10%", "--optimise"]
+    args = ["design", programme, "--vehicle", str(fit), "--target", "C_veh=10%", "--draws", "20"]
+    args.append("--optimise")
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "the fit order2 of Metro2" in out and "residuals as the prior's fits show them" in out

@@ -83,6 +83,7 @@ __all__ = [
     "StorageBalance",
     "StorageCorrection",
     "autocorrelation_time",
+    "balance_of",
     "effective_count",
     "sensor_counts",
     "sensor_u_K",
@@ -711,13 +712,40 @@ def storage_balance(
     -------
     StorageBalance
     """
-    if not (C > 0 and K_veh > 0 and C_veh > 0):
-        raise ValueError(f"C, K_veh and C_veh must be > 0, got {C}, {K_veh}, {C_veh}")
     t = _column(window, "time", source)
     T = _column(window, "T", source)
     T_o = _column(window, "T_o", source)
     Q_H = _column(window, "Q_H", source)
     T_veh = _column(window, "T_veh", source, required=False)
+    return balance_of(t, T, T_o, Q_H, T_veh, C, K_veh, C_veh)
+
+
+def balance_of(
+    t: np.ndarray,
+    T: np.ndarray,
+    T_o: np.ndarray,
+    Q_H: np.ndarray,
+    T_veh: np.ndarray,
+    C: float,
+    K_veh: float,
+    C_veh: float,
+) -> StorageBalance:
+    """:func:`storage_balance` of the window's columns as arrays (time in s; T_veh all NaN
+    where it is not measured).
+
+    Parameters
+    ----------
+    t, T, T_o, Q_H, T_veh : ndarray
+        The k window's rows.
+    C, K_veh, C_veh : float
+        The capacities and body conductance (eqs. 7-8), all > 0.
+
+    Returns
+    -------
+    StorageBalance
+    """
+    if not (C > 0 and K_veh > 0 and C_veh > 0):
+        raise ValueError(f"C, K_veh and C_veh must be > 0, got {C}, {K_veh}, {C_veh}")
     s = t - t[0]
     E = np.concatenate([[0.0], np.cumsum(Q_H[:-1] * np.diff(t))])
     # the trapezoidal rule cumulated, as scipy.integrate.cumulative_trapezoid(T - T_o, t,

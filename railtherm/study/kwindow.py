@@ -94,13 +94,17 @@ def window_frame(u: np.ndarray, x: np.ndarray, step_s: float, measured_T_veh: bo
     return pd.DataFrame({**columns, "T_veh": T_veh})
 
 
+def _columns(frame: pd.DataFrame) -> tuple[np.ndarray, ...]:
+    return tuple(frame[c].to_numpy(float) for c in ("time", "T", "T_o", "Q_H", "T_veh"))
+
+
 def _balance_weights(
     frame: pd.DataFrame, theta: Mapping[str, float], step_s: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """Each sample's weight in the balance's kA (W/K per unit of the sample): of Q_H (per
     W), T, T_o and T_veh (per K), and kA itself."""
     C, K_veh, C_veh = (float(theta[p]) for p in STORAGE_PARAMETERS)
-    balance = kvalue.storage_balance(frame, C, K_veh, C_veh, source="the planned k window")
+    balance = kvalue.balance_of(*_columns(frame), C, K_veh, C_veh)
     w = np.linalg.pinv(balance.X)[0]  # kA = w . y
     kA = float(w @ balance.y)
     after = np.append(np.cumsum(w[::-1])[::-1][1:], 0.0)  # sum over n > m of w_n
@@ -191,12 +195,14 @@ def static_k(
     var = inputs + float(np.sum(w_T**2) * s_T**2 + np.sum(w_T_veh**2) * s_T_veh**2)
     weights = {"T": w_T / kA, **({"T_veh": w_T_veh / kA} if measured else {})}
     gradient = {}
-    for p in STORAGE_PARAMETERS:
+    columns = _columns(frame)
+    for p in STORAGE_PARAMETERS:  # the balance's kA (its regression's first coefficient)
         moved = []
         for sign in (1.0, -1.0):
             at = {**theta, p: float(theta[p]) * math.exp(sign * LOG_STEP)}
-            C, K_veh, C_veh = (at[q] for q in STORAGE_PARAMETERS)
-            moved.append(math.log(kvalue.storage_corrected_kA(frame, C, K_veh, C_veh).kA))
+            balance = kvalue.balance_of(*columns, *(at[q] for q in STORAGE_PARAMETERS))
+            kA_at = np.linalg.lstsq(balance.X, balance.y, rcond=None)[0][0]
+            moved.append(math.log(kA_at))
         gradient[p] = (moved[0] - moved[1]) / (2.0 * LOG_STEP)
     method = "storage-corrected balance"
     sensors = {"T": s_T, "T_veh": s_T_veh}
