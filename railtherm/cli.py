@@ -233,28 +233,12 @@ def _reference_model(args: argparse.Namespace) -> int:
     return 0
 
 
-def _design(args: argparse.Namespace) -> int:
-    """``railtherm design``: the predicted 95 % intervals a planned programme gives a vehicle
-    (:mod:`railtherm.study.design`), from a measured vehicle's fit or from the class
-    reference model of an unmeasured one; with --optimise, the shortest programme of the same
-    shape that reaches --target with the probability asked."""
+def _design_prior(args: argparse.Namespace, workdir: str):
+    """The prior ``railtherm design`` predicts for: a measured vehicle's fit (--vehicle
+    FIT.yaml), or the class reference model of a vehicle config (--vehicle CONFIG.yaml) or
+    of --class, --mass-kg and --surface-m2."""
     from railtherm.study import design
 
-    workdir = args.directory
-    programme = design.load_programme(os.path.join(workdir, args.programme))
-    target = design.parse_target(args.target) if args.target else None
-    if args.optimise and target is None:
-        raise ConfigError("--optimise", "target", None, "--optimise needs --target")
-    if args.length_h is not None and target is None:
-        raise ConfigError("--length-h", "target", None, "--length-h needs --target")
-    if not 0.0 < args.probability <= 1.0:
-        raise ConfigError("--probability", "probability", args.probability, "expected 0 < p <= 1")
-    if args.draws < 1:
-        raise ConfigError("--draws", "draws", args.draws, "expected 1 or more")
-    if args.out and args.optimise == (args.length_h is not None):
-        raise ConfigError(
-            "--out", "out", args.out, "writes the programme of --optimise or --length-h: give one"
-        )
     if args.vehicle:
         path = os.path.join(workdir, args.vehicle)
         data = read_yaml(path, display=args.vehicle)
@@ -285,6 +269,53 @@ def _design(args: argparse.Namespace) -> int:
             args.draws,
             args.seed,
         )
+    return prior
+
+
+def _print_replicates(prior, programme, assessment, args: argparse.Namespace) -> None:
+    """``--replicates``: the virtual tunnel runs of the programme against its prediction."""
+    from railtherm.study import replicates
+
+    runs = replicates.run(
+        prior.structure,
+        prior.theta,
+        programme,
+        assessment.central.sd_log,
+        args.replicates,
+        args.seed,
+        free=prior.free,
+        noise_K=prior.noise_K,
+        tau_samples=prior.tau_samples,
+    )
+    print()
+    print(replicates.markdown(runs))
+
+
+def _design(args: argparse.Namespace) -> int:
+    """``railtherm design``: the predicted 95 % intervals a planned programme gives a vehicle
+    (:mod:`railtherm.study.design`), from a measured vehicle's fit or from the class
+    reference model of an unmeasured one; with --optimise, the shortest programme of the same
+    shape that reaches --target with the probability asked."""
+    from railtherm.study import design
+
+    workdir = args.directory
+    programme = design.load_programme(os.path.join(workdir, args.programme))
+    target = design.parse_target(args.target) if args.target else None
+    if args.optimise and target is None:
+        raise ConfigError("--optimise", "target", None, "--optimise needs --target")
+    if args.length_h is not None and target is None:
+        raise ConfigError("--length-h", "target", None, "--length-h needs --target")
+    if not 0.0 < args.probability <= 1.0:
+        raise ConfigError("--probability", "probability", args.probability, "expected 0 < p <= 1")
+    if args.draws < 1:
+        raise ConfigError("--draws", "draws", args.draws, "expected 1 or more")
+    if args.replicates < 0 or args.replicates == 1:
+        raise ConfigError("--replicates", "replicates", args.replicates, "expected 0, or 2 or more")
+    if args.out and args.optimise == (args.length_h is not None):
+        raise ConfigError(
+            "--out", "out", args.out, "writes the programme of --optimise or --length-h: give one"
+        )
+    prior = _design_prior(args, workdir)
     assessment = design.assess(prior, programme, target)
     found = None
     if args.optimise:  # the first phase as given: its end is the static k window
@@ -295,6 +326,8 @@ def _design(args: argparse.Namespace) -> int:
             prior, programme, target[0], args.length_h, args.max_power_w, args.min_phase_h
         )
     print(design.markdown(assessment))
+    if args.replicates:
+        _print_replicates(prior, programme, assessment, args)
     proposed = None
     if best is not None:
         chosen, assessed = best
@@ -719,6 +752,14 @@ def _add_design(commands: Any) -> None:
         "%(default)s)",
     )
     design.add_argument("--seed", type=int, default=0, help="seed of the draws (default: 0)")
+    design.add_argument(
+        "--replicates",
+        type=int,
+        default=0,
+        metavar="N",
+        help="simulate N virtual tunnel runs of the programme (every declared error drawn "
+        "anew), fit each as the study does and print realised against predicted widths",
+    )
     design.add_argument(
         "--out",
         metavar="PROGRAMME.yaml",
