@@ -167,11 +167,16 @@ def test_a_kalman_fits_process_noise_widens_the_draws_not_the_central_year(tmp_p
     assert hi - lo < np.ptp(b.energy_kWh[0, 1:])
 
 
-def _sand_point_as(kind: str, path: Path) -> weather.Weather:
-    """Sand Point's year written as an EPW or a PVGIS TMY CSV (the layouts those services
-    publish), then read back."""
-    year = weather.read_weather(SAND_POINT)
+def _write_year(kind: str, path: Path, T_o, ghi) -> weather.Weather:
+    """A year written as an EPW or a PVGIS TMY CSV at Sand Point (the layouts those services
+    publish: EPW's hour N ending at N:00 local standard time, PVGIS's stamps in UTC), the
+    value of each record ``T_o(h)`` and ``ghi(h)`` of the local instant it describes (hours
+    from 00:00 of 1 January, local standard time), then read back."""
     stamps = pd.date_range("2005-01-01 00:00", periods=8760, freq="h")
+    # EPW's hour ts.hour + 1 ends an hour after ts; PVGIS's UTC stamp is 11 h ahead of Sand
+    # Point's zone (longitude -160.5: UTC - 11 h)
+    offset = 1 if kind == "epw" else -11
+    at = [int((ts - stamps[0]) / pd.Timedelta(hours=1) + offset) % 8760 for ts in stamps]
     if kind == "epw":
         lines = [
             "LOCATION,Sand Point,AK,USA,TMY3,703165,55.32,-160.52,-9.0,7.0",
@@ -187,8 +192,8 @@ def _sand_point_as(kind: str, path: Path) -> weather.Weather:
         for i, ts in enumerate(stamps):
             rest = "0,0,0,0,0,0,180,2.0,10,10,9999,77777,9,999999999,0,0.0,0,88,0.0,0.0,0.0"
             lines.append(
-                f"2005,{ts.month},{ts.day},{ts.hour + 1},60,{flags},{year.T_o[i]:.1f},0.0,80,"
-                f"101000,0,1415,300,{year.ghi[i]:.0f},{rest}"
+                f"2005,{ts.month},{ts.day},{ts.hour + 1},60,{flags},{T_o(at[i]):.1f},0.0,80,"
+                f"101000,0,1415,300,{ghi(at[i]):.0f},{rest}"
             )
     else:
         lines = [
@@ -199,13 +204,56 @@ def _sand_point_as(kind: str, path: Path) -> weather.Weather:
             *(f"{m},2005" for m in range(1, 13)),
             "time(UTC),T2m,RH,G(h),Gb(n),Gd(h),IR(h),WS10m,WD10m,SP",
             *(
-                f"{ts:%Y%m%d:%H%M},{year.T_o[i]:.2f},80,{year.ghi[i]:.0f},0,0,300,2,180,101000"
+                f"{ts:%Y%m%d:%H%M},{T_o(at[i]):.2f},80,{ghi(at[i]):.0f},0,0,300,2,180,101000"
                 for i, ts in enumerate(stamps)
             ),
             "T2m: 2-m air temperature (degree Celsius)",
         ]
     path.write_text("\n".join(lines) + "\n")
     return weather.read_weather(path)
+
+
+def _sand_point_as(kind: str, path: Path) -> weather.Weather:
+    """Sand Point's TMY3 year written as an EPW or a PVGIS TMY, each value at its instant."""
+    year = weather.read_weather(SAND_POINT)
+
+    def at(values):
+        return lambda h: values[np.searchsorted(year.t_s, h * 3600.0)]
+
+    return _write_year(kind, path, at(year.T_o), at(year.ghi))
+
+
+WARM_HOUR = (165 * 24 + 13) * 3600.0  # 15 June, 13:00 local standard time
+
+
+@pytest.mark.parametrize("kind", ["tmy3", "epw", "pvgis"])
+def test_one_warm_hour_lands_on_the_hour_it_describes(tmp_path, kind):
+    """A year at -5 degC but for the value describing 15 June 13:00 (local standard time),
+    at 20 degC: written as each service stamps it (TMY3 at the end of the hour, local; EPW
+    hour 13 of the day; PVGIS at 00:00 UTC of 16 June for Sand Point's UTC - 11 h), the
+    warmth is at 13:00 on the simulation grid, and an hour either side it is gone."""
+    if kind == "tmy3":
+        lines = SAND_POINT.read_text().splitlines()
+        header = lines[1].split(",")
+        column = header.index("Dry-bulb (C)")
+        for i in range(2, len(lines)):
+            fields = lines[i].split(",")
+            warm = fields[0].startswith("06/15/") and fields[1] == "13:00"
+            fields[column] = "20.0" if warm else "-5.0"
+            lines[i] = ",".join(fields)
+        path = tmp_path / "warm.csv"
+        path.write_text("\n".join(lines) + "\n")
+        year = weather.read_weather(path)
+    else:
+        warm = round(WARM_HOUR / 3600.0)
+        name = "warm.epw" if kind == "epw" else "warm_pvgis.csv"
+        year = _write_year(
+            kind, tmp_path / name, lambda h: 20.0 if h == warm else -5.0, lambda h: 0.0
+        )
+    t, T_o, _ = weather.on_grid(year, 60.0)
+    at = int(WARM_HOUR / 60.0)
+    assert T_o[at] == pytest.approx(20.0) and float(t[np.argmax(T_o)]) == WARM_HOUR
+    assert T_o[at - 60] == pytest.approx(-5.0) and T_o[at + 60] == pytest.approx(-5.0)
 
 
 @pytest.mark.parametrize(("kind", "name"), [("epw", "sand.epw"), ("pvgis", "sand_pvgis.csv")])

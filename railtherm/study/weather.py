@@ -14,13 +14,25 @@ pvlib, the maintained library of the photovoltaic community for exactly these fi
 optional dependency (``pip install railtherm[weather]``); a plain CSV needs none.
 
 A typical year is a sequence of records of one calendar year's length (8760 or 8784 hours),
-hourly or at a finer regular step (a plain CSV), months taken from different years. Its
-stamps are read as the weather service states them (TMY3, EPW and PVGIS stamp the end of
-each hour; the dry-bulb temperature is the value at the stamp) and made a year of elapsed
-seconds from the first stamp. :func:`on_grid` puts it on a simulation grid: linear between
-the records (``first_order``, the default: a temperature is a continuous signal) or held
-(``zero_order``), and closed over the year's end (the last record runs into the first, a
-typical year being read as one that repeats).
+hourly or at a finer regular step (a plain CSV), months taken from different years. Each value
+is placed on the instant it describes, as seconds from 00:00 of 1 January, local standard
+time (the clock of a service profile), whatever year its month was taken from:
+
+- TMY3 (NREL's manual, and pvlib's reader): each record is stamped at the end of its hour,
+  in local standard time, 01:00 to 24:00; the dry-bulb temperature is the value at the stamp,
+  the irradiance the total of the hour before it. The record stamped 01:00 is placed at 01:00
+  (its irradiance at 00:30), and the one stamped 24:00 of 31 December at 00:00.
+- EPW (EnergyPlus's weather converter): the same, hour N being the hour ending at N:00 (pvlib
+  labels it by the hour's start, N - 1).
+- PVGIS: stamped in UTC (``time(UTC)``), each value at its stamp: placed on the local standard
+  time of the longitude's zone, UTC + round(longitude / 15) h, as pvlib's ``roll_utc_offset``
+  does; a PVGIS year in EPW layout is read as an EPW in UTC.
+- a plain CSV: each value at its stamp, in the clock the file is written in.
+
+A year whose values run past the year's end (a UTC year moved to a zone east of Greenwich)
+wraps round: the typical year is read as one that repeats. :func:`on_grid` puts it on a
+simulation grid: linear between the records (``first_order``, the default: a temperature is a
+continuous signal) or each held until the next (``zero_order``).
 """
 
 from __future__ import annotations
@@ -44,8 +56,11 @@ HOUR_S = 3600.0
 @dataclass(frozen=True, eq=False)
 class Weather:
     """A typical year: hourly ``T_o`` (degC) and ``ghi`` (W/m², None where the file has
-    none) at ``t_s`` (seconds from the first record), the local ``time`` stamps, and where
-    the year comes from (``name``, ``source``, ``latitude``, ``longitude``)."""
+    none) at ``t_s`` (seconds from 00:00 of 1 January, local standard time, each value at
+    the instant it describes, in rising order), the file's ``time`` stamps in the same
+    order, where the year comes from (``name``, ``source``, ``latitude``, ``longitude``),
+    and ``ghi_shift_s``: where the irradiance sits against ``t_s`` (-1800 s for the total of
+    the hour before a stamp)."""
 
     name: str
     source: str
@@ -57,6 +72,7 @@ class Weather:
     longitude: float = math.nan
     meta: dict = field(default_factory=dict)
     step_s: float = HOUR_S
+    ghi_shift_s: float = 0.0
 
     @property
     def hours(self) -> int:
@@ -227,8 +243,62 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
     _check_climate(file, kind, T_o)
     if ghi is not None:
         ghi = np.clip(np.nan_to_num(ghi, nan=0.0), 0.0, None)
-    t_s = np.arange(n) * step
-    return Weather(name, source, index, t_s, T_o, ghi, lat, lon, dict(meta), step)
+    epw_layout = kind == "epw" or (kind == "pvgis" and path.suffix.lower() == ".epw")
+    t_s = _instants(file, kind, index, lon, n * step, epw_layout)
+    order = np.argsort(t_s, kind="stable")
+    shift = -HOUR_S / 2.0 if kind in ("tmy3", "epw") else 0.0
+    ghi = None if ghi is None else ghi[order]
+    return Weather(
+        name, source, index[order], t_s[order], T_o[order], ghi, lat, lon, dict(meta), step, shift
+    )
+
+
+# how each kind of file stamps its values (module docstring)
+STAMPS = {
+    "tmy3": "the end of each hour, local standard time",
+    "epw": "the end of each hour (hour N ends at N:00), local standard time",
+    "pvgis": "UTC, each value at its stamp",
+    "csv": "each value at its stamp",
+}
+
+
+def _instants(
+    file: str, kind: str, index: pd.DatetimeIndex, lon: float, period_s: float, epw: bool
+) -> np.ndarray:
+    """Each value's instant in seconds from 00:00 of 1 January, local standard time, within
+    the year (the module docstring); the month, day and clock of each stamp count, not the
+    year its month came from."""
+    stamps = pd.DatetimeIndex(index)
+    if kind == "pvgis":
+        utc = stamps.tz_convert("UTC").tz_localize(None) if stamps.tz is not None else stamps
+        zone = round(lon / 15.0) if math.isfinite(lon) else 0
+        stamps = utc + pd.Timedelta(hours=zone)
+    elif stamps.tz is not None:
+        stamps = stamps.tz_localize(None)  # as written: the file's local standard time
+    if epw:  # pvlib labels hour N by its start; its values are at its end
+        stamps = stamps + pd.Timedelta(hours=1)
+    reference = 2000 if round(period_s / HOUR_S) == 8784 else 2001  # a leap year or not
+    try:
+        on_year = pd.to_datetime(
+            {
+                "year": reference,
+                "month": stamps.month,
+                "day": stamps.day,
+                "hour": stamps.hour,
+                "minute": stamps.minute,
+                "second": stamps.second,
+            }
+        )
+    except ValueError as err:  # 29 February in a year of 8760 hours
+        raise ConfigError(file, "time", str(err), "a day the year's length does not have") from err
+    seconds = (on_year - pd.Timestamp(reference, 1, 1)).dt.total_seconds().to_numpy(float)
+    seconds = np.mod(seconds, period_s)
+    if len(np.unique(seconds)) != len(seconds):
+        i = int(np.flatnonzero(np.diff(np.sort(seconds)) == 0)[0])
+        raise ConfigError(
+            file, "time", float(np.sort(seconds)[i]), "two records describe the same instant"
+        )
+    return seconds
 
 
 # the dry-bulb temperature's column as each kind of file names it, and its unit (degC in all)
@@ -274,20 +344,24 @@ def _check_climate(file: str, kind: str, T_o: np.ndarray) -> None:
 def on_grid(
     weather: Weather, dt_s: float, hold: str = "first_order"
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """(t_s, T_o, ghi) on the grid 0, dt, ... up to one year (the weather's length) less a
-    step: ``first_order`` linear between the records, ``zero_order`` each held over its
-    step; the last record runs into the first (the typical year repeats)."""
+    """(t_s, T_o, ghi) on the grid 0, dt, ... (seconds from 00:00 of 1 January, local
+    standard time) up to one year (the weather's length) less a step: ``first_order``
+    linear between the records' instants, ``zero_order`` each held until the next; the year
+    closed over its end (the last record runs into the first: the typical year repeats)."""
     if hold not in ("first_order", "zero_order"):
         raise ValueError(f"hold: first_order or zero_order, got {hold!r}")
     period = len(weather.t_s) * weather.step_s
     t = np.arange(0.0, period, float(dt_s))
-    knots = np.append(weather.t_s, period)
 
-    def resample(values: np.ndarray) -> np.ndarray:
-        closed = np.append(values, values[0])
+    def resample(values: np.ndarray, shift: float = 0.0) -> np.ndarray:
+        at = np.mod(weather.t_s + shift, period)
+        order = np.argsort(at, kind="stable")
+        at, values = at[order], values[order]
+        knots = np.concatenate([at[-1:] - period, at, at[:1] + period])
+        closed = np.concatenate([values[-1:], values, values[:1]])
         if hold == "first_order":
             return np.interp(t, knots, closed)
-        return values[np.minimum((t // weather.step_s).astype(int), len(values) - 1)]
+        return closed[np.searchsorted(knots, t, side="right") - 1]
 
-    ghi = None if weather.ghi is None else resample(weather.ghi)
+    ghi = None if weather.ghi is None else resample(weather.ghi, weather.ghi_shift_s)
     return t, resample(weather.T_o), ghi
