@@ -296,9 +296,28 @@ def test_a_what_if_is_the_year_of_the_profile_it_describes(tmp_path, change):
     kw = {"dt_s": 600.0, "draws": 3, "seed": 2}
     paired = energy.annual_energy(vehicle(), year, base, what_ifs=[what_if], **kw)
     alone = energy.annual_energy(vehicle(), year, as_written, **kw)
-    for name in ("energy_kWh", "preheat_kWh", "peak_W", "unmet_h"):
+    names = ("energy_kWh", "preheat_kWh", "peak_service_W", "peak_preheat_W", "design_load_W")
+    for name in (*names, "unmet_h"):
         np.testing.assert_allclose(getattr(paired, name)[1], getattr(alone, name)[0], rtol=1e-12)
     assert not np.allclose(paired.preheat_kWh[1], paired.preheat_kWh[0])
+
+
+def test_the_peaks_in_and_out_of_service_and_the_design_load(tmp_path):
+    """Set back at night and pre-heated at the heater's limit, a 700 W/K car peaks at the
+    limit outside service and below it in service; its design load is kA (T_set - T_d) at the
+    year's 99.6 % dry-bulb T_d (0.4 % of the hours colder), exactly."""
+    year = weather.read_weather(SAND_POINT)
+    common = {"service": {"weekdays": [[6, 22]]}, "preheat_h": 2, "set_back_C": 5}
+    result = energy.annual_energy(
+        vehicle(), year, profile(tmp_path, **common, heating_limit_W=60000), dt_s=600.0, draws=20
+    )
+    colder = np.mean(year.T_o < result.design_T_o_C)
+    assert colder <= 0.004 < np.mean(year.T_o <= result.design_T_o_C)
+    assert result.peak_preheat_W[0, 0] == pytest.approx(60000.0)
+    assert 0 < result.peak_service_W[0, 0] < 60000.0
+    kA = THETA["kA"]
+    T_set = profile(tmp_path, **common).set_point_C
+    assert result.design_load_W[0, 0] == pytest.approx(kA * (T_set - result.design_T_o_C))
 
 
 def test_a_csv_year_at_ten_minutes_is_read_and_one_off_the_year_refused(tmp_path):
@@ -348,3 +367,8 @@ def test_the_study_files_give_a_row_per_vehicle_climate_and_variant(campaign_stu
     saving = table.iloc[1]["difference_kWh"]
     assert saving == pytest.approx(table.iloc[1]["energy_kWh"] - table.iloc[0]["energy_kWh"])
     assert saving < 0 and table["energy_kWh"].iloc[0] > table["energy_kWh"].iloc[2]
+    # the design load with a band from the fit's draws; Metro2's service never saturates the
+    # 40 kW heater, the pre-heat from the set-back does
+    base = table.iloc[0]
+    assert 0 < base["design_load_W_lo"] < base["design_load_W_hi"] < 40000.0
+    assert base["peak_service_W"] < base["peak_preheat_W"] == pytest.approx(40000.0)

@@ -540,8 +540,9 @@ def heated_steps(
     kelvin and per watt), then heats (started[r]); a service step resets every run.
 
     With ``accumulate``: the heat per month (energy, summed q), in the pre-heating window
-    (pre_J), its peak (NaN once a q is NaN, as numpy.maximum) and the service steps more
-    than unmet_K below the set point (unmet)."""
+    (pre_J), its peak in service (peak[r, 0]) and outside service (peak[r, 1]: pre-heating
+    and stabling; NaN once a q is NaN, as numpy.maximum) and the service steps more than
+    unmet_K below the set point (unmet)."""
     R, n = x.shape
     with_noise = noise.shape[0] > 0
     horizon = Am.shape[0] > 1
@@ -592,9 +593,10 @@ def heated_steps(
                 energy[r, month[k]] += q
                 if pre[v, k]:
                     pre_J[r] += q
-                if math.isnan(q) or math.isnan(peak[r]):
-                    peak[r] = math.nan
-                elif q > peak[r]:
-                    peak[r] = q
+                c = 0 if service[k] else 1
+                if math.isnan(q) or math.isnan(peak[r, c]):
+                    peak[r, c] = math.nan
+                elif q > peak[r, c]:
+                    peak[r, c] = q
                 if service[k] and x[r, 0] < sp - unmet_K:
                     unmet[r] += 1.0

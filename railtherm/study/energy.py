@@ -299,7 +299,11 @@ def check_what_ifs(
 class AnnualResult:
     """Per run (the central parameters first, then the draws), per variant (the base, then
     each what-if): the annual heating energy (kWh), monthly (kWh, 12), pre-heating (kWh),
-    peak power (W) and unmet hours in service; and what the run rests on."""
+    the peak power in service and outside it (pre-heating and stabling; W), the unmet hours
+    in service, and the design heat load (W): the steady heating that holds the service set
+    point at the year's design temperature ``design_T_o_C`` (the 99.6 % dry-bulb: 0.4 % of
+    the year's hours are colder), door closed, without gains or sun - what sizes an HVAC
+    unit; and what the run rests on."""
 
     label: str
     weather: str
@@ -308,10 +312,13 @@ class AnnualResult:
     energy_kWh: np.ndarray  # (V, S)
     monthly_kWh: np.ndarray  # (V, S, 12)
     preheat_kWh: np.ndarray  # (V, S)
-    peak_W: np.ndarray  # (V, S)
+    peak_service_W: np.ndarray  # (V, S)
+    peak_preheat_W: np.ndarray  # (V, S)
     unmet_h: np.ndarray  # (V, S)
     dt_s: float
     draws: int
+    design_T_o_C: float = math.nan
+    design_load_W: np.ndarray | None = None  # (V, S)
     rejected: int = 0
     notes: list[str] = field(default_factory=list)
 
@@ -416,7 +423,7 @@ def annual_energy(
     Am, x_per_T_o, x_per_W = _ready_by(steps, horizon, R, n)
     # a what-if's own set-back while waiting (none: heating off)
     back = np.array([math.nan if p.set_back_C is None else p.set_back_C for p in variant_profiles])
-    energy, pre_J, peak, unmet = np.zeros((R, 12)), np.zeros(R), np.zeros(R), np.zeros(R)
+    energy, pre_J, peak, unmet = np.zeros((R, 12)), np.zeros(R), np.zeros((R, 2)), np.zeros(R)
     started = np.zeros(R, dtype=bool)
     fixed = tuple(
         np.ascontiguousarray(a) for a in (Ad, BdT, BdQ, BdI, gain_Q, door, T_o, gains, ghi)
@@ -450,6 +457,8 @@ def annual_energy(
     advance(0, N, True)
     scale = dt_s / 3.6e6
     monthly = (energy * scale).reshape(V, S, 12)
+    design_T_o = float(np.quantile(weather.T_o, DESIGN_QUANTILE))
+    load = np.array([_design_load(structure, th, profile.set_point_C, design_T_o) for th in runs])
     return AnnualResult(
         label=ps.label,
         weather=weather.source,
@@ -458,13 +467,36 @@ def annual_energy(
         energy_kWh=monthly.sum(axis=2),
         monthly_kWh=monthly,
         preheat_kWh=(pre_J * scale).reshape(V, S),
-        peak_W=peak.reshape(V, S),
+        peak_service_W=peak[:, 0].reshape(V, S),
+        peak_preheat_W=peak[:, 1].reshape(V, S),
         unmet_h=(unmet * dt_s / 3600.0).reshape(V, S),
         dt_s=dt_s,
         draws=S - 1,
+        design_T_o_C=design_T_o,
+        design_load_W=load.reshape(V, S),
         rejected=rejected,
         notes=notes,
     )
+
+
+# the heating design temperature of a year: the 99.6 % dry-bulb (ASHRAE Handbook -
+# Fundamentals, ch. 14), exceeded by all but 0.4 % of its hours
+DESIGN_QUANTILE = 0.004
+
+
+def _design_load(structure: Any, theta: Mapping[str, float], T_set: float, T_o: float) -> float:
+    """The steady heating (W) that holds the air at ``T_set`` with the outside at ``T_o``,
+    every other input 0 (door closed, no gains, no sun): from the structure's steady state,
+    T_air = a T_o + b Q_H, Q_H = (T_set - a T_o) / b (kA (T_set - T_o) for eqs. 7-8)."""
+    from railtherm.estimation import models
+
+    A, B = structure.matrices(theta)
+    unit = np.zeros(len(structure.inputs))
+    per_T_o, per_W = unit.copy(), unit.copy()
+    per_T_o[0], per_W[1] = 1.0, 1.0
+    a = float(models.steady_state(A, B, per_T_o).reshape(-1)[0])
+    b = float(models.steady_state(A, B, per_W).reshape(-1)[0])
+    return (T_set - a * T_o) / b if b > 0 else math.nan
 
 
 def _predictable(params: Any, profile: Profile, what_ifs: Sequence[WhatIf]) -> Any:
@@ -534,13 +566,16 @@ def markdown(result: AnnualResult) -> str:
         f"{r.dt_s:g} s step; {bands}.",
         *(f"Note: {n}." for n in r.notes),
         "",
-        "| variant | heating (kWh/a) | of it pre-heating (kWh/a) | peak (W) | unmet (h) |",
-        "|---|---|---|---|---|",
+        "| variant | heating (kWh/a) | of it pre-heating (kWh/a) | peak in service (W) | "
+        f"peak outside service (W) | design load at {r.design_T_o_C:.1f} °C (W) | unmet (h) |",
+        "|---|---|---|---|---|---|---|",
     ]
     for v, name in enumerate(r.variants):
+        design = "" if r.design_load_W is None else _banded(*r.band(r.design_load_W[v]))
         lines.append(
             f"| {name} | {_banded(*r.band(r.energy_kWh[v]))} | "
-            f"{_banded(*r.band(r.preheat_kWh[v]))} | {_banded(*r.band(r.peak_W[v]))} | "
+            f"{_banded(*r.band(r.preheat_kWh[v]))} | {_banded(*r.band(r.peak_service_W[v]))} | "
+            f"{_banded(*r.band(r.peak_preheat_W[v]))} | {design} | "
             f"{_banded(*r.band(r.unmet_h[v]))} |"
         )
     lines += ["", "| month | " + " | ".join(MONTHS) + " |", "|---" * 13 + "|"]
@@ -578,8 +613,17 @@ def study_columns() -> list[str]:
     """The columns of the study's annual energy table (:func:`study_rows`), in order: an
     empty table (no vehicle with an acceptable fit) has them too."""
     columns = ["vehicle", "class", "climate", "weather", "variant"]
-    for key in ("energy_kWh", "preheat_kWh", "peak_W", "unmet_h", "difference_kWh"):
+    for key in (
+        "energy_kWh",
+        "preheat_kWh",
+        "peak_service_W",
+        "peak_preheat_W",
+        "design_load_W",
+        "unmet_h",
+        "difference_kWh",
+    ):
         columns += [key, f"{key}_lo", f"{key}_hi"]
+    columns.append("design_T_o_C")
     for name in MONTHS:
         columns += [f"{name}_kWh", f"{name}_lo", f"{name}_hi"]
     return [*columns, "draws"]
@@ -641,10 +685,13 @@ def study_rows(
                 for key, values in (
                     ("energy_kWh", result.energy_kWh[v]),
                     ("preheat_kWh", result.preheat_kWh[v]),
-                    ("peak_W", result.peak_W[v]),
+                    ("peak_service_W", result.peak_service_W[v]),
+                    ("peak_preheat_W", result.peak_preheat_W[v]),
+                    ("design_load_W", result.design_load_W[v]),
                     ("unmet_h", result.unmet_h[v]),
                 ):
                     row[key], row[f"{key}_lo"], row[f"{key}_hi"] = result.band(values)
+                row["design_T_o_C"] = result.design_T_o_C
                 diff = result.difference(v) if v else (math.nan,) * 3
                 row["difference_kWh"], row["difference_kWh_lo"], row["difference_kWh_hi"] = diff
                 for m, name in enumerate(MONTHS):
@@ -663,12 +710,15 @@ def study_markdown(table, profile: Profile, dt_s: float, source: str) -> str:
         f"Data: {source}. Profile {profile.name} (config/profiles/), {dt_s:g} s step, the "
         "vehicle's identified second-order model with an ideal HVAC to the set point within "
         f"{profile.heating_limit_W:,.0f} W; 95 % bands over parameter draws; a what-if's "
-        "difference is paired (the same draws). Cooling is not modelled. "
-        "(railtherm.study.energy)",
+        "difference is paired (the same draws). Peaks in service and outside it (pre-heating "
+        "from the set-back, stabling); the design load is the steady heating that holds the "
+        "set point at the year's 99.6 % dry-bulb temperature (design T_o), door closed, "
+        "without gains or sun. Cooling is not modelled. (railtherm.study.energy)",
         "",
         "| vehicle | climate | variant | heating (kWh/a) | difference (kWh/a) | "
-        "pre-heating (kWh/a) | peak (kW) | unmet (h) |",
-        "|---|---|---|---|---|---|---|---|",
+        "pre-heating (kWh/a) | peak in service (kW) | peak outside service (kW) | "
+        "design load (kW) | design T_o (°C) | unmet (h) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
 
     def band(r, key: str, scale: float = 1.0, sign: bool = False) -> str:
@@ -680,7 +730,9 @@ def study_markdown(table, profile: Profile, dt_s: float, source: str) -> str:
         lines.append(
             f"| {r['vehicle']} | {r['climate']} | {r['variant']} | {band(r, 'energy_kWh')} | "
             f"{band(r, 'difference_kWh', sign=True)} | {band(r, 'preheat_kWh')} | "
-            f"{band(r, 'peak_W', 1000.0)} | {band(r, 'unmet_h')} |"
+            f"{band(r, 'peak_service_W', 1000.0)} | {band(r, 'peak_preheat_W', 1000.0)} | "
+            f"{band(r, 'design_load_W', 1000.0)} | {r['design_T_o_C']:.1f} | "
+            f"{band(r, 'unmet_h')} |"
         )
     return "\n".join(lines) + "\n"
 
