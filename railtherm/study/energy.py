@@ -455,27 +455,36 @@ def annual_energy(
     N = len(t)
     advance(N - int(WARMUP_DAYS * 86400 / dt_s), N, False)
     advance(0, N, True)
-    scale = dt_s / 3.6e6
-    monthly = (energy * scale).reshape(V, S, 12)
     design_T_o = float(np.quantile(weather.T_o, DESIGN_QUANTILE))
     load = np.array([_design_load(structure, th, profile.set_point_C, design_T_o) for th in runs])
     return AnnualResult(
-        label=ps.label,
-        weather=weather.source,
-        profile=profile.name,
-        variants=[w.label for w in variants],
-        energy_kWh=monthly.sum(axis=2),
-        monthly_kWh=monthly,
-        preheat_kWh=(pre_J * scale).reshape(V, S),
-        peak_service_W=peak[:, 0].reshape(V, S),
-        peak_preheat_W=peak[:, 1].reshape(V, S),
-        unmet_h=(unmet * dt_s / 3600.0).reshape(V, S),
+        ps.label,
+        weather.source,
+        profile.name,
+        [w.label for w in variants],
+        *_totals(energy, pre_J, peak, unmet, dt_s, V, S),
         dt_s=dt_s,
         draws=S - 1,
         design_T_o_C=design_T_o,
         design_load_W=load.reshape(V, S),
         rejected=rejected,
         notes=notes,
+    )
+
+
+def _totals(energy, pre_J, peak, unmet, dt_s: float, V: int, S: int) -> tuple:
+    """The loop's sums per run as the result's arrays (V, S, ...): the year's energy and its
+    months (kWh), the pre-heating (kWh), the peaks in and out of service (W), the unmet
+    hours."""
+    scale = dt_s / 3.6e6
+    monthly = (energy * scale).reshape(V, S, 12)
+    return (
+        monthly.sum(axis=2),
+        monthly,
+        (pre_J * scale).reshape(V, S),
+        peak[:, 0].reshape(V, S),
+        peak[:, 1].reshape(V, S),
+        (unmet * dt_s / 3600.0).reshape(V, S),
     )
 
 
