@@ -621,7 +621,7 @@ def step_problem(dt_s: float) -> str | None:
 def study_columns() -> list[str]:
     """The columns of the study's annual energy table (:func:`study_rows`), in order: an
     empty table (no vehicle with an acceptable fit) has them too."""
-    columns = ["vehicle", "class", "climate", "weather", "variant"]
+    columns = ["vehicle", "class", "model", "climate", "weather", "variant"]
     for key in (
         "energy_kWh",
         "preheat_kWh",
@@ -643,7 +643,7 @@ def no_acceptable_fit(verdicts: Mapping[str, str]) -> str:
     {vehicle: its fit's verdict}), where to read why and what gives a row."""
     found = "; ".join(f"{vid}: {v}" for vid, v in verdicts.items()) or "no vehicle in the study"
     return (
-        f"No vehicle has an acceptable second-order fit ({found}), so there is no annual "
+        f"No vehicle has an acceptable fit ({found}), so there is no annual "
         "energy to compute. Each fit's verdict and its reasons are in "
         "results/vehicles/<id>/fit_<model>.yaml; a fit judged acceptable gives a row (or run "
         "railtherm energy on a class reference model)."
@@ -687,6 +687,7 @@ def study_rows(
                 row: dict[str, Any] = {
                     "vehicle": vid,
                     "class": vehicles[vid].get("class", ""),
+                    "model": fit.model,
                     "climate": year.name,
                     "weather": year.source,
                     "variant": variant,
@@ -717,17 +718,18 @@ def study_markdown(table, profile: Profile, dt_s: float, source: str) -> str:
         "# Annual heating energy in two typical years",
         "",
         f"Data: {source}. Profile {profile.name} (config/profiles/), {dt_s:g} s step, the "
-        "vehicle's identified second-order model with an ideal HVAC to the set point within "
+        "vehicle's identified model (second order where its fit is acceptable, else first "
+        "order: the column model) with an ideal HVAC to the set point within "
         f"{profile.heating_limit_W:,.0f} W; 95 % bands over parameter draws; a what-if's "
         "difference is paired (the same draws). Peaks in service and outside it (pre-heating "
         "from the set-back, stabling); the design load is the steady heating that holds the "
         "set point at the year's 99.6 % dry-bulb temperature (design T_o), door closed, "
         "without gains or sun. Cooling is not modelled. (railtherm.study.energy)",
         "",
-        "| vehicle | climate | variant | heating (kWh/a) | difference (kWh/a) | "
+        "| vehicle | model | climate | variant | heating (kWh/a) | difference (kWh/a) | "
         "pre-heating (kWh/a) | peak in service (kW) | peak outside service (kW) | "
         "design load (kW) | design T_o (°C) | unmet (h) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
 
     def band(r, key: str, scale: float = 1.0, sign: bool = False) -> str:
@@ -737,7 +739,8 @@ def study_markdown(table, profile: Profile, dt_s: float, source: str) -> str:
         lines[-2:] = [no_acceptable_fit(table.attrs.get("verdicts", {}))]
     for _, r in table.iterrows():
         lines.append(
-            f"| {r['vehicle']} | {r['climate']} | {r['variant']} | {band(r, 'energy_kWh')} | "
+            f"| {r['vehicle']} | {r['model']} | {r['climate']} | {r['variant']} | "
+            f"{band(r, 'energy_kWh')} | "
             f"{band(r, 'difference_kWh', sign=True)} | {band(r, 'preheat_kWh')} | "
             f"{band(r, 'peak_service_W', 1000.0)} | {band(r, 'peak_preheat_W', 1000.0)} | "
             f"{band(r, 'design_load_W', 1000.0)} | {r['design_T_o_C']:.1f} | "
@@ -752,18 +755,27 @@ def study_energy(
     weather_files: Sequence[str],
     profile_file: str,
     what_if: Sequence[str] = (),
+    fit_vehicles: Sequence[str] | None = None,
     **options: Any,
 ):
-    """:func:`study_rows` over a study's files: each vehicle's second-order fit (in the
-    order of ``vehicles``, {id: config}), the typical years, the profile and the what-ifs as
-    the config writes them; ``options`` go to :func:`study_rows` (dt_s, draws, seed, hold).
-    Returns the table and the profile."""
+    """:func:`study_rows` over a study's files: the vehicles' fits (``fit_files``, each of
+    the vehicle ``fit_vehicles`` names, default one per vehicle in the order of
+    ``vehicles``, {id: config}; per vehicle the first acceptable one is used, the second
+    order listed first), the typical years, the profile and the what-ifs as the config
+    writes them; ``options`` go to :func:`study_rows` (dt_s, draws, seed, hold). Returns
+    the table and the profile."""
     import pandas as pd
 
     from railtherm.study.fit import read_fit
+    from railtherm.study.quality import ACCEPTABLE
     from railtherm.study.weather import read_weather
 
-    fits = {vid: read_fit(path) for vid, path in zip(vehicles, fit_files, strict=True)}
+    owners = list(vehicles) if fit_vehicles is None else list(fit_vehicles)
+    fits: dict[str, Any] = {}
+    for vid, path in zip(owners, fit_files, strict=True):
+        fit = read_fit(path)
+        if vid not in fits or (fits[vid].verdict != ACCEPTABLE and fit.verdict == ACCEPTABLE):
+            fits[vid] = fit
     weathers = [read_weather(path) for path in weather_files]
     profile = load_profile(profile_file)
     what_ifs = [parse_what_if(text) for text in what_if]

@@ -151,6 +151,12 @@ class StudyPlan:
         """Vehicles with a second-order fit: the rows of Tables 2 and 3."""
         return tuple(vid for vid, n in self.fit_targets() if n == 2)
 
+    def energy_fits(self) -> tuple[tuple[str, int], ...]:
+        """(vehicle, order) of the fits the annual energy chooses from, per vehicle the
+        second order first: the study uses a vehicle's second-order fit where acceptable,
+        else its first-order one."""
+        return tuple(sorted(self.fit_targets(), key=lambda t: (self.vehicles.index(t[0]), -t[1])))
+
     def figure3_vehicle(self) -> str | None:
         """The vehicle of Figure 3 when it is in the study with first- and second-order fits."""
         vid = self.config["study"]["figure3"]

@@ -143,8 +143,8 @@ rule design:
 rule energy:
     input:
         fits=[
-            f"results/vehicles/{vid}/fit_{table_key(vid, 2)}.yaml"
-            for vid in second_order_vehicles()
+            f"results/vehicles/{vid}/fit_{table_key(vid, n)}.yaml"
+            for vid, n in PLAN.energy_fits()
         ],
         weather=config["energy"]["weather"],
         profile=config["energy"]["profile"] or [],
@@ -164,7 +164,8 @@ rule energy:
         ),
         svg="results/figures/annual_energy.svg",
     params:
-        vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
+        vehicles={vid: STUDY.vehicles[vid].data for vid, _ in PLAN.energy_fits()},
+        fit_vehicles=[vid for vid, _ in PLAN.energy_fits()],
         what_if=config["energy"]["what_if"],
         step_s=config["energy"]["step_s"],
         draws=config["energy"]["draws"],

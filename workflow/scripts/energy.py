@@ -1,5 +1,6 @@
-"""Adapter for rule energy: every acceptable second-order fit through the study's typical
-years under its operating profile, with the what-ifs paired (railtherm.study.energy)."""
+"""Adapter for rule energy: every vehicle with an acceptable fit (its second-order one where
+acceptable, else its first-order one) through the study's typical years under its operating
+profile, with the what-ifs paired (railtherm.study.energy)."""
 
 from railtherm import logs
 from railtherm.study import aggregate, energy
@@ -16,6 +17,7 @@ table, profile = energy.study_energy(
     draws=snakemake.params.draws,
     seed=snakemake.params.seed,
     hold=snakemake.params.hold,
+    fit_vehicles=snakemake.params.fit_vehicles,
 )
 energy.write_study_energy(
     table,
