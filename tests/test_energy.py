@@ -374,15 +374,14 @@ def test_the_study_files_give_a_row_per_vehicle_climate_and_variant(campaign_stu
     assert base["peak_service_W"] < base["peak_preheat_W"] == pytest.approx(40000.0)
 
 
-def test_a_vehicle_whose_first_order_fit_alone_is_acceptable_gets_its_row():
-    """Metro3's second-order fit is in doubt, its first-order fit acceptable (the study's
-    committed fits): given both, the second order listed first, the study's table has
-    Metro3's rows from the first-order model and says so."""
+def test_a_vehicle_whose_first_order_fit_alone_is_acceptable_gets_its_row(fit_files):
+    """Metro3's second-order fit is in doubt, its first-order fit acceptable: given both,
+    the second order listed first, the study's table has Metro3's rows from the first-order
+    model and says so."""
     from railtherm.study.fit import read_fit
     from railtherm.study.quality import ACCEPTABLE
 
-    fits = REPO / "results" / "vehicles" / "Metro3"
-    second, first = (str(fits / f"fit_{key}.yaml") for key in ("order2", "order1"))
+    second, first = (str(fit_files("Metro3", key)[0]) for key in ("order2", "order1"))
     assert read_fit(second).verdict != ACCEPTABLE == read_fit(first).verdict
     table, _ = energy.study_energy(
         {"Metro3": {"class": "metro"}},
