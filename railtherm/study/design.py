@@ -831,10 +831,14 @@ class Assessment:
 
 
 def assess(
-    prior: Prior, programme: Programme, target: tuple[str, float] | None = None
+    prior: Prior,
+    programme: Programme,
+    target: tuple[str, float] | None = None,
+    with_peaks: bool = True,
 ) -> Assessment:
     """The :class:`Assessment` of ``programme`` for ``prior`` (every draw predicted; a prior
-    without draws is its central parameters alone)."""
+    without draws is its central parameters alone); ``with_peaks`` False leaves out the
+    simulation of its temperatures (a search judges its limits apart)."""
     if target is not None and target[0] not in prior.free:
         raise ConfigError(
             "--target", "target", target[0], f"not a parameter the fit estimates: {prior.free}"
@@ -849,7 +853,11 @@ def assess(
         probability = float(
             np.mean([r.identifiable[name] and r.half_width[name] <= goal for r in runs])
         )
-    highest = limits.peaks(prior.structure, prior.thetas() or [prior.theta], programme)
+    highest = (
+        limits.peaks(prior.structure, prior.thetas() or [prior.theta], programme)
+        if with_peaks
+        else {}
+    )
     share = limits.k_window_storage_share(prior.structure, prior.theta, programme)
     return Assessment(
         programme,
@@ -908,8 +916,9 @@ def shortest(
         return not limits.violations(highest, programme)
 
     def reaches(factor: float) -> bool:  # each factor assessed once
-        if factor not in found:
-            found[factor] = assess(prior, scaled(programme, factor, keep_first), target)
+        if factor not in found:  # the limits are judged apart (within)
+            candidate = scaled(programme, factor, keep_first)
+            found[factor] = assess(prior, candidate, target, with_peaks=False)
         return (found[factor].probability or 0.0) >= probability
 
     def first_true(test, lo: int, hi: int) -> int:  # test(ordered[hi]) holds, lo's does not
@@ -926,7 +935,12 @@ def shortest(
     if not reaches(ordered[top]):
         return None
     best = first_true(reaches, -1, top)
-    return ordered[best], found[ordered[best]]
+    chosen = scaled(programme, ordered[best], keep_first)
+    highest = limits.peaks(prior.structure, thetas, chosen)
+    found_best = replace(
+        found[ordered[best]], peaks=highest, violations=tuple(limits.violations(highest, chosen))
+    )
+    return ordered[best], found_best
 
 
 def best_of_length(
