@@ -1062,7 +1062,8 @@ def within_limits(prior: Prior, programme: Programme) -> tuple[Programme, tuple[
             f"limits.{key}",
             caps[state],
             f"{limits.WHAT[state]} exceeds it without any heating after the first phase: "
-            "the first phase or the tunnel's temperatures are beyond it",
+            "the first phase or the tunnel's temperatures are beyond it; lower the first "
+            "phase's heating or tunnel temperature, or raise the limit",
         )
     lo, hi = 0.0, 1.0
     for _ in range(20):  # the largest factor within the limit

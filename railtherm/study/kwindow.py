@@ -88,23 +88,24 @@ def storage_parameters(structure: models.Structure) -> bool:
 def window_frame(u: np.ndarray, x: np.ndarray, step_s: float, measured_T_veh: bool) -> pd.DataFrame:
     """The k window's rows as :func:`railtherm.estimation.kvalue.storage_balance` reads them
     (time from 0, T, T_o, Q_H, and T_veh where ``measured_T_veh``, else NaN)."""
-    n = len(u)
-    T_veh = x[:, 1] if measured_T_veh else np.full(n, math.nan)
-    columns = {"time": np.arange(n) * step_s, "T": x[:, 0], "T_o": u[:, 0], "Q_H": u[:, 1]}
-    return pd.DataFrame({**columns, "T_veh": T_veh})
+    names = ("time", "T", "T_o", "Q_H", "T_veh")
+    return pd.DataFrame(dict(zip(names, _columns(u, x, step_s, measured_T_veh), strict=True)))
 
 
-def _columns(frame: pd.DataFrame) -> tuple[np.ndarray, ...]:
-    return tuple(frame[c].to_numpy(float) for c in ("time", "T", "T_o", "Q_H", "T_veh"))
+def _columns(u: np.ndarray, x: np.ndarray, step_s: float, measured_T_veh: bool) -> tuple:
+    """The k window's columns as :func:`railtherm.estimation.kvalue.balance_of` takes them
+    (time from 0, T, T_o, Q_H, T_veh or NaN)."""
+    T_veh = x[:, 1] if measured_T_veh else np.full(len(u), math.nan)
+    return np.arange(len(u)) * step_s, x[:, 0], u[:, 0], u[:, 1], T_veh
 
 
 def _balance_weights(
-    frame: pd.DataFrame, theta: Mapping[str, float], step_s: float
+    columns: tuple, theta: Mapping[str, float], step_s: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """Each sample's weight in the balance's kA (W/K per unit of the sample): of Q_H (per
     W), T, T_o and T_veh (per K), and kA itself."""
     C, K_veh, C_veh = (float(theta[p]) for p in STORAGE_PARAMETERS)
-    balance = kvalue.balance_of(*_columns(frame), C, K_veh, C_veh)
+    balance = kvalue.balance_of(*columns, C, K_veh, C_veh)
     w = np.linalg.pinv(balance.X)[0]  # kA = w . y
     kA = float(w @ balance.y)
     after = np.append(np.cumsum(w[::-1])[::-1][1:], 0.0)  # sum over n > m of w_n
@@ -187,15 +188,14 @@ def static_k(
             dT, math.sqrt(var), {}, "eq. 10", rows, {"T": on_T}, math.sqrt(inputs), sensors
         )
     measured = "T_veh" in noise_K
-    frame = window_frame(uk, xk, step_s, measured)
-    w_Q, w_T, w_T_o, w_T_veh, kA = _balance_weights(frame, theta, step_s)
+    columns = _columns(uk, xk, step_s, measured)
+    w_Q, w_T, w_T_o, w_T_veh, kA = _balance_weights(columns, theta, step_s)
     if not kA > 0:
         return StaticK(dT, math.inf)
     inputs = float(np.sum((w_Q * s_Q) ** 2) + np.sum(w_T_o**2) * s_T_o**2)
     var = inputs + float(np.sum(w_T**2) * s_T**2 + np.sum(w_T_veh**2) * s_T_veh**2)
     weights = {"T": w_T / kA, **({"T_veh": w_T_veh / kA} if measured else {})}
     gradient = {}
-    columns = _columns(frame)
     for p in STORAGE_PARAMETERS:  # the balance's kA (its regression's first coefficient)
         moved = []
         for sign in (1.0, -1.0):

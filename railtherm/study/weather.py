@@ -290,13 +290,24 @@ def _instants(
             }
         )
     except ValueError as err:  # 29 February in a year of 8760 hours
-        raise ConfigError(file, "time", str(err), "a day the year's length does not have") from err
+        raise ConfigError(
+            file,
+            "time",
+            str(err),
+            "29 February in a year of 8760 hours: give a leap year 8784 hourly records, or "
+            "drop the day",
+        ) from err
     seconds = (on_year - pd.Timestamp(reference, 1, 1)).dt.total_seconds().to_numpy(float)
     seconds = np.mod(seconds, period_s)
     if len(np.unique(seconds)) != len(seconds):
-        i = int(np.flatnonzero(np.diff(np.sort(seconds)) == 0)[0])
+        order = np.argsort(seconds, kind="stable")
+        i = int(np.flatnonzero(np.diff(seconds[order]) == 0)[0])
+        first, second = (str(pd.DatetimeIndex(index)[order[k]]) for k in (i, i + 1))
         raise ConfigError(
-            file, "time", float(np.sort(seconds)[i]), "two records describe the same instant"
+            file,
+            "time",
+            f"{first} and {second}",
+            "two records describe the same instant of the year: give each hour once",
         )
     return seconds
 
