@@ -1,27 +1,35 @@
 """What a vehicle-year costs: the annual heating energy (``railtherm.study.energy``) at a 1-minute
-step with 200 parameter draws and the ideal HVAC controller, beside the scenario engine
-(``railtherm.study.simulate``) on the study's 24 h pre-heating scenario, in the same run.
+step with 200 parameter draws and one what-if on the same draws, through the compiled step loop
+(``railtherm.estimation.loops.heated_steps``, numba) and, in the same run, through the numpy
+step it replaced (benchmarks/energy_numpy_steps.py: every run advanced together one vectorised
+step at a time), interleaved, both on one thread.
 
-    python benchmarks/bench_energy.py [--draws 200] [--step-s 60]
+    python benchmarks/bench_energy.py [--draws 200] [--step-s 60] [--rounds 3] [--what-if k=-10%]
+    python benchmarks/bench_energy.py --scenario       # per step and run, beside simulate
     python benchmarks/bench_energy.py --degree-hours   # the check against degree-hours
 
-The year's engine is one compiled loop (numba) over steps and draws, the scenario engine
-advances every draw together one vectorised numpy step at a time (a (draws x n x n)
-matrix-vector product and a few element-wise operations); the cost per step and draw is the
-figure to compare. The vehicle is Metro2's
-second-order fit (results/vehicles/Metro2/fit_order2.yaml, written by ``snakemake``), the
-weather Sand Point's TMY3 year, the profile config/profiles/metro_service.yaml. Each is timed
-as the best of three runs of CPU time of this process (one core).
+The vehicle is Metro2's second-order fit (results/vehicles/Metro2/fit_order2.yaml, written by
+``snakemake``; ``--fit`` another), the weather Sand Point's TMY3 year, the profile
+config/profiles/metro_service.yaml (``--profile``). Each kernel is timed as the best of
+``--rounds`` CPU times of this process for the whole call (draws, discretisation, the
+year's steps and the totals); the two years must agree (printed).
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
-import time
-from pathlib import Path
+import os
 
-from bench_pem import machine  # the machine line of bench_pem
+os.environ.setdefault("OMP_NUM_THREADS", "1")  # one thread for numpy's side, as numba's
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from bench_pem import machine  # noqa: E402  (the machine line of bench_pem)
 
 from railtherm.study import energy, simulate, weather
 from railtherm.study.fit import read_fit
@@ -70,10 +78,70 @@ def degree_hours() -> int:
     return 0
 
 
+def kernels(args) -> int:
+    """The compiled step loop beside the numpy one it replaced (benchmarks/energy_numpy_steps.py),
+    on the same vehicle-year with one what-if, interleaved, best of ``--rounds`` each."""
+    import numpy as np
+    from energy_numpy_steps import numpy_heated_steps
+
+    fit = read_fit(Path(args.fit))
+    year = weather.read_weather(REPO / "config" / "weather" / "703165TY.csv")
+    profile = energy.load_profile(Path(args.profile))
+    what_ifs = [energy.parse_what_if(args.what_if)]
+
+    def year_with(kernel):
+        return energy.annual_energy(
+            fit, year, profile, what_ifs=what_ifs, dt_s=args.step_s, draws=args.draws,
+            kernel=kernel,
+        )  # fmt: skip
+
+    energy.annual_energy(fit, year, profile, dt_s=3600.0, draws=2)  # compiled code loaded
+    best = {"compiled (loops.heated_steps, numba)": math.inf, "numpy step (before)": math.inf}
+    results = {}
+    for _ in range(args.rounds):
+        for name, kernel in zip(best, (None, numpy_heated_steps), strict=True):
+            t0 = time.process_time()
+            results[name] = year_with(kernel)
+            best[name] = min(best[name], time.process_time() - t0)
+    compiled, numpy_year = results.values()
+    differences = [
+        float(np.max(np.abs(getattr(compiled, a) / getattr(numpy_year, a) - 1.0)))
+        for a in ("energy_kWh", "preheat_kWh", "peak_service_W", "peak_preheat_W")
+    ]
+    print(machine())
+    print(
+        f"{compiled.label}: {len(year.T_o)} h of {year.name}, profile {profile.name}, "
+        f"{args.step_s:g} s step, {args.draws} draws, what-if {args.what_if!r} on the same "
+        f"draws ({2 * (args.draws + 1)} runs); one thread each (numba: one core; numpy: "
+        f"OMP/MKL/OpenBLAS threads {os.environ.get('OMP_NUM_THREADS')}); CPU time of this "
+        f"process, best of {args.rounds} interleaved rounds\n"
+    )
+    print("| kernel | CPU time for the vehicle-year | ratio to the numpy step |")
+    print("|---|---|---|")
+    base = best["numpy step (before)"]
+    for name, t in best.items():
+        print(f"| {name} | {t:.2f} s | {t / base:.3f} |")
+    print(
+        f"\nspeed-up {base / best['compiled (loops.heated_steps, numba)']:.1f}x; the two "
+        f"years agree to {max(differences):.1e} relative (annual, pre-heating and peak "
+        "powers of every run and variant)"
+    )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=200)
     ap.add_argument("--step-s", type=float, default=60.0)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--what-if", default="k=-10%")
+    ap.add_argument("--fit", default=str(REPO / "results/vehicles/Metro2/fit_order2.yaml"))
+    ap.add_argument("--profile", default=str(REPO / "config/profiles/metro_service.yaml"))
+    ap.add_argument(
+        "--scenario",
+        action="store_true",
+        help="per step and run, the year's engine beside the scenario engine (simulate)",
+    )
     ap.add_argument(
         "--degree-hours",
         action="store_true",
@@ -83,9 +151,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.degree_hours:
         return degree_hours()
-    fit = read_fit(REPO / "results" / "vehicles" / "Metro2" / "fit_order2.yaml")
+    if not args.scenario:
+        return kernels(args)
+    fit = read_fit(Path(args.fit))
     year = weather.read_weather(REPO / "config" / "weather" / "703165TY.csv")
-    profile = energy.load_profile(REPO / "config" / "profiles" / "metro_service.yaml")
+    profile = energy.load_profile(Path(args.profile))
     scenario = load_scenario(REPO / "config" / "scenarios" / "preheat_cold_soak.yaml")
 
     def annual():
@@ -100,7 +170,10 @@ def main(argv: list[str] | None = None) -> int:
     steps_day = scenario.n_steps
     runs = args.draws + 1
     print(machine())
-    print(f"Metro2 order2, {args.draws} draws, Sand Point TMY3, {args.step_s:g} s step\n")
+    print(
+        f"{fit.vehicle} {fit.structure_name}, {args.draws} draws, {year.name}, "
+        f"{args.step_s:g} s step\n"
+    )
     print("| task | steps | CPU time | µs per step and run |")
     print("|---|---|---|---|")
     per_year = 1e6 * t_year / steps_year / runs

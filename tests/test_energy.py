@@ -167,6 +167,38 @@ def test_a_kalman_fits_process_noise_widens_the_draws_not_the_central_year(tmp_p
     assert hi - lo < np.ptp(b.energy_kWh[0, 1:])
 
 
+@pytest.mark.parametrize("mode", ["start", "ready_by"])
+def test_the_compiled_year_is_the_year_stepped_run_by_run_in_numpy(tmp_path, mode):
+    """The compiled loop (runs in blocks, vectorised over each block) gives every run and
+    variant the same year, to rounding, as every run advanced together one numpy step at a
+    time (benchmarks/energy_numpy_steps.py, which sums in another order): 142 runs, so blocks that end mid-variant, with
+    process noise, a what-if, set-back and pre-heating."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    from energy_numpy_steps import numpy_heated_steps
+
+    def draw(n, rng):
+        return {p: v * np.exp(rng.normal(0.0, 0.05, n)) for p, v in THETA.items()}
+
+    car = simulate.ParameterSet(
+        "car", "declared", SECOND, dict(THETA), draw=draw, sigma=np.array([2e-3, 1e-3])
+    )
+    service = {"weekdays": [[6, 22]], "saturday": [[8, 20]]}
+    prof = profile(
+        tmp_path, service=service, set_back_C=8, preheat_h=2, preheat_mode=mode,
+        heating_limit_W=24000,
+    )  # fmt: skip
+    kw = {"dt_s": 1800.0, "draws": 70, "seed": 3, "what_ifs": [energy.parse_what_if("k=-20%")]}
+    year = weather.read_weather(SAND_POINT)
+    a = energy.annual_energy(car, year, prof, **kw)
+    b = energy.annual_energy(car, year, prof, **kw, kernel=numpy_heated_steps)
+    for name in ("monthly_kWh", "preheat_kWh", "peak_service_W", "peak_preheat_W", "unmet_h"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-11, err_msg=name)
+    assert a.energy_kWh.shape == (2, 71) and np.all(a.peak_preheat_W > 0)
+    assert np.ptp(a.unmet_h) > 0  # a heater that some draws outgrow: the sums differ by run
+
+
 def _write_year(kind: str, path: Path, T_o, ghi) -> weather.Weather:
     """A year written as an EPW or a PVGIS TMY CSV at Sand Point (the layouts those services
     publish: EPW's hour N ending at N:00 local standard time, PVGIS's stamps in UTC), the

@@ -38,6 +38,7 @@ import numpy as np
 from numba import njit
 
 LOG_2PI = math.log(2.0 * math.pi)
+RUNS_TOGETHER = 64  # heated_steps: runs advanced side by side (one vectorised loop each)
 
 
 @njit(cache=True)
@@ -542,61 +543,152 @@ def heated_steps(
     With ``accumulate``: the heat per month (energy, summed q), in the pre-heating window
     (pre_J), its peak in service (peak[r, 0]) and outside service (peak[r, 1]: pre-heating
     and stabling; NaN once a q is NaN, as numpy.maximum) and the service steps more than
-    unmet_K below the set point (unmet)."""
+    unmet_K below the set point (unmet).
+
+    The runs are independent: RUNS_TOGETHER of them at a time are taken through the steps,
+    their coefficients, states and sums copied side by side (the run the last index), so
+    that each operation of a step is one loop over the block that the compiler vectorises;
+    per run the same arithmetic in the same order as one run at a time (the same bits)."""
     R, n = x.shape
     with_noise = noise.shape[0] > 0
     horizon = Am.shape[0] > 1
-    free = np.empty(n)
-    xd = np.empty(n)
-    for k in range(k_from, k_to):
-        g = door[k]
-        if horizon and service[k]:
-            for r in range(R):
-                started[r] = False
-        for r in range(R):
-            v = variant[r]
+    free = np.empty((n, RUNS_TOGETHER))
+    w = np.empty(RUNS_TOGETHER)
+    sp = np.empty(RUNS_TOGETHER)
+    q = np.empty(RUNS_TOGETHER)
+    for r0 in range(0, R, RUNS_TOGETHER):
+        r1 = min(r0 + RUNS_TOGETHER, R)
+        nb = r1 - r0
+        # the block's runs side by side: the run the last (contiguous) index
+        A = np.ascontiguousarray(Ad[:, r0:r1].transpose(0, 2, 3, 1))
+        Qc = np.ascontiguousarray(Qchol[:, r0:r1].transpose(0, 2, 3, 1))
+        for b in range(nb):
+            if draw[r0 + b] == 0:  # the central run: no process noise
+                Qc[:, :, :, b] = 0.0
+        bT = np.ascontiguousarray(BdT[:, r0:r1].transpose(0, 2, 1))
+        bQ = np.ascontiguousarray(BdQ[:, r0:r1].transpose(0, 2, 1))
+        bI = np.ascontiguousarray(BdI[:, r0:r1].transpose(0, 2, 1))
+        gQ = np.ascontiguousarray(gain_Q[:, r0:r1])
+        xs = np.ascontiguousarray(x[r0:r1].T)
+        months = np.ascontiguousarray(energy[r0:r1].T)
+        sums = np.empty((4, nb))  # pre-heating, peak in service, peak outside it, unmet
+        sums[0] = pre_J[r0:r1]
+        sums[1] = peak[r0:r1, 0]
+        sums[2] = peak[r0:r1, 1]
+        sums[3] = unmet[r0:r1]
+        ready = started[r0:r1].copy()
+        v0 = variant[r0]
+        one_variant = variant[r1 - 1] == v0
+        for k in range(k_from, k_to):
+            g = door[k]
+            in_service = service[k]
+            T_o_k = T_o[k]
+            _free_response(free, xs, A, bT, bQ, bI, g, T_o_k, gains[k], ghi[k], nb)
+            if with_noise:
+                _add_noise(free, Qc, g, noise, k - k_from, draw, r0, nb, w)
+            if one_variant:
+                sp[:nb] = set_point[v0, k]
+            else:
+                for b in range(nb):
+                    sp[b] = set_point[variant[r0 + b], k]
+            if horizon and in_service:
+                ready[:] = False
+            elif horizon:
+                _wait_or_heat(
+                    k, r0, nb, xs, sp, ready, T_o_k, variant, pre, waiting, until, back, Am,
+                    x_per_T_o, x_per_W, limit,
+                )  # fmt: skip
+            for b in range(nb):
+                h = (sp[b] - free[0, b]) / gQ[g, b]
+                h = 0.0 if h < 0.0 else h
+                h = limit if h > limit else h
+                q[b] = 0.0 if sp[b] != sp[b] else h  # heating off
             for i in range(n):
-                s = 0.0
-                for j in range(n):
-                    s += Ad[g, r, i, j] * x[r, j]
-                s += BdT[g, r, i] * T_o[k]
-                s += BdQ[g, r, i] * gains[k]
-                s += BdI[g, r, i] * ghi[k]
-                if with_noise and draw[r] > 0:
-                    w = 0.0
-                    for j in range(n):
-                        w += Qchol[g, r, i, j] * noise[k - k_from, draw[r] - 1, j]
-                    s += w
-                free[i] = s
-            sp = set_point[v, k]
-            if horizon and not service[k] and pre[v, k] and waiting[r]:
-                m = max(until[v, k] - 1, 0)  # heating from the next step on
-                for i in range(n):
-                    xd[i] = x[r, i] - (x_per_T_o[r, i] * T_o[k] + x_per_W[r, i] * limit)
-                end = x_per_T_o[r, 0] * T_o[k] + x_per_W[r, 0] * limit
-                for j in range(n):
-                    end += Am[m, r, 0, j] * xd[j]
-                if end < sp:
-                    started[r] = True
-                if not started[r]:
-                    sp = back[v]
-            q = (sp - free[0]) / gain_Q[g, r]
-            if q < 0.0:
-                q = 0.0
-            elif q > limit:
-                q = limit
-            if math.isnan(sp):
-                q = 0.0
-            for i in range(n):
-                x[r, i] = free[i] + BdQ[g, r, i] * q
+                for b in range(nb):
+                    xs[i, b] = free[i, b] + bQ[g, i, b] * q[b]
             if accumulate:
-                energy[r, month[k]] += q
-                if pre[v, k]:
-                    pre_J[r] += q
-                c = 0 if service[k] else 1
-                if math.isnan(q) or math.isnan(peak[r, c]):
-                    peak[r, c] = math.nan
-                elif q > peak[r, c]:
-                    peak[r, c] = q
-                if service[k] and x[r, 0] < sp - unmet_K:
-                    unmet[r] += 1.0
+                mk = month[k]
+                for b in range(nb):
+                    months[mk, b] += q[b]
+                if one_variant and pre[v0, k]:
+                    for b in range(nb):
+                        sums[0, b] += q[b]
+                elif not one_variant:
+                    for b in range(nb):
+                        if pre[variant[r0 + b], k]:
+                            sums[0, b] += q[b]
+                c = 1 if in_service else 2
+                for b in range(nb):  # the peak; NaN once a q is NaN
+                    p = sums[c, b]
+                    sums[c, b] = q[b] if (q[b] > p or q[b] != q[b]) else p
+                if in_service:
+                    for b in range(nb):
+                        sums[3, b] += 1.0 if xs[0, b] < sp[b] - unmet_K else 0.0
+        x[r0:r1] = xs.T
+        energy[r0:r1] = months.T
+        started[r0:r1] = ready
+        pre_J[r0:r1] = sums[0]
+        peak[r0:r1, 0] = sums[1]
+        peak[r0:r1, 1] = sums[2]
+        unmet[r0:r1] = sums[3]
+
+
+@njit(cache=True)
+def _wait_or_heat(
+    k, r0, nb, xs, sp, ready, T_o_k, variant, pre, waiting, until, back, Am, x_per_T_o,
+    x_per_W, limit,
+):  # fmt: skip
+    """ "Ready by" for the block of runs r0..r0+nb-1 at step k (:func:`heated_steps`): a run in
+    its pre-heating window that has not started keeps its set-back (sp[b] = back[variant])
+    until heating at the limit from its state xs[:, b] would just reach the set point at
+    the service start."""
+    n = xs.shape[0]
+    for b in range(nb):
+        r = r0 + b
+        v = variant[r]
+        if not (pre[v, k] and waiting[r]):
+            continue
+        m = max(until[v, k] - 1, 0)  # heating from the next step on
+        end = x_per_T_o[r, 0] * T_o_k + x_per_W[r, 0] * limit
+        for j in range(n):
+            xd = xs[j, b] - (x_per_T_o[r, j] * T_o_k + x_per_W[r, j] * limit)
+            end += Am[m, r, 0, j] * xd
+        if end < sp[b]:
+            ready[b] = True
+        if not ready[b]:
+            sp[b] = back[v]
+
+
+@njit(cache=True)
+def _free_response(free, xs, A, bT, bQ, bI, g, T_o_k, gains_k, ghi_k, nb):
+    """free = A[g] x + bT[g] T_o + bQ[g] gains + bI[g] ghi for runs 0..nb-1 of a block (the run
+    the last index, :func:`heated_steps`), summed in that order."""
+    n = xs.shape[0]
+    for i in range(n):
+        for b in range(nb):
+            free[i, b] = 0.0
+        for j in range(n):
+            for b in range(nb):
+                free[i, b] += A[g, i, j, b] * xs[j, b]
+        for b in range(nb):
+            free[i, b] += bT[g, i, b] * T_o_k
+        for b in range(nb):
+            free[i, b] += bQ[g, i, b] * gains_k
+        for b in range(nb):
+            free[i, b] += bI[g, i, b] * ghi_k
+
+
+@njit(cache=True)
+def _add_noise(free, Qc, g, noise, k, draw, r0, nb, w):
+    """free += Qc[g] w, w the standard normals of block step k of each run's draw
+    (noise[k, draw - 1];
+    Qc is 0 for the central run, draw 0), for a block of runs (:func:`heated_steps`)."""
+    n = free.shape[0]
+    for i in range(n):
+        for b in range(nb):
+            w[b] = 0.0
+        for j in range(n):
+            for b in range(nb):
+                w[b] += Qc[g, i, j, b] * noise[k, max(draw[r0 + b] - 1, 0), j]
+        for b in range(nb):
+            free[i, b] += w[b]

@@ -365,14 +365,20 @@ def annual_energy(
     seed: int = 0,
     volume_m3: float | None = None,
     hold: str = "first_order",
+    kernel: Any = None,
 ) -> AnnualResult:
     """The annual heating energy of ``params`` (a fit, a class reference model or a
     :class:`railtherm.study.simulate.ParameterSet`) in ``weather`` under ``profile``, with
     ``draws`` parameter draws (0: the central run only) and the ``what_ifs`` on the same
     draws; the hourly weather on the grid by ``hold``
     (:func:`railtherm.study.weather.on_grid`). Every run and variant advances together
-    through one compiled loop (:func:`railtherm.estimation.loops.heated_steps`)."""
-    from railtherm.estimation import loops  # numba: imported only to simulate
+    through one compiled loop: ``kernel``, by default
+    :func:`railtherm.estimation.loops.heated_steps` (another with its signature runs the same
+    year, e.g. a reference implementation to compare with)."""
+    if kernel is None:
+        from railtherm.estimation import loops  # numba: imported only to simulate
+
+        kernel = loops.heated_steps
 
     ps = _predictable(params, profile, what_ifs)
     structure = ps.structure
@@ -434,7 +440,7 @@ def annual_energy(
     Qchol = steps.Qchol if sigma is not None else np.zeros((2, R, n, n))
 
     def advance(k_from: int, k_to: int, accumulate: bool) -> None:
-        """Steps k_from..k_to-1 (loops.heated_steps), the process noise drawn in blocks in
+        """Steps k_from..k_to-1 (``kernel``), the process noise drawn in blocks in
         the order the steps use it."""
         for a in range(k_from, k_to, NOISE_BLOCK):
             b = min(a + NOISE_BLOCK, k_to)
@@ -443,7 +449,7 @@ def annual_energy(
                 if sigma is not None
                 else np.zeros((0, 0, n))
             )
-            loops.heated_steps(
+            kernel(
                 a, b, x, *fixed, noise, Qchol, *per_run, *ready, month, UNMET_K,
                 energy, pre_J, peak, unmet, accumulate,
             )  # fmt: skip
