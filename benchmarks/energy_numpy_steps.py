@@ -15,7 +15,8 @@ import numpy as np
 def numpy_heated_steps(
     k_from, k_to, x, Ad, BdT, BdQ, BdI, gain_Q, door, T_o, gains, ghi, noise, Qchol,
     variant, draw, set_point, pre, service, until, waiting, started, back, Am,
-    x_per_T_o, x_per_W, limit, month, unmet_K, energy, pre_J, peak, unmet, accumulate,
+    x_per_T_o, x_per_W, limit, month, unmet_K, G_out, door_W, energy, pre_J, peak, unmet,
+    losses, accumulate,
 ):  # fmt: skip
     """Steps k_from..k_to-1 of every run together (see loops.heated_steps for the model)."""
     R, n = x.shape
@@ -43,8 +44,11 @@ def numpy_heated_steps(
                     sp = np.where(window & ~started, back[variant], sp)
         q = np.clip((sp - free[:, 0]) / gain_Q[g], 0.0, limit)
         q = np.where(np.isnan(sp), 0.0, q)
+        mean = (x + free + BdQ[g] * q[:, None]) / 2.0
         x[:] = free + BdQ[g] * q[:, None]
         if accumulate:
+            losses[:, 0] += np.einsum("ri,ri->r", G_out, mean - T_o[k])
+            losses[:, 1] += door_W[k] * (mean[:, 0] - T_o[k])
             energy[:, month[k]] += q
             pre_J += np.where(pre[variant, k], q, 0.0)
             c = 0 if service[k] else 1

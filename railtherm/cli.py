@@ -44,6 +44,7 @@ line on stderr and exit status 1.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import sys
@@ -407,19 +408,52 @@ def _energy(args: argparse.Namespace) -> int:
     energy.check_what_ifs(profile, what_ifs, texts, "--what-if", ["what_if"] * len(texts))
     year = read_weather(os.path.join(workdir, args.weather), kind=args.kind)
     params = sim.load_parameters(os.path.join(workdir, args.params))
-    result = energy.annual_energy(
-        params,
-        year,
-        profile,
-        what_ifs=what_ifs,
-        dt_s=args.step_s,
-        draws=args.draws,
-        seed=args.seed,
-        volume_m3=args.volume_m3,
-        hold=args.hold,
-    )
+    with _progress_bar(f"annual energy of {os.path.basename(args.params)}") as progress:
+        result = energy.annual_energy(
+            params,
+            year,
+            profile,
+            what_ifs=what_ifs,
+            dt_s=args.step_s,
+            draws=args.draws,
+            seed=args.seed,
+            volume_m3=args.volume_m3,
+            hold=args.hold,
+            surface_m2=args.surface_m2,
+            progress=progress,
+        )
     print(energy.markdown(result))
+    if args.out:
+        ids = {
+            "vehicle": result.label,
+            "class": "",
+            "model": params.structure.name,
+            "profile": profile.name,
+            "climate": year.name,
+        }
+        for path in energy.write_result(result, ids, os.path.join(workdir, args.out)):
+            print(f"wrote {path}", file=sys.stderr)
     return 0
+
+
+@contextlib.contextmanager
+def _progress_bar(title: str):
+    """A progress bar on the terminal's stderr (rich), none where stderr is not a terminal;
+    yields the callback progress(done, total)."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    console = Console(stderr=True)
+    columns = (TextColumn("{task.description}"), BarColumn(), TimeRemainingColumn())
+    with Progress(
+        *columns, console=console, transient=True, disable=not console.is_terminal
+    ) as bar:
+        task = bar.add_task(title, total=None)
+
+        def progress(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        yield progress
 
 
 def _relocated(exc: ConfigError, local: str, given: str) -> ConfigError:
@@ -806,10 +840,22 @@ def _add_energy(commands: Any) -> None:
         "--volume-m3", type=float, metavar="V", help="interior volume: the draws' air capacity"
     )
     energy.add_argument(
+        "--surface-m2",
+        type=float,
+        metavar="A",
+        help="the vehicle's outer surface (m²): sizes the heater of a profile that gives "
+        "heating_limit_W_per_m2",
+    )
+    energy.add_argument(
         "--hold",
         choices=("first_order", "zero_order"),
         default="first_order",
         help="the hourly weather between its hours: linear (default) or held",
+    )
+    energy.add_argument(
+        "--out",
+        metavar="DIR",
+        help="also write energy.csv, energy.md and the monthly figure energy.png/.svg in DIR",
     )
     _directory_option(energy)
     energy.set_defaults(run=_energy)

@@ -814,6 +814,7 @@ def load_study(
         add_vehicle(study, local, workdir, cache=vehicle_cache)
     if vehicle_cache is not None:
         vehicle_cache.save()
+    check_energy_classes(study, config, config_file)
     return study
 
 
@@ -860,20 +861,24 @@ def check_study_plans(
     for i, path in enumerate(weather):
         if not os.path.isfile(os.path.join(str(workdir), path)):
             raise ConfigError(config_file, f"energy.weather[{i}]", path, "weather file not found")
-    profile = energy.get("profile")
-    if not profile:
+    files = {"energy.profile": energy.get("profile")} if energy.get("profile") else {}
+    files.update({f"energy.profiles.{c}": p for c, p in (energy.get("profiles") or {}).items()})
+    if not files:
         raise ConfigError(
             config_file,
             "energy.profile",
-            profile,
-            "energy.enabled is true but no operating profile is given: name one, e.g. "
+            energy.get("profile"),
+            "energy.enabled is true but no operating profile is given: name one per class "
+            "(profiles: {tram: config/profiles/tram_service.yaml, ...}) or one for all, e.g. "
             "profile: config/profiles/metro_service.yaml (docs/energy.md), or set "
             "energy.enabled: false",
         )
-    local = os.path.join(str(workdir), profile)
-    if not os.path.isfile(local):
-        raise ConfigError(config_file, "energy.profile", profile, "profile file not found")
-    loaded = load_profile(local)
+    loaded = {}
+    for key, path in files.items():
+        local = os.path.join(str(workdir), path)
+        if not os.path.isfile(local):
+            raise ConfigError(config_file, key, path, "profile file not found")
+        loaded[key] = load_profile(local)
     if not weather:
         raise ConfigError(
             config_file,
@@ -884,7 +889,33 @@ def check_study_plans(
             "set energy.enabled: false",
         )
     what_if_keys = [f"energy.what_if[{i}]" for i in range(len(what_ifs))]
-    check_what_ifs(loaded, what_ifs, energy.get("what_if") or [], config_file, what_if_keys)
+    for profile in loaded.values():
+        check_what_ifs(profile, what_ifs, energy.get("what_if") or [], config_file, what_if_keys)
+
+
+def energy_profile(config: Mapping[str, Any], vehicle_class: str) -> str | None:
+    """The operating profile (path) of a vehicle of ``vehicle_class`` in the annual energy:
+    its class's in ``energy.profiles``, else ``energy.profile``, else None."""
+    energy = config.get("energy") or {}
+    return (energy.get("profiles") or {}).get(vehicle_class) or energy.get("profile") or None
+
+
+def check_energy_classes(study: Study, config: Mapping[str, Any], config_file: str) -> None:
+    """With the annual energy enabled, every vehicle's class has an operating profile
+    (:func:`energy_profile`): a :class:`ConfigError` naming the first class without."""
+    energy = config.get("energy") or {}
+    if not energy.get("enabled", False):
+        return
+    for vid, vehicle in study.vehicles.items():
+        vehicle_class = str(vehicle.data.get("class", ""))
+        if energy_profile(config, vehicle_class) is None:
+            raise ConfigError(
+                config_file,
+                f"energy.profiles.{vehicle_class}",
+                None,
+                f"vehicle {vid} is of class {vehicle_class!r}, which has no operating profile: "
+                f"add one to energy.profiles (or a default energy.profile)",
+            )
 
 
 def study_context(

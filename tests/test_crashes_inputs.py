@@ -134,12 +134,17 @@ def test_energy_table_without_an_acceptable_fit_says_so(tmp_path, monkeypatch):
     monkeypatch.setattr(fit_module, "read_fit", lambda path: doubtful)
     weather_file = tmp_path / "year.csv"
     shutil.copy(TMY3, weather_file)
-    vehicles = {"Metro3": {"class": "metro"}, "Metro4": {"class": "metro"}}
-    table, profile = energy.study_energy(
-        vehicles, ["a.yaml", "b.yaml"], [str(weather_file)], str(PROFILE), draws=0
-    )
+    parts = []
+    for vid, fit_file in (("Metro3", "a.yaml"), ("Metro4", "b.yaml")):
+        part = energy.vehicle_energy(
+            vid, {"class": "metro"}, [fit_file], [str(weather_file)], str(PROFILE), draws=0
+        )
+        part.to_csv(tmp_path / f"{vid}.csv", index=False)
+        parts.append(str(tmp_path / f"{vid}.csv"))
+    table = energy.study_table(parts, ["a.yaml", "b.yaml"], ["Metro3", "Metro4"])
+    profile = energy.load_profile(PROFILE)
     csv, md = tmp_path / "energy.csv", tmp_path / "energy.md"
-    energy.write_study_energy(table, profile, 60.0, "test", csv, md, str(tmp_path / "fig"))
+    energy.write_study_energy(table, [profile], 60.0, "test", csv, md, str(tmp_path / "fig"))
     assert table.empty and list(table.columns) == energy.study_columns()
     assert list(pd.read_csv(csv).columns) == energy.study_columns()
     text = md.read_text(encoding="utf-8")

@@ -4,6 +4,7 @@ answers known without the engine."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -143,6 +144,65 @@ def test_the_command_prints_the_year_its_months_and_a_paired_what_if(fit_files, 
     assert "--what-if" in capsys.readouterr().err
 
 
+def test_the_command_writes_its_table_text_and_figure_with_the_gains(fit_files, tmp_path, capsys):
+    """``railtherm energy --out DIR``: energy.csv (a row per variant, the heat balance among
+    its columns), energy.md (what was printed, the gains listed) and the monthly figure as
+    PNG and SVG; the balance's what-if effect reads off it: the saving is the envelope loss
+    saved, the gains the same."""
+    from railtherm.cli import main
+
+    fit, _ = fit_files("Metro2", "order2")
+    out = tmp_path / "out"
+    args = ["energy", str(fit), "--weather", str(SAND_POINT), "--profile"]
+    args += [str(REPO / "config" / "profiles" / "metro_service.yaml"), "--step-s", "1800"]
+    assert main([*args, "--draws", "8", "--what-if", "k=-10%", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == [
+        "energy.csv", "energy.md", "energy.png", "energy.svg",
+    ]  # fmt: skip
+    assert "| internal gains |" in printed and printed in out.joinpath("energy.md").read_text()
+    table = pd.read_csv(out / "energy.csv")
+    assert list(table.columns) == energy.study_columns() and len(table) == 2
+    base, cut = table.iloc[0], table.iloc[1]
+    assert base["gains_kWh"] == cut["gains_kWh"] > 0
+    saved = cut["envelope_kWh"] + cut["doors_kWh"] - base["envelope_kWh"] - base["doors_kWh"]
+    assert cut["difference_kWh"] == pytest.approx(saved, rel=2e-3)
+    assert out.joinpath("energy.png").stat().st_size > 0
+
+
+def test_the_heat_balance_closes_and_its_envelope_loss_is_kA_times_the_degree_hours(tmp_path):
+    """A constant -5 degC year held at 20 degC with 1.5 kW of auxiliaries and a door: the
+    envelope loss is kA x 25 K x 8760 h, the gains 1.5 kW x 8760 h, and the heating covers
+    the losses less the gains (nothing is stored over a steady year)."""
+    prof = profile(
+        tmp_path, auxiliaries_W=1500, doors={"openings_per_h": 10, "air_m3_per_opening": 5}
+    )
+    r = energy.annual_energy(vehicle(), constant_year(-5.0), prof, dt_s=600.0, draws=0)
+    assert r.envelope_kWh[0, 0] == pytest.approx(THETA["kA"] * 25.0 * 8.76, rel=1e-6)
+    assert r.gains_kWh[0, 0] == pytest.approx(1.5 * 8760.0, rel=1e-12)
+    door_W_K = 10 * 5 * 1.2 * 1005.0 / 3600.0  # m3/h x rho c_p
+    assert r.doors_kWh[0, 0] == pytest.approx(door_W_K * 25.0 * 8.76, rel=1e-6)
+    assert abs(r.stored()[0, 0]) < 1e-6 * r.envelope_kWh[0, 0]
+
+
+def test_a_heater_sized_per_square_metre_takes_the_vehicles_surface(tmp_path):
+    """heating_limit_W_per_m2 sizes each vehicle's heater by its outer surface: a heater of
+    20 W/m2 on 500 m2 (10 kW) cannot hold 20 degC at -5 degC against 17.5 kW of loss, one of
+    50 W/m2 can; without the surface the year is refused, naming the key."""
+    path = tmp_path / "per_m2.yaml"
+    data = {"service": ALWAYS, "set_point_C": 20, "heating_limit_W_per_m2": 20}
+    path.write_text(yaml.safe_dump(data))
+    weak = energy.load_profile(path)
+    year = constant_year(-5.0)
+    r = energy.annual_energy(vehicle(), year, weak, dt_s=3600.0, draws=0, surface_m2=500.0)
+    assert r.peak_service_W[0, 0] == pytest.approx(10000.0) and r.unmet_h[0, 0] > 8000
+    strong = replace(weak, heating_limit_W_per_m2=50.0)
+    r = energy.annual_energy(vehicle(), year, strong, dt_s=3600.0, draws=0, surface_m2=500.0)
+    assert r.peak_service_W[0, 0] == pytest.approx(17500.0) and r.unmet_h[0, 0] == 0
+    with pytest.raises(ConfigError, match="surface_m2"):
+        energy.annual_energy(vehicle(), year, weak, dt_s=3600.0, draws=0)
+
+
 def test_a_kalman_fits_process_noise_widens_the_draws_not_the_central_year(tmp_path):
     """The same parameter draws with and without a diffusion on the states: the central year
     (no noise) is the same, the draws spread more, and a what-if stays paired (its
@@ -171,8 +231,8 @@ def test_a_kalman_fits_process_noise_widens_the_draws_not_the_central_year(tmp_p
 def test_the_compiled_year_is_the_year_stepped_run_by_run_in_numpy(tmp_path, mode):
     """The compiled loop (runs in blocks, vectorised over each block) gives every run and
     variant the same year, to rounding, as every run advanced together one numpy step at a
-    time (benchmarks/energy_numpy_steps.py, which sums in another order): 142 runs, so blocks that end mid-variant, with
-    process noise, a what-if, set-back and pre-heating."""
+    time (benchmarks/energy_numpy_steps.py, which sums in another order): 142 runs, so
+    blocks that end mid-variant, with process noise, a what-if, set-back and pre-heating."""
     import sys
 
     sys.path.insert(0, str(REPO / "benchmarks"))
@@ -193,7 +253,8 @@ def test_the_compiled_year_is_the_year_stepped_run_by_run_in_numpy(tmp_path, mod
     year = weather.read_weather(SAND_POINT)
     a = energy.annual_energy(car, year, prof, **kw)
     b = energy.annual_energy(car, year, prof, **kw, kernel=numpy_heated_steps)
-    for name in ("monthly_kWh", "preheat_kWh", "peak_service_W", "peak_preheat_W", "unmet_h"):
+    names = ("monthly_kWh", "preheat_kWh", "peak_service_W", "peak_preheat_W", "unmet_h")
+    for name in (*names, "envelope_kWh", "doors_kWh"):
         np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-11, err_msg=name)
     assert a.energy_kWh.shape == (2, 71) and np.all(a.peak_preheat_W > 0)
     assert np.ptp(a.unmet_h) > 0  # a heater that some draws outgrow: the sums differ by run
@@ -369,26 +430,35 @@ def test_a_csv_year_at_ten_minutes_is_read_and_one_off_the_year_refused(tmp_path
         weather.read_weather(path)
 
 
-def test_the_study_files_give_a_row_per_vehicle_climate_and_variant(campaign_study, fit_files):
-    """study_energy reads what rule energy gives it: an acceptable fit in both shipped
-    years, the base and the what-if each a row, the what-if's paired difference beside it;
-    a fit in doubt (Metro3) gives none."""
+def test_the_study_files_give_a_row_per_vehicle_climate_and_variant(
+    campaign_study, fit_files, tmp_path
+):
+    """vehicle_energy and study_table read what rules energy and energy_table give them: an
+    acceptable fit in both shipped years, the base and the what-if each a row under the
+    vehicle's profile, the what-if's paired difference beside it; a fit in doubt (Metro3's
+    second order) gives none."""
     _, _, study = campaign_study
     vids = ["Metro2", "Metro3"]
-    vehicles = {vid: study.vehicles[vid].data for vid in vids}
     fits = [str(fit_files(vid, "order2")[0]) for vid in vids]
     profile_file = str(REPO / "config" / "profiles" / "metro_service.yaml")
-    table, prof = energy.study_energy(
-        vehicles,
-        fits,
-        [str(SAND_POINT), str(GREENSBORO)],
-        profile_file,
-        ["k=-10%"],
-        dt_s=3600.0,
-        draws=4,
-        seed=1,
-    )
-    assert prof.name == "metro_service"
+    tables = []
+    for i, vid in enumerate(vids):
+        part = energy.vehicle_energy(
+            vid,
+            study.vehicles[vid].data,
+            [fits[i]],
+            [str(SAND_POINT), str(GREENSBORO)],
+            profile_file,
+            ["k=-10%"],
+            index=i,
+            dt_s=3600.0,
+            draws=4,
+            seed=1,
+        )
+        part.to_csv(tmp_path / f"{vid}.csv", index=False)
+        tables.append(str(tmp_path / f"{vid}.csv"))
+    table = energy.study_table(tables, fits, vids)
+    assert set(table["profile"]) == {"metro_service"}
     assert list(table["vehicle"].unique()) == ["Metro2"]
     assert list(zip(table["climate"], table["variant"], strict=True)) == [
         ("Sand Point", "base"),
@@ -415,14 +485,14 @@ def test_a_vehicle_whose_first_order_fit_alone_is_acceptable_gets_its_row(fit_fi
 
     second, first = (str(fit_files("Metro3", key)[0]) for key in ("order2", "order1"))
     assert read_fit(second).verdict != ACCEPTABLE == read_fit(first).verdict
-    table, _ = energy.study_energy(
-        {"Metro3": {"class": "metro"}},
+    table = energy.vehicle_energy(
+        "Metro3",
+        {"class": "metro"},
         [second, first],
         [str(SAND_POINT)],
         str(REPO / "config" / "profiles" / "metro_service.yaml"),
         dt_s=3600.0,
         draws=0,
-        fit_vehicles=["Metro3", "Metro3"],
     )
     assert list(table["vehicle"]) == ["Metro3"] and list(table["model"]) == ["order1"]
     assert table["energy_kWh"].iloc[0] > 0

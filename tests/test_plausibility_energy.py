@@ -176,6 +176,14 @@ def energy_study(**section) -> None:
         ({"weather": [], "profile": "profile.yaml"}, ["energy.weather", "no typical year"]),
         ({"weather": ["year.csv"]}, ["energy.profile", "no operating profile", "metro_service"]),
         (
+            {"weather": ["year.csv"], "profiles": {"metro": "profile.yaml"}},
+            ["energy.profiles.tram", "class 'tram', which has no operating profile"],
+        ),
+        (
+            {"weather": ["year.csv"], "profiles": {"tram": "tram.yaml"}},
+            ["energy.profiles.tram", "tram.yaml", "profile file not found"],
+        ),
+        (
             {"weather": ["year.csv"], "profile": "profile.yaml", "what_if": ["set_back=25"]},
             ["energy.what_if[0]", "set_back=25", "above the profile's set point 20"],
         ),

@@ -411,8 +411,50 @@ def test_figure5_footer_names_the_measured_vehicles():
     note = plots.provenance_note(t3)
     assert note.endswith("except measured: Regio2")
     a, _ = plots.figure5(t3, note=note)
-    assert note in footers(a)
+    assert note in [" ".join(f.split()) for f in footers(a)]  # wrapped to the column's width
     assert plots.provenance_note(t3.assign(source="measured")) is None
+
+
+def test_a_footer_naming_thirteen_measured_vehicles_fits_inside_its_figure(tmp_path):
+    """A study of measured vehicles names them all in the footer: on Figure 5 (a) (a paper
+    column) and the annual energy figure (a page width) the note wraps onto lines within
+    the figure, and the axes keep clear of it."""
+    names = [f"Measured{i:02d}" for i in range(13)]
+    t3 = pd.concat([table3()] * 2, ignore_index=True).iloc[:13]
+    t3 = t3.assign(vehicle=names, source="measured")
+    t3.loc[0, "source"] = "synthetic: virtual climatic wind tunnel campaign"
+    note = plots.provenance_note(t3)
+    assert all(name in note for name in names[1:])
+    energy_rows = pd.DataFrame(
+        {"vehicle": names, "variant": "base", "climate": "Sand Point", "Jan_kWh": 1.0,
+         "Jan_lo": 0.9, "Jan_hi": 1.1}
+    )  # fmt: skip
+    for fig in (
+        plots.figure5(t3, note=note)[0],
+        plots.annual_energy_figure(energy_rows, note=note),
+    ):
+        plots.save_figure(fig, tmp_path / "f")
+        renderer = fig.canvas.get_renderer()
+        text = next(t for t in fig.texts if "except measured" in t.get_text())
+        box = text.get_window_extent(renderer)
+        assert text.get_text().count("\n") >= 1
+        assert box.x0 >= 0 and box.x1 <= fig.bbox.width + 0.5 and box.y0 >= 0
+        for ax in fig.axes:
+            if ax.axison:
+                assert ax.get_tightbbox(renderer).y0 >= box.y1 - 1.0
+
+
+def test_figure5_labels_moved_off_their_point_have_a_leader_line():
+    """Where names crowd, a label moved away from its point's height is tied to its point
+    by a leader line (its xy the point); a label at its point's height needs none."""
+    a, _ = plots.figure5(table3())
+    ax = data_axes(a)
+    points = {ln.get_gid().removeprefix("vehicle-"): ln for ln in ax.lines if ln.get_gid()}
+    leaders = [t for t in ax.texts if (t.get_gid() or "").startswith("label-")]
+    for label in leaders:
+        vid = label.get_gid().removeprefix("label-")
+        assert label.arrow_patch is not None and label.get_text().startswith(vid)
+        assert label.xy == (points[vid].get_xdata()[0], points[vid].get_ydata()[0])
 
 
 def test_figure5_points_are_spread_deterministically_inside_their_class():

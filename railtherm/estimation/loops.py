@@ -524,7 +524,8 @@ def output_error(Ad, Bd, uT, x0, free, out_idx, yT, pos, m, cut):
 def heated_steps(
     k_from, k_to, x, Ad, BdT, BdQ, BdI, gain_Q, door, T_o, gains, ghi, noise, Qchol,
     variant, draw, set_point, pre, service, until, waiting, started, back, Am,
-    x_per_T_o, x_per_W, limit, month, unmet_K, energy, pre_J, peak, unmet, accumulate,
+    x_per_T_o, x_per_W, limit, month, unmet_K, G_out, door_W, energy, pre_J, peak, unmet,
+    losses, accumulate,
 ):  # fmt: skip
     """Steps k_from..k_to-1 of runs heated to a set point, every run r (its variant
     variant[r], its parameter draw draw[r]) advanced in place in x (R x n): per step k the
@@ -542,8 +543,11 @@ def heated_steps(
 
     With ``accumulate``: the heat per month (energy, summed q), in the pre-heating window
     (pre_J), its peak in service (peak[r, 0]) and outside service (peak[r, 1]: pre-heating
-    and stabling; NaN once a q is NaN, as numpy.maximum) and the service steps more than
-    unmet_K below the set point (unmet).
+    and stabling; NaN once a q is NaN, as numpy.maximum), the service steps more than
+    unmet_K below the set point (unmet), and the losses to the outside (W summed over the
+    steps, each at the mean of the step's first and last state): through the envelope
+    (losses[r, 0], sum_i G_out[r, i] (x_i - T_o)) and through the open door (losses[r, 1],
+    door_W[k] (x_0 - T_o)).
 
     The runs are independent: RUNS_TOGETHER of them at a time are taken through the steps,
     their coefficients, states and sums copied side by side (the run the last index), so
@@ -571,11 +575,15 @@ def heated_steps(
         gQ = np.ascontiguousarray(gain_Q[:, r0:r1])
         xs = np.ascontiguousarray(x[r0:r1].T)
         months = np.ascontiguousarray(energy[r0:r1].T)
-        sums = np.empty((4, nb))  # pre-heating, peak in service, peak outside it, unmet
+        # pre-heating, peak in service, peak outside it, unmet, envelope and door losses
+        sums = np.empty((6, nb))
         sums[0] = pre_J[r0:r1]
         sums[1] = peak[r0:r1, 0]
         sums[2] = peak[r0:r1, 1]
         sums[3] = unmet[r0:r1]
+        sums[4] = losses[r0:r1, 0]
+        sums[5] = losses[r0:r1, 1]
+        G = np.ascontiguousarray(G_out[r0:r1].T)
         ready = started[r0:r1].copy()
         v0 = variant[r0]
         one_variant = variant[r1 - 1] == v0
@@ -603,27 +611,18 @@ def heated_steps(
                 h = 0.0 if h < 0.0 else h
                 h = limit if h > limit else h
                 q[b] = 0.0 if sp[b] != sp[b] else h  # heating off
+            if accumulate:  # the losses at the step's first state, halved
+                _losses(sums, G, xs, door_W[k], 0.0, nb)
             for i in range(n):
                 for b in range(nb):
                     xs[i, b] = free[i, b] + bQ[g, i, b] * q[b]
             if accumulate:
-                mk = month[k]
+                _losses(sums, G, xs, door_W[k], T_o_k, nb)
                 for b in range(nb):
-                    months[mk, b] += q[b]
-                if one_variant and pre[v0, k]:
-                    for b in range(nb):
-                        sums[0, b] += q[b]
-                elif not one_variant:
-                    for b in range(nb):
-                        if pre[variant[r0 + b], k]:
-                            sums[0, b] += q[b]
-                c = 1 if in_service else 2
-                for b in range(nb):  # the peak; NaN once a q is NaN
-                    p = sums[c, b]
-                    sums[c, b] = q[b] if (q[b] > p or q[b] != q[b]) else p
-                if in_service:
-                    for b in range(nb):
-                        sums[3, b] += 1.0 if xs[0, b] < sp[b] - unmet_K else 0.0
+                    months[month[k], b] += q[b]
+                _sums(
+                    sums, q, xs, sp, k, r0, nb, in_service, one_variant, v0, variant, pre, unmet_K
+                )
         x[r0:r1] = xs.T
         energy[r0:r1] = months.T
         started[r0:r1] = ready
@@ -631,6 +630,8 @@ def heated_steps(
         peak[r0:r1, 0] = sums[1]
         peak[r0:r1, 1] = sums[2]
         unmet[r0:r1] = sums[3]
+        losses[r0:r1, 0] = sums[4]
+        losses[r0:r1, 1] = sums[5]
 
 
 @njit(cache=True)
@@ -692,3 +693,37 @@ def _add_noise(free, Qc, g, noise, k, draw, r0, nb, w):
                 w[b] += Qc[g, i, j, b] * noise[k, max(draw[r0 + b] - 1, 0), j]
         for b in range(nb):
             free[i, b] += w[b]
+
+
+@njit(cache=True)
+def _losses(sums, G, xs, door_W_k, T_o_k, nb):
+    """Half of a step's losses at the state xs (:func:`heated_steps`): sums[4] += sum_i G[i]
+    (xs_i / 2 - T_o_k), sums[5] += door_W_k (xs_0 / 2 - T_o_k); called with the step's first
+    state and T_o_k = 0, then with its last state and the step's T_o, it adds the losses at
+    the step's mean state."""
+    n = xs.shape[0]
+    for i in range(n):
+        for b in range(nb):
+            sums[4, b] += G[i, b] * (0.5 * xs[i, b] - T_o_k)
+    for b in range(nb):
+        sums[5, b] += door_W_k * (0.5 * xs[0, b] - T_o_k)
+
+
+@njit(cache=True)
+def _sums(sums, q, xs, sp, k, r0, nb, in_service, one_variant, v0, variant, pre, unmet_K):
+    """A step's heating q into a block's sums (:func:`heated_steps`): pre-heating (row 0),
+    the peak in service (1) or outside it (2; NaN once a q is NaN), the unmet steps (3)."""
+    if one_variant and pre[v0, k]:
+        for b in range(nb):
+            sums[0, b] += q[b]
+    elif not one_variant:
+        for b in range(nb):
+            if pre[variant[r0 + b], k]:
+                sums[0, b] += q[b]
+    c = 1 if in_service else 2
+    for b in range(nb):
+        p = sums[c, b]
+        sums[c, b] = q[b] if (q[b] > p or q[b] != q[b]) else p
+    if in_service:
+        for b in range(nb):
+            sums[3, b] += 1.0 if xs[0, b] < sp[b] - unmet_K else 0.0

@@ -10,6 +10,7 @@ Figures are built on :class:`matplotlib.figure.Figure` with an Agg canvas, never
 from __future__ import annotations
 
 import os
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -88,9 +89,15 @@ def synthetic_note(fig: Figure, text: str = SYNTHETIC_NOTE) -> Text:
     For a constrained-layout figure (also one this module already settled) the layout keeps a
     strip at the bottom free for it, so the note covers no tick label, axis label or legend,
     and is then settled (:func:`_settle`: later draws and saves reuse that layout unchanged).
+    A note longer than the figure is wide is wrapped onto as many lines as it takes.
     Returns the text."""
     size = 6.5
-    strip = min(0.2, 1.9 * size / 72.0 / fig.get_figheight())  # figure fraction for one line
+    # wrapped to the figure's width (an italic character is at most about 0.55 em wide), the
+    # strip as high as its lines
+    per_line = max(20, int(0.98 * fig.get_figwidth() * 72.0 / (0.55 * size)))
+    text = "\n".join(textwrap.wrap(text, per_line, break_on_hyphens=False)) or text
+    lines = text.count("\n") + 1
+    strip = min(0.45, (1.25 * lines + 0.65) * size / 72.0 / fig.get_figheight())
     engine = fig.get_layout_engine()
     # a placeholder that replaced a constrained layout (adjust_compatible False): ours, settled
     settled = isinstance(engine, PlaceHolderLayoutEngine) and not engine.adjust_compatible
@@ -102,7 +109,7 @@ def synthetic_note(fig: Figure, text: str = SYNTHETIC_NOTE) -> Text:
     with matplotlib.rc_context(RC):
         note = fig.text(
             0.995,
-            0.25 * strip,
+            0.475 * size / 72.0 / fig.get_figheight(),
             text,
             ha="right",
             va="bottom",

@@ -132,6 +132,29 @@ def _spread(n: int, half_width: float = 0.22) -> np.ndarray:
     return np.linspace(-half_width, half_width, n) if n > 1 else np.zeros(n)
 
 
+def _name_label(ax, name: str, xy, h: float, name_at, moved: bool, vid: str) -> None:
+    """A point's name beside it at height ``h`` (axes fraction, :func:`_declutter`); a name
+    ``moved`` off its point's height gets a leader line to the point ``xy``."""
+    style = {
+        "ha": "left",
+        "va": "center",
+        "fontsize": 5.5,
+        "color": "0.2",
+        "zorder": 4,
+        # a faint white ground keeps the name legible over bars and box lines
+        "bbox": {"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.7},
+    }
+    if not moved:
+        ax.text(xy[0], h, name, transform=name_at, **style)
+        return
+    leader = {"arrowstyle": "-", "color": "0.55", "lw": 0.4, "shrinkA": 0, "shrinkB": 2.5}
+    label = ax.annotate(
+        name, xy=xy, xycoords="data", xytext=(xy[0], h), textcoords=name_at,
+        arrowprops=leader, **style,
+    )  # fmt: skip
+    label.set_gid(f"label-{vid}")
+
+
 def _declutter(y: np.ndarray, sep: float) -> np.ndarray:
     """Label heights (axes fraction) at least ``sep`` apart and inside [0, 1], each as close to
     its point's height as that allows; ``y`` sorted ascending."""
@@ -282,20 +305,9 @@ def _class_figure(
                     open_kinds.add("limit" if kind in ("upper", "lower") else "none")
                     lim = float(limits[in_class].iloc[i])
                     point, name = _not_identified(ax, x, y, kind, lim, ylim, name)
-                point.set_gid(f"vehicle-{row['vehicle']}")
-                ax.text(
-                    x,
-                    h,
-                    name,
-                    transform=name_at,
-                    ha="left",
-                    va="center",
-                    fontsize=5.5,
-                    color="0.2",
-                    zorder=4,
-                    # a faint white ground keeps the name legible over bars and box lines
-                    bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.7},
-                )
+                vid = str(row["vehicle"])
+                point.set_gid(f"vehicle-{vid}")
+                _name_label(ax, name, (x, y), h, name_at, abs(h - frac(y)) > 0.25 * sep, vid)
         positions = list(range(1, len(classes) + 1))
         _boxes(ax, positions, boxes)
         ax.set_xticks(positions, labels)
@@ -776,11 +788,10 @@ def annual_energy_figure(table: pd.DataFrame, *, note: str | None = None) -> Fig
     """The study's annual energy (rows of :func:`railtherm.study.energy.study_rows`): per
     climate, each vehicle's monthly heating energy of the base variant as bars with their
     95 % bands."""
-    totals = ("energy", "preheat", "difference")
-    months = [  # the month columns, in the table's order
+    months = [  # the month columns (Jan_kWh with Jan_lo, Jan_hi), in the table's order
         c.removesuffix("_kWh")
         for c in table.columns
-        if c.endswith("_kWh") and c.removesuffix("_kWh") not in totals
+        if c.endswith("_kWh") and f"{c.removesuffix('_kWh')}_lo" in table.columns
     ]
     base = table[table["variant"] == "base"]
     climates = list(dict.fromkeys(base["climate"]))
@@ -820,7 +831,7 @@ def annual_energy_figure(table: pd.DataFrame, *, note: str | None = None) -> Fig
             axes[0].text(
                 0.5,
                 0.5,
-                "no vehicle with an acceptable second-order fit",
+                "no vehicle with an acceptable fit",
                 ha="center",
                 va="center",
                 transform=axes[0].transAxes,

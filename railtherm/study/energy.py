@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -60,7 +60,10 @@ __all__ = [
     "load_profile",
     "parse_what_if",
     "profile_on_grid",
-    "study_energy",
+    "study_table",
+    "vehicle_energy",
+    "result_rows",
+    "write_result",
     "study_markdown",
     "study_rows",
     "write_study_energy",
@@ -94,6 +97,24 @@ class Profile:
     year_starts_on: str = "monday"
     source: str = ""
     preheat_mode: str = "start"
+    heating_limit_W_per_m2: float | None = None
+
+    def for_surface(self, surface_m2: float | None, label: str) -> Profile:
+        """The profile of a vehicle of ``surface_m2`` (m²): its heater sized by
+        ``heating_limit_W_per_m2`` where the profile gives one (the surface is then needed,
+        else a :class:`ConfigError` naming the vehicle ``label``), else as it is."""
+        if self.heating_limit_W_per_m2 is None:
+            return self
+        if surface_m2 is None or not (math.isfinite(surface_m2) and surface_m2 > 0):
+            raise ConfigError(
+                label,
+                "surface_m2",
+                surface_m2,
+                f"profile {self.name} sizes the heater per m² of outer surface "
+                f"({self.heating_limit_W_per_m2:g} W/m²): give the vehicle's surface_m2 "
+                "(railtherm energy: --surface-m2)",
+            )
+        return replace(self, heating_limit_W=self.heating_limit_W_per_m2 * surface_m2)
 
 
 def load_profile(path: str | Path) -> Profile:
@@ -139,7 +160,10 @@ def load_profile(path: str | Path) -> Profile:
         door_air_m3_h=float(doors.get("openings_per_h", 0))
         * float(doors.get("air_m3_per_opening", 0)),
         auxiliaries_W=float(data["auxiliaries_W"]),
-        heating_limit_W=float(data["heating_limit_W"]),
+        heating_limit_W=float(data.get("heating_limit_W", math.nan)),
+        heating_limit_W_per_m2=(
+            float(data["heating_limit_W_per_m2"]) if "heating_limit_W_per_m2" in data else None
+        ),
         year_starts_on=str(data["year_starts_on"]),
         source=str(data.get("source", "")),
         preheat_mode=str(data["preheat_mode"]),
@@ -303,7 +327,10 @@ class AnnualResult:
     in service, and the design heat load (W): the steady heating that holds the service set
     point at the year's design temperature ``design_T_o_C`` (the 99.6 % dry-bulb: 0.4 % of
     the year's hours are colder), door closed, without gains or sun - what sizes an HVAC
-    unit; and what the run rests on."""
+    unit; the year's heat balance: the losses through the envelope and the open doors
+    (kWh), which the heating, the internal gains (passengers and auxiliaries) and the sun
+    through the apertures cover (:meth:`stored`: what is left, the heat stored over the
+    year and the steps' rounding); and what the run rests on."""
 
     label: str
     weather: str
@@ -319,6 +346,10 @@ class AnnualResult:
     draws: int
     design_T_o_C: float = math.nan
     design_load_W: np.ndarray | None = None  # (V, S)
+    envelope_kWh: np.ndarray | None = None  # (V, S): lost through the envelope
+    doors_kWh: np.ndarray | None = None  # (V, S): lost through the open doors
+    gains_kWh: np.ndarray | None = None  # (V, S): passengers and auxiliaries
+    solar_kWh: np.ndarray | None = None  # (V, S): the sun through the apertures
     rejected: int = 0
     notes: list[str] = field(default_factory=list)
 
@@ -329,6 +360,21 @@ class AnnualResult:
             return central, math.nan, math.nan
         lo, hi = np.quantile(values[1:], [0.025, 0.975])
         return central, float(lo), float(hi)
+
+    def band_note(self) -> str:
+        """What a figure's whiskers are."""
+        if not self.draws:
+            return f"{self.label}: central run only (no parameter draws)"
+        return (
+            f"{self.label}: bars central, whiskers the 95 % band over {self.draws} parameter draws"
+        )
+
+    def stored(self) -> np.ndarray:
+        """(V, S): heating + gains + sun - envelope and door losses, kWh: the heat the
+        vehicle stores over the year (about 0: the year starts where it ends) and the
+        steps' rounding of the losses."""
+        supplied = self.energy_kWh + self.gains_kWh + self.solar_kWh
+        return supplied - self.envelope_kWh - self.doors_kWh
 
     def difference(self, variant: int) -> tuple[float, float, float]:
         """The what-if's paired difference in annual energy (kWh): per run, then banded."""
@@ -365,7 +411,9 @@ def annual_energy(
     seed: int = 0,
     volume_m3: float | None = None,
     hold: str = "first_order",
+    surface_m2: float | None = None,
     kernel: Any = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> AnnualResult:
     """The annual heating energy of ``params`` (a fit, a class reference model or a
     :class:`railtherm.study.simulate.ParameterSet`) in ``weather`` under ``profile``, with
@@ -374,13 +422,16 @@ def annual_energy(
     (:func:`railtherm.study.weather.on_grid`). Every run and variant advances together
     through one compiled loop: ``kernel``, by default
     :func:`railtherm.estimation.loops.heated_steps` (another with its signature runs the same
-    year, e.g. a reference implementation to compare with)."""
+    year, e.g. a reference implementation to compare with). ``surface_m2``: the vehicle's
+    outer surface, which sizes the heater of a profile that gives its limit per m².
+    ``progress(done, total)`` is called as the steps advance (warm-up and year)."""
     if kernel is None:
         from railtherm.estimation import loops  # numba: imported only to simulate
 
         kernel = loops.heated_steps
 
     ps = _predictable(params, profile, what_ifs)
+    profile = profile.for_surface(surface_m2, ps.label)
     structure = ps.structure
     floor = sim.air_capacity(volume_m3, ps.label)
     withheld = ps.band_withheld
@@ -399,14 +450,9 @@ def annual_energy(
     G_open = float(grids[0].door_W_K.max())
     sigma = ps.sigma if (ps.sigma is not None and S > 1 and np.any(ps.sigma > 0)) else None
     steps = sim.prepare_steps(structure, runs, np.array([0.0, G_open]), dt_s, sigma)
-    Ad = steps.Ad  # (door state, run, n, n)
-    BdT = steps.Bd[:, :, :, 0]
-    BdQ = steps.Bd[:, :, :, 1]
-    # an aperture's irradiance: the weather's global horizontal irradiance for each channel
-    BdI = steps.Bd[:, :, :, 2:].sum(axis=3)
+    Ad, BdT, BdQ, BdI, gain_Q = _step_inputs(steps)
     irradiated = len(structure.inputs) > 2
     ghi = ghi_grid if irradiated and ghi_grid is not None else np.zeros_like(T_o)
-    gain_Q = BdQ[:, :, 0]  # the air's response to a held watt over a step
     V = len(variants)
     variant = np.repeat(np.arange(V), S)
     set_point = np.stack([g.set_point for g in grids])  # (V, N)
@@ -415,29 +461,22 @@ def annual_energy(
     door = (grids[0].door_W_K > 0).astype(int)
     gains = grids[0].gains_W
     limit = profile.heating_limit_W
-    month = np.searchsorted(np.cumsum(DAYS_PER_MONTH) * 86400.0, t, side="right")
-    month = np.minimum(month, 11)
+    month = np.minimum(np.searchsorted(np.cumsum(DAYS_PER_MONTH) * 86400.0, t, "right"), 11)
 
     noise_rng = np.random.default_rng([seed, 1])
-    # "ready by": in the pre-heating window each run waits, set back, until heating at full
-    # power from its state would just reach the set point at the service start (T_o held at
-    # its present value over the horizon: A^m of the stabled step and the full-power
-    # equilibrium), then heats
-    until = np.stack([g.until_service for g in grids])
-    horizon = int(until.max()) if any(p.preheat_mode == "ready_by" for p in variant_profiles) else 0
     R = V * S
-    Am, x_per_T_o, x_per_W = _ready_by(steps, horizon, R, n)
-    # a what-if's own set-back while waiting (none: heating off)
-    back = np.array([math.nan if p.set_back_C is None else p.set_back_C for p in variant_profiles])
+    until = np.stack([g.until_service for g in grids])
     energy, pre_J, peak, unmet = np.zeros((R, 12)), np.zeros(R), np.zeros((R, 2)), np.zeros(R)
-    started = np.zeros(R, dtype=bool)
+    G_out, solar_per_ghi = _balance_inputs(structure, runs, steps)
+    door_W, losses = np.ascontiguousarray(grids[0].door_W_K, dtype=float), np.zeros((R, 2))
     fixed = tuple(
         np.ascontiguousarray(a) for a in (Ad, BdT, BdQ, BdI, gain_Q, door, T_o, gains, ghi)
     )
     per_run = (variant, np.tile(np.arange(S), V), set_point, pre, service, until)
-    waiting = np.array([p.preheat_mode == "ready_by" for p in variant_profiles])[variant]
-    ready = (waiting, started, back, Am, x_per_T_o, x_per_W, float(limit))
+    ready = _ready_inputs(variant_profiles, until, steps, variant, float(limit))
     Qchol = steps.Qchol if sigma is not None else np.zeros((2, R, n, n))
+
+    N, warmup, done = len(t), int(WARMUP_DAYS * 86400 / dt_s), [0]
 
     def advance(k_from: int, k_to: int, accumulate: bool) -> None:
         """Steps k_from..k_to-1 (``kernel``), the process noise drawn in blocks in
@@ -450,19 +489,20 @@ def annual_energy(
                 else np.zeros((0, 0, n))
             )
             kernel(
-                a, b, x, *fixed, noise, Qchol, *per_run, *ready, month, UNMET_K,
-                energy, pre_J, peak, unmet, accumulate,
+                a, b, x, *fixed, noise, Qchol, *per_run, *ready, month, UNMET_K, G_out,
+                door_W, energy, pre_J, peak, unmet, losses, accumulate,
             )  # fmt: skip
+            done[0] += b - a
+            if progress is not None:
+                progress(done[0], warmup + N)
 
     # warm-up over the year's last days, every state starting at the first set point (at T_o
     # where the heating is off)
     sp0 = set_point[variant, 0]
     x = np.repeat(np.where(np.isnan(sp0), T_o[0], sp0)[:, None], n, axis=1)
-    N = len(t)
-    advance(N - int(WARMUP_DAYS * 86400 / dt_s), N, False)
+    advance(N - warmup, N, False)
     advance(0, N, True)
-    design_T_o = float(np.quantile(weather.T_o, DESIGN_QUANTILE))
-    load = np.array([_design_load(structure, th, profile.set_point_C, design_T_o) for th in runs])
+    scale = dt_s / 3.6e6
     return AnnualResult(
         ps.label,
         weather.source,
@@ -471,11 +511,56 @@ def annual_energy(
         *_totals(energy, pre_J, peak, unmet, dt_s, V, S),
         dt_s=dt_s,
         draws=S - 1,
-        design_T_o_C=design_T_o,
-        design_load_W=load.reshape(V, S),
+        **_design_loads(structure, runs, weather, profile, V, S),
+        envelope_kWh=(losses[:, 0] * scale).reshape(V, S),
+        doors_kWh=(losses[:, 1] * scale).reshape(V, S),
+        gains_kWh=np.repeat(np.array([g.gains_W.sum() * scale for g in grids])[:, None], S, 1),
+        solar_kWh=(solar_per_ghi * float(ghi.sum()) * scale).reshape(V, S),
         rejected=rejected,
         notes=notes,
     )
+
+
+def _ready_inputs(variant_profiles, until, steps, variant, limit: float) -> tuple:
+    """ "Ready by" (:func:`annual_energy`): in the pre-heating window each run waits, set
+    back, until heating at full power from its state would just reach the set point at the
+    service start (T_o held at its present value over the horizon: A^m of the stabled step
+    and the full-power equilibrium), then heats. The kernel's arguments: which runs wait,
+    which started, each variant's own set-back while waiting (none: heating off), A^m, the
+    equilibria per kelvin and per watt, the limit."""
+    ready_by = [p.preheat_mode == "ready_by" for p in variant_profiles]
+    horizon = int(until.max()) if any(ready_by) else 0
+    R = len(variant)
+    n = steps.Ad.shape[-1]
+    Am, x_per_T_o, x_per_W = _ready_by(steps, horizon, R, n)
+    back = np.array([math.nan if p.set_back_C is None else p.set_back_C for p in variant_profiles])
+    waiting = np.array(ready_by)[variant]
+    return (waiting, np.zeros(R, dtype=bool), back, Am, x_per_T_o, x_per_W, limit)
+
+
+def _balance_inputs(structure, runs, steps) -> tuple[np.ndarray, np.ndarray]:
+    """The heat balance's coefficients per run (:func:`annual_energy`): each node's
+    conductance to the outside (its capacity times its B[:, T_o], door closed; W/K, R x n)
+    and the sun's watts per W/m² of irradiance through the apertures (R)."""
+    capacity = np.array([[th[c] for c in structure.capacities] for th in runs])
+    G_out = np.ascontiguousarray(capacity * steps.B[0][:, :, 0])
+    return G_out, (capacity * steps.B[0][:, :, 2:].sum(axis=2)).sum(axis=1)
+
+
+def _step_inputs(steps: Any) -> tuple:
+    """The year's step coefficients per door state and run (:func:`annual_energy`): Ad, the
+    columns of Bd for T_o, Q_H and (summed) the apertures' irradiance, and the air's
+    response to a held watt over a step."""
+    BdQ = steps.Bd[:, :, :, 1]
+    # an aperture's irradiance: the weather's global horizontal irradiance for each channel
+    return steps.Ad, steps.Bd[:, :, :, 0], BdQ, steps.Bd[:, :, :, 2:].sum(axis=3), BdQ[:, :, 0]
+
+
+def _design_loads(structure, runs, weather: Weather, profile: Profile, V: int, S: int):
+    """The design temperature of the year and each run's design heat load (W, (V, S))."""
+    design_T_o = float(np.quantile(weather.T_o, DESIGN_QUANTILE))
+    load = np.array([_design_load(structure, th, profile.set_point_C, design_T_o) for th in runs])
+    return {"design_T_o_C": design_T_o, "design_load_W": load.reshape(V, S)}
 
 
 def _totals(energy, pre_J, peak, unmet, dt_s: float, V: int, S: int) -> tuple:
@@ -593,6 +678,7 @@ def markdown(result: AnnualResult) -> str:
             f"{_banded(*r.band(r.peak_preheat_W[v]))} | {design} | "
             f"{_banded(*r.band(r.unmet_h[v]))} |"
         )
+    lines += ["", *balance_markdown(r)]
     lines += ["", "| month | " + " | ".join(MONTHS) + " |", "|---" * 13 + "|"]
     cells = [f"{r.monthly_kWh[0, 0, m]:,.0f}" for m in range(12)]
     lines.append(f"| {r.variants[0]} (kWh) | " + " | ".join(cells) + " |")
@@ -603,6 +689,27 @@ def markdown(result: AnnualResult) -> str:
         lines.append(f"{r.variants[v]} against the base: {c:+,.0f} kWh/a{band} (paired).")
     lines += ["", "Cooling is not modelled: above its set point the vehicle floats."]
     return "\n".join(lines)
+
+
+def balance_markdown(result: AnnualResult) -> list[str]:
+    """The year's heat balance per variant (kWh/a, 95 % bands): the losses through the
+    envelope and the open doors, and what covers them: the internal gains (passengers and
+    auxiliaries, the profile's), the sun through the apertures and the heating; the rest is
+    the heat stored over the year and the steps' rounding."""
+    r = result
+    lines = [
+        "Heat balance of the year (kWh/a): losses = gains + sun + heating (+ stored).",
+        "",
+        "| variant | envelope loss | door loss | internal gains | sun | heating | stored |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    stored = r.stored()
+    for v, name in enumerate(r.variants):
+        cells = [
+            _banded(*r.band(getattr(r, key)[v])) for key in (*BALANCE, "energy_kWh")
+        ]  # fmt: skip
+        lines.append(f"| {name} | " + " | ".join(cells) + f" | {round(stored[v, 0]) + 0.0:+,.0f} |")
+    return lines
 
 
 # ------------------------------------------------------------------------------------------
@@ -627,7 +734,7 @@ def step_problem(dt_s: float) -> str | None:
 def study_columns() -> list[str]:
     """The columns of the study's annual energy table (:func:`study_rows`), in order: an
     empty table (no vehicle with an acceptable fit) has them too."""
-    columns = ["vehicle", "class", "model", "climate", "weather", "variant"]
+    columns = ["vehicle", "class", "model", "profile", "climate", "weather", "variant"]
     for key in (
         "energy_kWh",
         "preheat_kWh",
@@ -636,6 +743,7 @@ def study_columns() -> list[str]:
         "design_load_W",
         "unmet_h",
         "difference_kWh",
+        *BALANCE,
     ):
         columns += [key, f"{key}_lo", f"{key}_hi"]
     columns.append("design_T_o_C")
@@ -660,82 +768,104 @@ def study_rows(
     fits: Mapping[str, Fit],
     vehicles: Mapping[str, Mapping[str, Any]],
     weathers: Sequence[Weather],
-    profile: Profile,
+    profiles: Mapping[str, Profile],
     what_ifs: Sequence[WhatIf] = (),
     *,
     dt_s: float = 60.0,
     draws: int = 200,
     seed: int = 0,
     hold: str = "first_order",
+    index: Mapping[str, int] | None = None,
 ) -> list[dict[str, Any]]:
-    """One row per vehicle with an acceptable fit, climate and variant: the annual energy,
-    pre-heating, peak and unmet hours with 95 % bands, the months (central and band) and,
-    for a what-if, its paired difference from the base."""
+    """One row per vehicle with an acceptable fit, climate and variant, each vehicle under
+    its profile (``profiles``, {vehicle: profile}): the annual energy, pre-heating, peaks,
+    design load and unmet hours with 95 % bands, the heat balance, the months (central and
+    band) and, for a what-if, its paired difference from the base. A vehicle's draws are
+    seeded by ``seed``, its place in the study (``index``, default the order of ``fits``)
+    and the climate."""
     from railtherm.study.quality import ACCEPTABLE
 
+    index = index if index is not None else {vid: i for i, vid in enumerate(fits)}
     rows = []
-    for i, (vid, fit) in enumerate(fits.items()):
+    for vid, fit in fits.items():
         if fit.verdict != ACCEPTABLE:
             continue
         for j, year in enumerate(weathers):
             result = annual_energy(
                 fit,
                 year,
-                profile,
+                profiles[vid],
                 what_ifs=what_ifs,
                 dt_s=dt_s,
                 draws=draws,
-                seed=seed + 100 * i + j,
+                seed=seed + 100 * index[vid] + j,
                 volume_m3=vehicles[vid].get("volume_m3"),
                 hold=hold,
+                surface_m2=vehicles[vid].get("surface_m2"),
             )
-            for v, variant in enumerate(result.variants):
-                row: dict[str, Any] = {
-                    "vehicle": vid,
-                    "class": vehicles[vid].get("class", ""),
-                    "model": fit.model,
-                    "climate": year.name,
-                    "weather": year.source,
-                    "variant": variant,
-                }
-                for key, values in (
-                    ("energy_kWh", result.energy_kWh[v]),
-                    ("preheat_kWh", result.preheat_kWh[v]),
-                    ("peak_service_W", result.peak_service_W[v]),
-                    ("peak_preheat_W", result.peak_preheat_W[v]),
-                    ("design_load_W", result.design_load_W[v]),
-                    ("unmet_h", result.unmet_h[v]),
-                ):
-                    row[key], row[f"{key}_lo"], row[f"{key}_hi"] = result.band(values)
-                row["design_T_o_C"] = result.design_T_o_C
-                diff = result.difference(v) if v else (math.nan,) * 3
-                row["difference_kWh"], row["difference_kWh_lo"], row["difference_kWh_hi"] = diff
-                for m, name in enumerate(MONTHS):
-                    c, lo, hi = result.band(result.monthly_kWh[v, :, m])
-                    row[f"{name}_kWh"], row[f"{name}_lo"], row[f"{name}_hi"] = c, lo, hi
-                row["draws"] = result.draws
-                rows.append(row)
+            ids = {
+                "vehicle": vid,
+                "class": vehicles[vid].get("class", ""),
+                "model": fit.model,
+                "profile": profiles[vid].name,
+                "climate": year.name,
+            }
+            rows += result_rows(result, ids)
     return rows
 
 
-def study_markdown(table, profile: Profile, dt_s: float, source: str) -> str:
-    """The study's annual energy table for readers."""
+BALANCE = ("envelope_kWh", "doors_kWh", "gains_kWh", "solar_kWh")
+
+
+def result_rows(result: AnnualResult, ids: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """One row per variant of ``result`` (:func:`study_columns`, after the identifying
+    columns ``ids``): every total with its 95 % band, the heat balance, the months and, for
+    a what-if, its paired difference from the base."""
+    rows = []
+    for v, variant in enumerate(result.variants):
+        row: dict[str, Any] = {**ids, "weather": result.weather, "variant": variant}
+        for key in ("energy_kWh", "preheat_kWh", "peak_service_W", "peak_preheat_W"):
+            row[key], row[f"{key}_lo"], row[f"{key}_hi"] = result.band(getattr(result, key)[v])
+        for key in ("design_load_W", "unmet_h", *BALANCE):
+            row[key], row[f"{key}_lo"], row[f"{key}_hi"] = result.band(getattr(result, key)[v])
+        row["design_T_o_C"] = result.design_T_o_C
+        diff = result.difference(v) if v else (math.nan,) * 3
+        row["difference_kWh"], row["difference_kWh_lo"], row["difference_kWh_hi"] = diff
+        for m, name in enumerate(MONTHS):
+            c, lo, hi = result.band(result.monthly_kWh[v, :, m])
+            row[f"{name}_kWh"], row[f"{name}_lo"], row[f"{name}_hi"] = c, lo, hi
+        row["draws"] = result.draws
+        rows.append(row)
+    return rows
+
+
+def study_markdown(table, profiles: Sequence[Profile], dt_s: float, source: str) -> str:
+    """The study's annual energy table for readers: the totals per vehicle, climate and
+    variant, then the heat balance of each base year; ``profiles`` the profiles the rows
+    name (their heating limits are stated)."""
+    limits = "; ".join(
+        f"{p.name}: {p.heating_limit_W_per_m2:g} W/m² of the vehicle's outer surface"
+        if p.heating_limit_W_per_m2 is not None
+        else f"{p.name}: {p.heating_limit_W / 1000:,.0f} kW"
+        for p in sorted(profiles, key=_name)
+    )
     lines = [
         "# Annual heating energy in two typical years",
         "",
-        f"Data: {source}. Profile {profile.name} (config/profiles/), {dt_s:g} s step, the "
-        "vehicle's identified model (second order where its fit is acceptable, else first "
-        "order: the column model) with an ideal HVAC to the set point within "
-        f"{profile.heating_limit_W:,.0f} W; 95 % bands over parameter draws; a what-if's "
-        "difference is paired (the same draws). Peaks in service and outside it (pre-heating "
-        "from the set-back, stabling); the design load is the steady heating that holds the "
-        "set point at the year's 99.6 % dry-bulb temperature (design T_o), door closed, "
-        "without gains or sun. Cooling is not modelled. (railtherm.study.energy)",
+        f"Data: {source}. Each vehicle under its class's operating profile (column profile, "
+        f"config/profiles/), {dt_s:g} s step, the vehicle's identified model (second order "
+        "where its fit is acceptable, else first order: the column model) with an ideal HVAC "
+        f"to the set point within the profile's heating limit ({limits or 'none'}); 95 % "
+        "bands over parameter draws; a what-if's difference is paired (the same draws). "
+        "Peaks in service and outside it (pre-heating from the set-back, stabling); the "
+        "design load is the steady heating that holds the set point at the year's 99.6 % "
+        "dry-bulb temperature (design T_o), door closed, without gains or sun. Cooling is "
+        "not modelled. (railtherm.study.energy)",
         "",
-        "| vehicle | model | climate | variant | heating (kWh/a) | difference (kWh/a) | "
-        "pre-heating (kWh/a) | peak in service (kW) | peak outside service (kW) | "
+        "| vehicle | model | profile | climate | variant | heating (kWh/a) | difference "
+        "(kWh/a) | pre-heating (kWh/a) | peak in service (kW) | peak outside service (kW) | "
         "design load (kW) | design T_o (°C) | unmet (h) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
 
     def band(r, key: str, scale: float = 1.0, sign: bool = False) -> str:
@@ -743,63 +873,128 @@ def study_markdown(table, profile: Profile, dt_s: float, source: str) -> str:
 
     if table.empty:
         lines[-2:] = [no_acceptable_fit(table.attrs.get("verdicts", {}))]
+        return "\n".join(lines) + "\n"
     for _, r in table.iterrows():
         lines.append(
-            f"| {r['vehicle']} | {r['model']} | {r['climate']} | {r['variant']} | "
-            f"{band(r, 'energy_kWh')} | "
+            f"| {r['vehicle']} | {r['model']} | {r['profile']} | {r['climate']} | "
+            f"{r['variant']} | {band(r, 'energy_kWh')} | "
             f"{band(r, 'difference_kWh', sign=True)} | {band(r, 'preheat_kWh')} | "
             f"{band(r, 'peak_service_W', 1000.0)} | {band(r, 'peak_preheat_W', 1000.0)} | "
             f"{band(r, 'design_load_W', 1000.0)} | {r['design_T_o_C']:.1f} | "
             f"{band(r, 'unmet_h')} |"
         )
+    lines += [
+        "",
+        "Heat balance of each base year (kWh/a): the losses through the envelope and the "
+        "open doors are covered by the internal gains (passengers and auxiliaries, the "
+        "profile's), the sun through the apertures and the heating.",
+        "",
+        "| vehicle | climate | envelope loss | door loss | internal gains | sun | heating |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for _, r in table[table["variant"] == "base"].iterrows():
+        cells = [band(r, key) for key in (*BALANCE, "energy_kWh")]
+        lines.append(f"| {r['vehicle']} | {r['climate']} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
-def study_energy(
-    vehicles: Mapping[str, Mapping[str, Any]],
-    fit_files: Sequence[str],
-    weather_files: Sequence[str],
-    profile_file: str,
-    what_if: Sequence[str] = (),
-    fit_vehicles: Sequence[str] | None = None,
-    **options: Any,
-):
-    """:func:`study_rows` over a study's files: the vehicles' fits (``fit_files``, each of
-    the vehicle ``fit_vehicles`` names, default one per vehicle in the order of
-    ``vehicles``, {id: config}; per vehicle the first acceptable one is used, the second
-    order listed first), the typical years, the profile and the what-ifs as the config
-    writes them; ``options`` go to :func:`study_rows` (dt_s, draws, seed, hold). Returns
-    the table and the profile."""
-    import pandas as pd
+def _name(profile: Profile) -> str:
+    return profile.name
 
+
+def _best_fits(fit_files: Sequence[str], owners: Sequence[str]) -> dict[str, Fit]:
+    """{vehicle: fit}: per vehicle the first acceptable of its ``fit_files`` (each of the
+    vehicle ``owners`` names; the second order listed first), else its first."""
     from railtherm.study.fit import read_fit
     from railtherm.study.quality import ACCEPTABLE
-    from railtherm.study.weather import read_weather
 
-    owners = list(vehicles) if fit_vehicles is None else list(fit_vehicles)
-    fits: dict[str, Any] = {}
+    fits: dict[str, Fit] = {}
     for vid, path in zip(owners, fit_files, strict=True):
         fit = read_fit(path)
         if vid not in fits or (fits[vid].verdict != ACCEPTABLE and fit.verdict == ACCEPTABLE):
             fits[vid] = fit
+    return fits
+
+
+def vehicle_energy(
+    vid: str,
+    vehicle: Mapping[str, Any],
+    fit_files: Sequence[str],
+    weather_files: Sequence[str],
+    profile_file: str,
+    what_if: Sequence[str] = (),
+    index: int = 0,
+    **options: Any,
+):
+    """The rows of one vehicle (rule energy, :func:`study_rows`): its best fit of
+    ``fit_files`` (second order listed first), the typical years, its class's profile and
+    the what-ifs as the config writes them, seeded by its place ``index`` in the study;
+    ``options`` go to :func:`study_rows` (dt_s, draws, seed, hold). Returns the table (no
+    rows without an acceptable fit)."""
+    import pandas as pd
+
+    from railtherm.study.weather import read_weather
+
+    fits = _best_fits(fit_files, [vid] * len(fit_files))
     weathers = [read_weather(path) for path in weather_files]
     profile = load_profile(profile_file)
     what_ifs = [parse_what_if(text) for text in what_if]
-    rows = study_rows(fits, vehicles, weathers, profile, what_ifs, **options)
-    table = pd.DataFrame(rows, columns=study_columns())
-    table.attrs["verdicts"] = {vid: str(fit.verdict) for vid, fit in fits.items()}
-    return table, profile
+    rows = study_rows(
+        fits, {vid: vehicle}, weathers, {vid: profile}, what_ifs, index={vid: index}, **options
+    )
+    return pd.DataFrame(rows, columns=study_columns())
+
+
+def study_table(tables: Sequence[str], fit_files: Sequence[str], fit_vehicles: Sequence[str]):
+    """The study's annual energy table (rule energy_table): the vehicles' tables (rule
+    energy, in study order) one after the other; an empty table carries each vehicle's fit
+    verdict (``fit_files`` of the vehicles ``fit_vehicles`` names) for its statement."""
+    import pandas as pd
+
+    parts = [pd.read_csv(path) for path in tables]
+    parts = [part for part in parts if not part.empty]
+    columns = study_columns()
+    table = pd.concat(parts, ignore_index=True)[columns] if parts else pd.DataFrame(columns=columns)
+    if table.empty:
+        fits = _best_fits(fit_files, fit_vehicles)
+        table.attrs["verdicts"] = {vid: str(fit.verdict) for vid, fit in fits.items()}
+    return table
+
+
+def write_result(result: AnnualResult, ids: Mapping[str, Any], out: str | Path) -> list[Path]:
+    """``railtherm energy --out``: ``result`` in the directory ``out`` as energy.csv (a row per
+    variant, :func:`result_rows` after ``ids``, 4 significant digits), energy.md (as printed)
+    and energy.png / energy.svg (the months with their bands). Returns the paths written."""
+    import pandas as pd
+
+    from railtherm.report import plots, tables
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    table = pd.DataFrame(result_rows(result, ids), columns=study_columns())
+    tables.write_csv(table, out / "energy.csv", digits=4)
+    (out / "energy.md").write_text(markdown(result) + "\n", encoding="utf-8")
+    figure = plots.annual_energy_figure(table, note=result.band_note())
+    png, svg = plots.save_figure(figure, out / "energy")
+    return [out / "energy.csv", out / "energy.md", png, svg]
 
 
 def write_study_energy(
-    table, profile: Profile, dt_s: float, source: str, csv: str, md: str, figure: str
+    table, profiles: Sequence[Profile], dt_s: float, source: str, csv: str, md: str, figure: str
 ) -> None:
-    """The study's annual energy ``table`` (:func:`study_energy`) as CSV (4 significant
+    """The study's annual energy ``table`` (:func:`study_table`) as CSV (4 significant
     digits) and Markdown, and its figure (``figure``: the path without suffix; PNG and
-    SVG)."""
+    SVG), whose footer says what its whiskers are."""
     from railtherm.report import plots, tables
 
     tables.write_csv(table, csv, digits=4)
+    used = {p.name: p for p in profiles if p.name in set(table["profile"])}
     with open(md, "w", encoding="utf-8") as stream:
-        stream.write(study_markdown(table, profile, dt_s, source))
-    plots.save_figure(plots.annual_energy_figure(table, note=source), figure)
+        stream.write(study_markdown(table, list(used.values()), dt_s, source))
+    draws = int(table["draws"].max()) if not table.empty else 0
+    bands = (
+        f"bars central, whiskers the 95 % band over {draws} parameter draws"
+        if draws
+        else "central runs only"
+    )
+    plots.save_figure(plots.annual_energy_figure(table, note=f"{source}; {bands}"), figure)

@@ -157,6 +157,11 @@ class StudyPlan:
         else its first-order one."""
         return tuple(sorted(self.fit_targets(), key=lambda t: (self.vehicles.index(t[0]), -t[1])))
 
+    def energy_vehicles(self) -> tuple[str, ...]:
+        """The vehicles of the annual energy (rule energy, one job each): those with a fit,
+        in study order."""
+        return tuple(dict.fromkeys(vid for vid, _ in self.energy_fits()))
+
     def figure3_vehicle(self) -> str | None:
         """The vehicle of Figure 3 when it is in the study with first- and second-order fits."""
         vid = self.config["study"]["figure3"]
@@ -238,13 +243,12 @@ class StudyPlan:
         return targets + [f"results/figures/design.{ext}" for ext in FIGURE_FORMATS]
 
     def energy_outputs(self) -> list[str]:
-        """Targets of the rule energy: with ``energy.enabled``, weather, a profile and
-        second-order fits (the settings are checked by load_study,
+        """Targets of the rule energy_table: with ``energy.enabled``, weather, a profile
+        and fits (the settings are checked by load_study,
         :func:`railtherm.config.check_study_plans`)."""
         cfg = self.config["energy"]
-        if not (
-            cfg["enabled"] and cfg["weather"] and cfg["profile"] and self.second_order_vehicles()
-        ):
+        profiled = cfg["profile"] or cfg.get("profiles")
+        if not (cfg["enabled"] and cfg["weather"] and profiled and self.energy_vehicles()):
             return []
         targets = [f"results/tables/annual_energy.{ext}" for ext in ("csv", "md")]
         return targets + [f"results/figures/annual_energy.{ext}" for ext in FIGURE_FORMATS]

@@ -8,7 +8,7 @@ from pathlib import Path
 from snakemake.exceptions import WorkflowError
 
 from railtherm import codedigest, synth
-from railtherm.config import load_study
+from railtherm.config import energy_profile, load_study
 from railtherm.data.datacheck import check_study_values
 from railtherm.data.rawfile import DigestCache
 from railtherm.errors import RailthermError
@@ -224,3 +224,12 @@ def figure_scenario():
         return PLAN.figure_scenario()
     except RailthermError as err:
         raise WorkflowError(f"invalid configuration: {err}") from None
+
+
+def energy_profiles(cfg):
+    """The operating profiles the annual energy uses: each class's, then the default."""
+    energy = cfg["energy"]
+    paths = list((energy.get("profiles") or {}).values())
+    if energy.get("profile"):
+        paths.append(energy["profile"])
+    return list(dict.fromkeys(paths))

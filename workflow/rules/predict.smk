@@ -142,12 +142,45 @@ rule design:
 
 rule energy:
     input:
+        fits=lambda wc: [
+            f"results/vehicles/{wc.vehicle}/fit_{table_key(wc.vehicle, n)}.yaml"
+            for vid, n in PLAN.energy_fits()
+            if vid == wc.vehicle
+        ],
+        weather=config["energy"]["weather"],
+        profile=lambda wc: energy_profile(config, STUDY.vehicles[wc.vehicle].data.get("class", "")),
+    output:
+        "results/energy/{vehicle}.csv",
+    params:
+        vehicle=lambda wc: STUDY.vehicles[wc.vehicle].data,
+        index=lambda wc: list(STUDY.vehicles).index(wc.vehicle),
+        what_if=config["energy"]["what_if"],
+        step_s=config["energy"]["step_s"],
+        draws=config["energy"]["draws"],
+        seed=config["energy"]["seed"],
+        hold=config["energy"]["hold"],
+        code=script_code("energy.py"),
+    log:
+        "logs/energy/{vehicle}.log",
+    priority: CHAIN_PRIORITY
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/energy.py"
+
+
+rule energy_table:
+    input:
+        tables=[f"results/energy/{vid}.csv" for vid in PLAN.energy_vehicles()],
         fits=[
             f"results/vehicles/{vid}/fit_{table_key(vid, n)}.yaml"
             for vid, n in PLAN.energy_fits()
         ],
-        weather=config["energy"]["weather"],
-        profile=config["energy"]["profile"] or [],
+        profiles=energy_profiles(config),
     output:
         csv=report(
             "results/tables/annual_energy.csv",
@@ -164,22 +197,18 @@ rule energy:
         ),
         svg="results/figures/annual_energy.svg",
     params:
-        vehicles={vid: STUDY.vehicles[vid].data for vid, _ in PLAN.energy_fits()},
+        vehicles={vid: STUDY.vehicles[vid].data for vid in PLAN.energy_vehicles()},
         fit_vehicles=[vid for vid, _ in PLAN.energy_fits()],
-        what_if=config["energy"]["what_if"],
         step_s=config["energy"]["step_s"],
-        draws=config["energy"]["draws"],
-        seed=config["energy"]["seed"],
-        hold=config["energy"]["hold"],
-        code=script_code("energy.py"),
+        code=script_code("energy_table.py"),
     log:
-        "logs/energy.log",
+        "logs/energy_table.log",
     priority: CHAIN_PRIORITY
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=30,
+        mem_mb=1000,
+        runtime=5,
     conda:
         "../envs/railtherm.yaml"
     script:
-        "../scripts/energy.py"
+        "../scripts/energy_table.py"
