@@ -933,9 +933,12 @@ def vehicle_energy(
     rows without an acceptable fit)."""
     import pandas as pd
 
+    from railtherm.study.quality import ACCEPTABLE
     from railtherm.study.weather import read_weather
 
     fits = _best_fits(fit_files, [vid] * len(fit_files))
+    if all(fit.verdict != ACCEPTABLE for fit in fits.values()):  # no row: no weather read
+        return pd.DataFrame([], columns=study_columns())
     weathers = [read_weather(path) for path in weather_files]
     profile = load_profile(profile_file)
     what_ifs = [parse_what_if(text) for text in what_if]
