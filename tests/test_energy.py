@@ -185,6 +185,39 @@ def test_the_heat_balance_closes_and_its_envelope_loss_is_kA_times_the_degree_ho
     assert abs(r.stored()[0, 0]) < 1e-6 * r.envelope_kWh[0, 0]
 
 
+def test_a_year_read_once_loads_as_it_was_read(tmp_path):
+    """The study reads each typical year once (rule weather_year) and its energy jobs load
+    it: the same instants, temperatures and irradiance; a file of another kind is read as a
+    weather file, a stored object that is no year is refused."""
+    import pickle
+
+    year = weather.read_weather(SAND_POINT)
+    path = tmp_path / "sand.year.pickle"
+    weather.write_year(year, path)
+    again = weather.load_year(path)
+    assert again.source == year.source and again.ghi_shift_s == year.ghi_shift_s
+    np.testing.assert_array_equal(again.t_s, year.t_s)
+    np.testing.assert_array_equal(again.T_o, year.T_o)
+    np.testing.assert_array_equal(again.ghi, year.ghi)
+    assert weather.load_year(SAND_POINT).source == year.source
+    (tmp_path / "odd.year.pickle").write_bytes(pickle.dumps({"T_o": [1.0]}))
+    with pytest.raises(ConfigError, match="not a typical year"):
+        weather.load_year(tmp_path / "odd.year.pickle")
+
+
+def test_progress_is_reported_up_to_the_last_step(tmp_path):
+    """annual_energy's progress callback (the command's progress bar) sees the steps done
+    rise to the total: the warm-up and the year."""
+    seen = []
+    energy.annual_energy(
+        vehicle(), constant_year(0.0), profile(tmp_path), dt_s=600.0, draws=0,
+        progress=lambda done, total: seen.append((done, total)),
+    )  # fmt: skip
+    done = [d for d, _ in seen]
+    total = 8760 * 6 + energy.WARMUP_DAYS * 144
+    assert done == sorted(done) and seen[-1] == (total, total) and len(seen) > 1
+
+
 def test_a_heater_sized_per_square_metre_takes_the_vehicles_surface(tmp_path):
     """heating_limit_W_per_m2 sizes each vehicle's heater by its outer surface: a heater of
     20 W/m2 on 500 m2 (10 kW) cannot hold 20 degC at -5 degC against 17.5 kW of loss, one of

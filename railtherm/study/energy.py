@@ -927,19 +927,20 @@ def vehicle_energy(
     **options: Any,
 ):
     """The rows of one vehicle (rule energy, :func:`study_rows`): its best fit of
-    ``fit_files`` (second order listed first), the typical years, its class's profile and
+    ``fit_files`` (second order listed first), the typical years (files, or as read:
+    :func:`railtherm.study.weather.load_year`), its class's profile and
     the what-ifs as the config writes them, seeded by its place ``index`` in the study;
     ``options`` go to :func:`study_rows` (dt_s, draws, seed, hold). Returns the table (no
     rows without an acceptable fit)."""
     import pandas as pd
 
     from railtherm.study.quality import ACCEPTABLE
-    from railtherm.study.weather import read_weather
+    from railtherm.study.weather import load_year
 
     fits = _best_fits(fit_files, [vid] * len(fit_files))
     if all(fit.verdict != ACCEPTABLE for fit in fits.values()):  # no row: no weather read
         return pd.DataFrame([], columns=study_columns())
-    weathers = [read_weather(path) for path in weather_files]
+    weathers = [load_year(path) for path in weather_files]
     profile = load_profile(profile_file)
     what_ifs = [parse_what_if(text) for text in what_if]
     rows = study_rows(

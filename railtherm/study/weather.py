@@ -47,7 +47,7 @@ import pandas as pd
 from railtherm.data import units
 from railtherm.errors import ConfigError, first_line
 
-__all__ = ["KINDS", "Weather", "on_grid", "read_weather"]
+__all__ = ["KINDS", "Weather", "load_year", "on_grid", "read_weather", "write_year"]
 
 KINDS = ("tmy3", "epw", "pvgis", "csv")
 HOUR_S = 3600.0
@@ -78,6 +78,32 @@ class Weather:
     def hours(self) -> int:
         """The year's length in hours (8760 or 8784)."""
         return int(round(len(self.t_s) * self.step_s / HOUR_S))
+
+
+READ_YEAR_SUFFIX = ".year.pickle"
+
+
+def write_year(year: Weather, path: str | Path) -> None:
+    """``year`` as read (:func:`read_weather`), for jobs that would otherwise each import the
+    readers again (pvlib's import alone costs a second): the study's rule weather_year."""
+    import pickle
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(pickle.dumps(year, protocol=5))
+
+
+def load_year(path: str | Path) -> Weather:
+    """A typical year: one :func:`write_year` wrote (``*.year.pickle``), else the file read
+    by :func:`read_weather`."""
+    if str(path).endswith(READ_YEAR_SUFFIX):
+        import pickle
+
+        year = pickle.loads(Path(path).read_bytes())
+        if not isinstance(year, Weather):
+            raise ConfigError(str(path), "weather", type(year).__name__, "not a typical year")
+        return year
+    return read_weather(path)
 
 
 def _kind_of(path: Path) -> str:

@@ -233,3 +233,14 @@ def energy_profiles(cfg):
     if energy.get("profile"):
         paths.append(energy["profile"])
     return list(dict.fromkeys(paths))
+
+
+def weather_years(cfg):
+    """The names of the study's typical years (their files' stems; rule weather_year)."""
+    return [Path(path).name.split(".")[0] for path in cfg["energy"]["weather"]]
+
+
+def weather_file(year):
+    """The weather file of the typical year ``year`` (:func:`weather_years`)."""
+    files = {Path(path).name.split(".")[0]: path for path in config["energy"]["weather"]}
+    return files[year]

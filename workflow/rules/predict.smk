@@ -140,6 +140,26 @@ rule design:
         "../scripts/design.py"
 
 
+rule weather_year:
+    input:
+        lambda wc: weather_file(wc.year),
+    output:
+        "results/weather/{year}.year.pickle",
+    params:
+        code=script_code("weather_year.py"),
+    log:
+        "logs/weather_year/{year}.log",
+    priority: CHAIN_PRIORITY
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=2,
+    conda:
+        "../envs/railtherm.yaml"
+    script:
+        "../scripts/weather_year.py"
+
+
 rule energy:
     input:
         fits=lambda wc: [
@@ -147,7 +167,7 @@ rule energy:
             for vid, n in PLAN.energy_fits()
             if vid == wc.vehicle
         ],
-        weather=config["energy"]["weather"],
+        weather=[f"results/weather/{year}.year.pickle" for year in weather_years(config)],
         profile=lambda wc: energy_profile(config, STUDY.vehicles[wc.vehicle].data.get("class", "")),
     output:
         "results/energy/{vehicle}.csv",
