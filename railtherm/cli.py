@@ -402,6 +402,11 @@ def _energy(args: argparse.Namespace) -> int:
     texts = list(args.what_if or ())
     what_ifs = [energy.parse_what_if(w) for w in texts]
     workdir = args.directory
+    if args.out and os.path.exists(os.path.join(workdir, args.out)):
+        if not os.path.isdir(os.path.join(workdir, args.out)):
+            raise ConfigError(
+                "--out", "out", args.out, "a file is there: give a directory for the results"
+            )
     # the settings first (they contradict each other or not whatever the parameters), then
     # the weather, then the parameters
     profile = energy.load_profile(os.path.join(workdir, args.profile))
@@ -431,7 +436,11 @@ def _energy(args: argparse.Namespace) -> int:
             "profile": profile.name,
             "climate": year.name,
         }
-        for path in energy.write_result(result, ids, os.path.join(workdir, args.out)):
+        try:
+            written = energy.write_result(result, ids, os.path.join(workdir, args.out))
+        except OSError as err:
+            raise ConfigError("--out", "out", args.out, f"cannot write there: {err}") from err
+        for path in written:
             print(f"wrote {path}", file=sys.stderr)
     return 0
 

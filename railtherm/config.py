@@ -858,9 +858,20 @@ def check_study_plans(
     if step:
         raise ConfigError(config_file, "energy.step_s", energy.get("step_s"), step)
     weather = energy.get("weather") or []
+    names: dict[str, str] = {}
     for i, path in enumerate(weather):
         if not os.path.isfile(os.path.join(str(workdir), path)):
             raise ConfigError(config_file, f"energy.weather[{i}]", path, "weather file not found")
+        name = os.path.basename(path).split(".")[0]  # the year's name in results/weather/
+        if name in names:
+            raise ConfigError(
+                config_file,
+                f"energy.weather[{i}]",
+                path,
+                f"the same file name as {names[name]}: the study names each typical year by "
+                "its file name, so give the copies different names",
+            )
+        names[name] = path
     files = {"energy.profile": energy.get("profile")} if energy.get("profile") else {}
     files.update({f"energy.profiles.{c}": p for c, p in (energy.get("profiles") or {}).items()})
     if not files:

@@ -173,3 +173,30 @@ def test_a_study_energy_step_of_a_day_names_the_config_key():
         check_study_plans(config, REPO, "config/config.yaml")
     text = str(caught.value)
     assert "config/config.yaml: key 'energy.step_s' = 86400" in text and "at most 3600 s" in text
+
+
+# ------------------------------------------- the energy command's output and heater settings
+@pytest.mark.bad_input
+def test_railtherm_energy_out_onto_a_file_is_refused_before_the_run(tmp_path, capsys):
+    """--out naming an existing file (not a directory) stops at once, naming the option."""
+    (tmp_path / "taken").write_text("x")
+    argv = ["energy", "params.yaml", "--weather", str(TMY3), "--profile", str(PROFILE)]
+    assert main([*argv, "--out", "taken", "-d", str(tmp_path)]) == 1
+    err = one_line(capsys)
+    assert "--out: key 'out' = 'taken'" in err and "give a directory" in err
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize(
+    "limits", [{}, {"heating_limit_W": 1000, "heating_limit_W_per_m2": 100}], ids=["none", "both"]
+)
+def test_a_profile_gives_its_heater_one_way(tmp_path, limits):
+    """A profile names its heater's power as exactly one of heating_limit_W and
+    heating_limit_W_per_m2: neither or both is refused, naming the keys."""
+    path = tmp_path / "profile.yaml"
+    path.write_text(
+        yaml.safe_dump({"service": {"weekdays": [[0, 24]]}, "set_point_C": 20, **limits})
+    )
+    with pytest.raises(ConfigError, match="exactly one of heating_limit_W") as err:
+        energy.load_profile(path)
+    assert str(path) in str(err.value)

@@ -180,6 +180,10 @@ def energy_study(**section) -> None:
             ["energy.profiles.tram", "class 'tram', which has no operating profile"],
         ),
         (
+            {"weather": ["year.csv", "sub/year.csv"], "profile": "profile.yaml"},
+            ["energy.weather[1]", "sub/year.csv", "the same file name as year.csv"],
+        ),
+        (
             {"weather": ["year.csv"], "profiles": {"tram": "tram.yaml"}},
             ["energy.profiles.tram", "tram.yaml", "profile file not found"],
         ),
@@ -208,6 +212,8 @@ def test_the_study_config_refuses_the_same_settings(
     setup_repo(tmp_path)
     write_profile(tmp_path / "profile.yaml")
     csv_year(tmp_path / "year.csv", sand_point_in("degC"))
+    (tmp_path / "sub").mkdir()
+    csv_year(tmp_path / "sub" / "year.csv", sand_point_in("degC"))
     energy_study(**section)
     assert main(["validate", "--headers-only"]) == 1
     err = capsys.readouterr().err

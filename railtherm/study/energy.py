@@ -148,6 +148,15 @@ def load_profile(path: str | Path) -> Profile:
             "temperature held when stabled; give set_back_C at most set_point_C, or null "
             "(heating off when stabled)",
         )
+    limits = [key for key in ("heating_limit_W", "heating_limit_W_per_m2") if key in data]
+    if len(limits) != 1:
+        raise ConfigError(
+            file,
+            "heating_limit_W",
+            {key: data[key] for key in limits} or None,
+            "give the heater's power as exactly one of heating_limit_W (W) and "
+            "heating_limit_W_per_m2 (W per m² of the vehicle's outer surface)",
+        )
     doors = data["doors"]
     return Profile(
         name=str(data.get("name", Path(file).stem)),
