@@ -396,3 +396,19 @@ def test_campaign_schema_and_generator_name_the_same_deviations_and_truth():
     assert set(synth.DEVIATION_EFFECT_ON_K) == set(synth.DEVIATION_TYPES)
     truth = defs["settings"]["properties"]["truth"]
     assert set(truth["required"]) == set(synth.TRUTH_UNITS)
+
+
+@pytest.mark.parametrize(
+    ("a", "gain", "before"), [(0.9, 0.1, 20.0), (0.999, 1.0, 0.0), (0.0, 1.0, 3.0)]
+)
+def test_the_tunnels_lag_is_the_recursion_it_names(a, gain, before):
+    """physics.lagged (a banded triangular solve) is y[n] = a y[n-1] + gain x[n] from
+    y[-1] = before, as a plain loop computes it, to rounding."""
+    from railtherm.synth import physics
+
+    x = np.random.default_rng(7).normal(size=5000)
+    y, expected = before, []
+    for v in x:
+        y = a * y + gain * v
+        expected.append(y)
+    np.testing.assert_allclose(physics.lagged(x, a, gain, before), expected, rtol=1e-12, atol=1e-12)

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from railtherm.estimation.models import discretize_zoh, recursion, second_order
+from railtherm.estimation.models import discretize_zoh, second_order
 from railtherm.synth.campaign import _deviation
 
 
@@ -129,9 +129,22 @@ def _tunnel(spec: dict, n: int, dt: float, rng) -> np.ndarray:
 
 def lagged(x: np.ndarray, a: float, gain: float, before: float = 0.0) -> np.ndarray:
     """y[n] = a y[n-1] + gain x[n] from y[-1] = ``before``: a first-order lag sampled at its
-    step (a = exp(-dt / tau), gain 1 - a) or an AR(1) process (gain 1) driven by ``x``."""
-    forcing = gain * np.asarray(x, dtype=float)
-    return recursion(a, np.append(forcing[1:], 0.0), forcing[0] + a * before)
+    step (a = exp(-dt / tau), gain 1 - a) or an AR(1) process (gain 1) driven by ``x``.
+
+    Solved as the unit lower-bidiagonal system y[n] - a y[n-1] = gain x[n] by LAPACK's
+    banded triangular solve (``dtbtrs``, forward substitution: the recursion itself), which
+    needs no compiled loop of railtherm's: a job that synthesises a record loads neither
+    numba nor scipy.signal for it."""
+    from scipy.linalg.lapack import dtbtrs
+
+    b = gain * np.asarray(x, dtype=float)
+    b[0] += a * before
+    bands = np.zeros((2, b.size))
+    bands[1, :-1] = -a
+    y, info = dtbtrs(bands, b, uplo="L", diag="U")
+    if info != 0:
+        raise ValueError(f"the lag's triangular solve failed (LAPACK info {info})")
+    return y
 
 
 def _run(spec: dict) -> dict:
