@@ -205,6 +205,29 @@ def test_a_year_read_once_loads_as_it_was_read(tmp_path):
         weather.load_year(tmp_path / "odd.year.pickle")
 
 
+def test_each_class_has_a_profile_whose_figures_name_their_source():
+    """The study runs every vehicle class of config/audit.yaml under a profile of its own
+    (config/config.yaml energy.profiles); each figure in a class profile's ``source`` names
+    its kind as config/audit.yaml does (standard, handbook, datasheet, published, physics,
+    definition or assumption), and the heater is sized by the vehicle's surface."""
+    import re
+
+    config = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    audit = yaml.safe_load((REPO / "config" / "audit.yaml").read_text())
+    classes = set(audit["ranges"]["m_veh"])
+    profiles = config["energy"]["profiles"]
+    assert classes <= set(profiles), classes - set(profiles)
+    kinds = "standard|handbook|datasheet|published|physics|definition|assumption"
+    for cls in classes:
+        path = REPO / profiles[cls]
+        data = yaml.safe_load(path.read_text())
+        parts = [p.strip() for p in data["source"].split(";") if p.strip()]
+        unsourced = [p for p in parts if not re.search(rf" - ({kinds}):", p)]
+        assert len(parts) >= 6 and not unsourced, (path.name, unsourced)
+        prof = energy.load_profile(path)
+        assert prof.name == cls and prof.heating_limit_W_per_m2 is not None
+
+
 def test_progress_is_reported_up_to_the_last_step(tmp_path):
     """annual_energy's progress callback (the command's progress bar) sees the steps done
     rise to the total: the warm-up and the year."""
