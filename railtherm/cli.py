@@ -402,11 +402,11 @@ def _energy(args: argparse.Namespace) -> int:
     texts = list(args.what_if or ())
     what_ifs = [energy.parse_what_if(w) for w in texts]
     workdir = args.directory
-    if args.out and os.path.exists(os.path.join(workdir, args.out)):
-        if not os.path.isdir(os.path.join(workdir, args.out)):
-            raise ConfigError(
-                "--out", "out", args.out, "a file is there: give a directory for the results"
-            )
+    out = os.path.join(workdir, args.out) if args.out else None
+    if out is not None and os.path.exists(out) and not os.path.isdir(out):
+        raise ConfigError(
+            "--out", "out", args.out, "a file is there: give a directory for the results"
+        )
     # the settings first (they contradict each other or not whatever the parameters), then
     # the weather, then the parameters
     profile = energy.load_profile(os.path.join(workdir, args.profile))
@@ -428,7 +428,7 @@ def _energy(args: argparse.Namespace) -> int:
             progress=progress,
         )
     print(energy.markdown(result))
-    if args.out:
+    if out is not None:
         ids = {
             "vehicle": result.label,
             "class": "",
@@ -437,7 +437,7 @@ def _energy(args: argparse.Namespace) -> int:
             "climate": year.name,
         }
         try:
-            written = energy.write_result(result, ids, os.path.join(workdir, args.out))
+            written = energy.write_result(result, ids, out)
         except OSError as err:
             raise ConfigError("--out", "out", args.out, f"cannot write there: {err}") from err
         for path in written:

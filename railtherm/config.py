@@ -814,7 +814,7 @@ def load_study(
         add_vehicle(study, local, workdir, cache=vehicle_cache)
     if vehicle_cache is not None:
         vehicle_cache.save()
-    check_energy_classes(study, config, config_file)
+    check_energy_classes(study, config, config_file, workdir)
     return study
 
 
@@ -911,21 +911,40 @@ def energy_profile(config: Mapping[str, Any], vehicle_class: str) -> str | None:
     return (energy.get("profiles") or {}).get(vehicle_class) or energy.get("profile") or None
 
 
-def check_energy_classes(study: Study, config: Mapping[str, Any], config_file: str) -> None:
+def check_energy_classes(
+    study: Study, config: Mapping[str, Any], config_file: str, workdir: str = "."
+) -> None:
     """With the annual energy enabled, every vehicle's class has an operating profile
-    (:func:`energy_profile`): a :class:`ConfigError` naming the first class without."""
+    (:func:`energy_profile`), and a vehicle whose profile sizes the heater per m² gives its
+    surface: a :class:`ConfigError` naming the first class without a profile, or the
+    vehicle file without its surface."""
+    from railtherm.study.energy import load_profile
+
     energy = config.get("energy") or {}
     if not energy.get("enabled", False):
         return
+    sized: dict[str, bool] = {}  # profile path: its heater is per m² of surface
     for vid, vehicle in study.vehicles.items():
         vehicle_class = str(vehicle.data.get("class", ""))
-        if energy_profile(config, vehicle_class) is None:
+        path = energy_profile(config, vehicle_class)
+        if path is None:
             raise ConfigError(
                 config_file,
                 f"energy.profiles.{vehicle_class}",
                 None,
                 f"vehicle {vid} is of class {vehicle_class!r}, which has no operating profile: "
                 f"add one to energy.profiles (or a default energy.profile)",
+            )
+        if path not in sized:
+            profile = load_profile(os.path.join(str(workdir), path))
+            sized[path] = profile.heating_limit_W_per_m2 is not None
+        if sized[path] and vehicle.data.get("surface_m2") is None:
+            raise ConfigError(
+                vehicle.path,
+                "surface_m2",
+                None,
+                f"its class's profile {path} sizes the heater per m² of outer surface: give "
+                "the vehicle's surface_m2, or a profile with heating_limit_W",
             )
 
 

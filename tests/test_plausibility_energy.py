@@ -223,6 +223,32 @@ def test_the_study_config_refuses_the_same_settings(
     os.remove("config/config.yaml")
 
 
+@pytest.mark.bad_input
+def test_a_heater_per_square_metre_needs_each_vehicles_surface(tmp_path, monkeypatch, capsys):
+    """An object of class other may leave its surface out; under a profile that sizes the
+    heater per m² of surface, `railtherm validate` (the workflow's parse) names its file and
+    the key, before any job."""
+    monkeypatch.chdir(tmp_path)
+    setup_repo(tmp_path)
+    second = yaml.safe_load(open("config/vehicles/V2.yaml").read())
+    second.update({"class": "other"})
+    second.pop("surface_m2")
+    second.pop("mass_kg", None)
+    with open("config/vehicles/V2.yaml", "w") as stream:
+        yaml.safe_dump(second, stream)
+    write_profile(tmp_path / "profile.yaml")
+    per_m2 = {
+        k: v for k, v in yaml.safe_load(PROFILE.read_text()).items() if k != "heating_limit_W"
+    }
+    (tmp_path / "per_m2.yaml").write_text(yaml.safe_dump({**per_m2, "heating_limit_W_per_m2": 130}))
+    csv_year(tmp_path / "year.csv", sand_point_in("degC"))
+    energy_study(weather=["year.csv"], profile="per_m2.yaml", profiles={"tram": "profile.yaml"})
+    assert main(["validate", "--headers-only"]) == 1
+    err = capsys.readouterr().err
+    assert "config/vehicles/V2.yaml" in err and "'surface_m2'" in err, err
+    assert "per_m2.yaml sizes the heater per m²" in err, err
+
+
 def test_a_complete_energy_section_passes(tmp_path, monkeypatch, capsys):
     """No false alarm: the shipped profile and a degC year with a sound what-if."""
     monkeypatch.chdir(tmp_path)

@@ -38,6 +38,7 @@ import math
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from operator import attrgetter
 from pathlib import Path
 from typing import Any
 
@@ -107,7 +108,7 @@ class Profile:
             return self
         if surface_m2 is None or not (math.isfinite(surface_m2) and surface_m2 > 0):
             raise ConfigError(
-                label,
+                label or "the vehicle",
                 "surface_m2",
                 surface_m2,
                 f"profile {self.name} sizes the heater per m² of outer surface "
@@ -744,16 +745,7 @@ def study_columns() -> list[str]:
     """The columns of the study's annual energy table (:func:`study_rows`), in order: an
     empty table (no vehicle with an acceptable fit) has them too."""
     columns = ["vehicle", "class", "model", "profile", "climate", "weather", "variant"]
-    for key in (
-        "energy_kWh",
-        "preheat_kWh",
-        "peak_service_W",
-        "peak_preheat_W",
-        "design_load_W",
-        "unmet_h",
-        "difference_kWh",
-        *BALANCE,
-    ):
+    for key in (*TOTALS, "difference_kWh", *BALANCE):
         columns += [key, f"{key}_lo", f"{key}_hi"]
     columns.append("design_T_o_C")
     for name in MONTHS:
@@ -824,6 +816,10 @@ def study_rows(
 
 
 BALANCE = ("envelope_kWh", "doors_kWh", "gains_kWh", "solar_kWh")
+# the per-run totals of a year a row gives with their 95 % bands, beside the balance
+TOTALS = (
+    "energy_kWh", "preheat_kWh", "peak_service_W", "peak_preheat_W", "design_load_W", "unmet_h",
+)  # fmt: skip
 
 
 def result_rows(result: AnnualResult, ids: Mapping[str, Any]) -> list[dict[str, Any]]:
@@ -833,9 +829,7 @@ def result_rows(result: AnnualResult, ids: Mapping[str, Any]) -> list[dict[str, 
     rows = []
     for v, variant in enumerate(result.variants):
         row: dict[str, Any] = {**ids, "weather": result.weather, "variant": variant}
-        for key in ("energy_kWh", "preheat_kWh", "peak_service_W", "peak_preheat_W"):
-            row[key], row[f"{key}_lo"], row[f"{key}_hi"] = result.band(getattr(result, key)[v])
-        for key in ("design_load_W", "unmet_h", *BALANCE):
+        for key in (*TOTALS, *BALANCE):
             row[key], row[f"{key}_lo"], row[f"{key}_hi"] = result.band(getattr(result, key)[v])
         row["design_T_o_C"] = result.design_T_o_C
         diff = result.difference(v) if v else (math.nan,) * 3
@@ -856,7 +850,7 @@ def study_markdown(table, profiles: Sequence[Profile], dt_s: float, source: str)
         f"{p.name}: {p.heating_limit_W_per_m2:g} W/m² of the vehicle's outer surface"
         if p.heating_limit_W_per_m2 is not None
         else f"{p.name}: {p.heating_limit_W / 1000:,.0f} kW"
-        for p in sorted(profiles, key=_name)
+        for p in sorted(profiles, key=attrgetter("name"))
     )
     lines = [
         "# Annual heating energy in two typical years",
@@ -905,10 +899,6 @@ def study_markdown(table, profiles: Sequence[Profile], dt_s: float, source: str)
         cells = [band(r, key) for key in (*BALANCE, "energy_kWh")]
         lines.append(f"| {r['vehicle']} | {r['climate']} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
-
-
-def _name(profile: Profile) -> str:
-    return profile.name
 
 
 def _best_fits(fit_files: Sequence[str], owners: Sequence[str]) -> dict[str, Fit]:
