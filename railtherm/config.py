@@ -55,6 +55,7 @@ from railtherm.data.recordcheck import (
     source_layout,
 )
 from railtherm.errors import ConfigError
+from railtherm.estimation.priors import PriorError, prior_from_config
 from railtherm.yamlio import (
     TYPE_WORDS,
     check_finite,
@@ -189,9 +190,11 @@ def vehicle_schema() -> dict[str, Any]:
     schema = copy.deepcopy(packaged_schema("vehicle"))
     initial = schema["$defs"]["parameters"]["properties"]
     bounds = schema["properties"]["model"]["properties"]["bounds"]["properties"]
+    priors = schema["properties"]["model"]["properties"]["priors"]["properties"]
     for p in PARAMETERS:
         initial.setdefault(p, {"type": "number", "exclusiveMinimum": 0})
         bounds.setdefault(p, {"$ref": "#/$defs/interval"})
+        priors.setdefault(p, {"$ref": "#/$defs/prior"})
     return schema
 
 
@@ -347,6 +350,9 @@ def load_vehicle(
         check_channels(file, data, found, locals_)
     _check_windows(file, data, found)
     model = deep_merge((defaults or {}).get("model") or {}, data.get("model") or {})
+    if "priors" in model:  # a vehicle's prior replaces the default's for its parameter whole
+        default_priors = ((defaults or {}).get("model") or {}).get("priors") or {}
+        model["priors"] = {**default_priors, **((data.get("model") or {}).get("priors") or {})}
     model.setdefault("orders", list(DEFAULT_ORDERS))
     if not model["orders"] and not model.get("structures"):
         raise ConfigError(
@@ -709,10 +715,12 @@ def _check_model(
     prefix: str = "model",
     solar: tuple[str, ...] | None = None,
 ) -> None:
-    """Bounds lo < hi; initial values inside their bounds (after merging the defaults). With
-    ``solar`` (a vehicle's solar parameters, :func:`_solar_parameters`), a solar parameter
-    that the vehicle's own initial or bounds name must be one of them (one the study's
-    defaults name is ignored where it does not apply)."""
+    """Bounds lo < hi; initial values inside their bounds (after merging the defaults); each
+    prior a known kind with its parameters in range (:func:`railtherm.estimation.priors.
+    prior_from_config`). With ``solar`` (a vehicle's solar parameters,
+    :func:`_solar_parameters`), a solar parameter that the vehicle's own initial, bounds or
+    priors name must be one of them (one the study's defaults name is ignored where it does
+    not apply)."""
     bounds = model.get("bounds") or {}
     initial = model.get("initial") or {}
 
@@ -720,9 +728,17 @@ def _check_model(
         mine = name in (own.get(section) or {})
         return "" if mine else f" (model.{section}.{name} from the study's defaults.model)"
 
+    for name, spec in (model.get("priors") or {}).items():
+        try:
+            prior_from_config(spec, f"{prefix}.priors.{name}")
+        except PriorError as err:
+            key, _, message = str(err).partition(": ")
+            raise ConfigError(file, key, spec, message + origin("priors", name)) from None
     if solar is not None:
-        for section in ("initial", "bounds"):
+        for section in ("initial", "bounds", "priors"):
             for name in own.get(section) or {}:
+                if section == "priors" and name.startswith(("sigma_", "s_")):
+                    continue  # the Kalman estimator's noise parameters
                 if name not in PARAMETERS and name not in solar:
                     accepted = ", ".join(PARAMETERS + solar)
                     raise ConfigError(

@@ -111,6 +111,10 @@ class Estimate:
     start_costs: dict[str, float] = field(default_factory=dict)
     bandwidths: list[int] = field(default_factory=list)
     input_noise_sd: list[dict[str, float]] = field(default_factory=list)
+    # a MAP estimate's priors ({param: {kind, ...}}, railtherm.estimation.priors) and its
+    # log-prior at the estimate; empty and None for a maximum-likelihood estimate
+    priors: dict[str, dict[str, Any]] = field(default_factory=dict)
+    log_prior: float | None = None
 
     def parameter_entries(self) -> dict[str, dict[str, Any]]:
         """{param: {value, estimated[, ci95, sd_log]}} in the structure's order."""
@@ -165,6 +169,10 @@ class Estimate:
                 {name: float(sd) for name, sd in record.items()} for record in self.input_noise_sd
             ],
         }
+        if self.priors:  # a MAP estimate says so; a maximum-likelihood one is written as before
+            common["inference"] = "MAP"
+            common["priors"] = {p: dict(spec) for p, spec in self.priors.items()}
+            common["log_prior"] = float(self.log_prior)
         return {**common, **self.extra()}
 
     def extra(self) -> dict[str, Any]:

@@ -41,6 +41,7 @@ from railtherm.estimation.filtering import (
     negative_log_likelihood,
 )
 from railtherm.estimation.models import Structure
+from railtherm.estimation.priors import LinearT, LogPrior, Prior
 
 __all__ = [
     "KalmanResult",
@@ -244,6 +245,8 @@ def fit(
     sigma_initial: float | Mapping[str, float] | None = None,
     input_noise: Mapping[str, float | Sequence[float]] | None = None,
     offsets: Mapping[str, float] | None = None,
+    priors: Mapping[str, Prior] | None = None,
+    prior_terms: Sequence[LinearT] = (),
 ) -> KalmanResult:
     """Maximum-likelihood fit of the stochastic model of ``structure`` to ``experiments``
     jointly (shared parameters, each experiment its own initial state).
@@ -265,6 +268,14 @@ def fit(
     offset of that output's readings (y = x + b + v, one output at most), estimated with the
     Gaussian prior b ~ N(0, sd^2): the calibration offset of a sensor group relative to the
     others, which the filter would otherwise explain by diffusions (``b_<output>``).
+    priors: {parameter: :class:`railtherm.estimation.priors.Prior`} of the structure's free
+    parameters or the noise parameters (``sigma_<state>``, ``s_<output>``, in their units
+    K/sqrt(s) and K^2): the maximum a posteriori estimate instead (NLL minus the log-prior of theta,
+    :class:`_Posterior`, searched from the start and from the prior's centre), its
+    covariance the inverse Hessian of that criterion (the Laplace approximation of the
+    posterior); without priors the maximum-likelihood estimate.
+    prior_terms: joint prior terms on the log parameters (a class reference model's,
+    :meth:`railtherm.study.classmodel.ReferenceModel.prior_terms`), MAP alike.
     """
     if x0 not in ("estimated", "measured"):
         raise ValueError(f"x0 must be 'estimated' or 'measured', got {x0!r}")
@@ -319,6 +330,11 @@ def fit(
         {outputs.index(o): float(sd) for o, sd in offsets.items()},
     )
     names, lo, hi = _unknowns(structure, outputs, experiments, lik, free, bnds, bounds_n)
+    prior = LogPrior(names[: lik.Qn], priors or {}, prior_terms)  # log parameters and noise
+    target: Likelihood | _Posterior = lik
+    if prior:
+        lo, hi = prior.bounds(lo, hi)
+        target = _Posterior(lik, prior)
     span = hi - lo
     margin = np.where(np.isfinite(span), 1e-6 * span, 0.0)
 
@@ -338,17 +354,51 @@ def fit(
     start_cost = lik.evaluate(v0, 0)[0]
     if not math.isfinite(start_cost):
         raise NotEvaluable(structure, oe.theta, dt)
-    sol = _optimise(lik, v0, lo, hi, clip)
+    sol = _optimise(target, v0, lo, hi, clip)
+    if prior:  # the posterior's mode may lie far from the likelihood's: a second start
+        other = _optimise(target, clip(prior.centre(v0)), lo, hi, clip)
+        if other.fun < sol.fun:
+            sol = other
     v = sol.x
-    H = _hessian(lik, v, _gradient(lik, v))
+    H = _hessian(target, v, _gradient(target, v))
     levels = common.noise_levels(structure, input_noise or {}, experiments)
     meat, v_ml = None, v
     if any(levels):
-        v, sol, H, meat = _compensated(lik, v, sol, levels, lo, hi)
-    result = _result(structure, lik, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost, meat)
-    _one_step_series(result, lik, v_ml)  # the one-step predictor is the maximum-likelihood one
+        v, sol, H, meat = _compensated(target, v, sol, levels, lo, hi)
+    result = _result(
+        structure, target, sol, v, H, names, lo, hi, bnds, outputs, oe, start_cost, meat
+    )  # fmt: skip
+    _one_step_series(result, lik, v_ml)  # the one-step predictor is the estimate's
     result.input_noise_sd = [dict(level) for level in levels] if any(levels) else []
+    if prior:  # the criterion was the posterior's: the likelihood is reported apart
+        nll = float(lik.evaluate(v, 0)[0])
+        result.cost, result.loglik = nll, -nll
+        result.priors = prior.to_dict()
+        result.log_prior = float(prior.evaluate(v)[0])
     return result
+
+
+class _Posterior:
+    """The negative log-posterior of theta as the optimiser sees a :class:`Likelihood`:
+    ``evaluate`` gives NLL - log p(theta) (:class:`railtherm.estimation.priors.LogPrior`), its
+    gradient, and the Fisher information plus the prior's curvature where that is positive
+    (a scoring Hessian stays positive semi-definite); every other attribute is the
+    likelihood's."""
+
+    def __init__(self, lik: Likelihood, prior: LogPrior):
+        self.lik, self.prior = lik, prior
+
+    def __getattr__(self, name: str):
+        return getattr(self.lik, name)
+
+    def evaluate(self, v: np.ndarray, order: int, steady: bool = True):
+        nll, g, F = self.lik.evaluate(v, order, steady)
+        lp, gp, _ = self.prior.evaluate(v)
+        if not math.isfinite(nll) or not math.isfinite(lp):
+            return math.inf, g, F
+        g = None if g is None else g - gp
+        F = None if F is None else F + self.prior.information(v)
+        return nll - lp, g, F
 
 
 def _checked_offsets(offsets, outputs) -> dict[str, float]:

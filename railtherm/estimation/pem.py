@@ -60,6 +60,7 @@ from railtherm.estimation.common import (
 )
 from railtherm.estimation.estimate import Estimate, Flag
 from railtherm.estimation.models import Structure
+from railtherm.estimation.priors import LinearT, LogPrior, Prior
 
 __all__ = [
     "Experiment",
@@ -79,6 +80,7 @@ KA_FACTORS = (1.0 / 3.0, 1.0, 3.0)  # ... and around the heat balance's overall 
 START_KEEP = 3  # grid points refined
 RANK_SAMPLES = 500  # samples per experiment of the block-averaged copy the grid is ranked on
 COARSE_SAMPLES = 2000  # ... and of the copy the best grid points are refined on
+INFO_NULL = 1e-14  # a MAP estimate's information: eigenvalues below this (relative) are null
 
 
 def experiment_from_table(
@@ -640,6 +642,8 @@ def fit(
     max_nfev: int | None = None,
     input_noise: Mapping[str, float | Sequence[float]] | None = None,
     compiled: bool = False,
+    priors: Mapping[str, Prior] | None = None,
+    prior_terms: Sequence[LinearT] = (),
 ) -> FitResult:
     """Simulation-error PEM (eqs. 17-18, K = 0) of ``structure`` to ``experiments`` jointly.
 
@@ -653,6 +657,10 @@ def fit(
     (:func:`_input_noise_bias`). compiled: rank the automatic start's grid by the compiled
     simulation of :mod:`railtherm.estimation.loops` (numba, whose import a fit by output error
     alone need not pay; the Kalman fit, which loads it anyway, asks for it); the same costs.
+    priors: {free parameter: :class:`railtherm.estimation.priors.Prior`}: the maximum a
+    posteriori estimate (:func:`_maximum_a_posteriori`) from the least-squares optimum;
+    without priors the least-squares (maximum-likelihood) estimate. prior_terms: joint
+    prior terms on the log parameters (a class reference model's), MAP alike.
     """
     fixed = {p: float(v) for p, v in (fixed or {}).items()}
     experiments = list(experiments)
@@ -667,6 +675,8 @@ def fit(
     bnds.update({p: (float(b[0]), float(b[1])) for p, b in (bounds or {}).items()})
     lb = np.array([math.log(bnds[p][0]) if bnds[p][0] > 0 else -np.inf for p in free])
     ub = np.array([math.log(bnds[p][1]) if np.isfinite(bnds[p][1]) else np.inf for p in free])
+    prior = LogPrior(free, priors or {}, prior_terms)
+    lb, ub = prior.bounds(lb, ub)  # a uniform prior is a bound
     outputs = compared_outputs(structure, experiments, outputs)
     out_idx = [structure.states.index(s) for s in outputs]
     prob = _Problem(structure, experiments, fixed, free, out_idx, x0, compiled)
@@ -729,13 +739,101 @@ def fit(
             (lo, hi),
         )  # fmt: skip
     sol = _minimise(prob, v0, lo, hi, max_nfev)
+    weight = None
+    if prior:
+        sol, weight = _maximum_a_posteriori(prob, sol, prior, lo, hi, covariance)
     v = sol.x
     r = prob.residuals(v)
     J = prob.jacobian(v)  # cached: the solver evaluated it at sol.x
-    return _result(
+    result = _result(
         structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy,
-        (lo, hi),
+        (lo, hi), None if weight is None else (prior, weight),
     )  # fmt: skip
+    if prior:
+        result.priors = prior.to_dict()
+        result.log_prior = float(prior.evaluate(sol.x)[0])
+    return result
+
+
+def _maximum_a_posteriori(prob, sol, prior: LogPrior, lo, hi, covariance: str):
+    """The MAP estimate from the least-squares optimum ``sol``: the minimum of
+
+        (m / (2 tau)) log(e^T e) - log p(theta),
+
+    the simulation error's Gaussian likelihood with its variance profiled out (eq. 17's
+    criterion, m compared samples) minus the log-prior of theta
+    (:class:`railtherm.estimation.priors.LogPrior`), by L-BFGS-B within the bounds from the
+    least-squares optimum and from the prior's centre (the better of the two). The residuals
+    of a simulation error are coloured: with the HAC covariance they count as m / tau
+    independent samples, tau the mean ratio of the HAC to the iid variance of the unknowns
+    at the least-squares optimum (at least 1; 1 with the iid covariance), so that the data
+    weigh against the prior as much as the intervals say they inform. Returns the solution
+    and the likelihood's weight m / tau."""
+    from scipy.optimize import minimize  # on first use: a job's start-up
+
+    v_ls = np.clip(sol.x, lo, hi)
+    tau = 1.0
+    if covariance == "hac":
+        r, J = prob.residuals(v_ls), prob.jacobian(v_ls)
+        _, Vt, null, inv_s, _ = _singular(J, prob.P)
+        meat = _hac_meat(prob, r, J)[0]
+        var_hac = np.diag(hac.sandwich(Vt, inv_s, meat))
+        var_iid = float(r @ r) / max(prob.m - J.shape[1], 1) * np.diag((Vt.T * inv_s**2) @ Vt)
+        ok = (var_iid > 0) & np.isfinite(var_hac) & (var_hac > 0)
+        if ok.any():
+            tau = max(1.0, float(np.mean(var_hac[ok] / var_iid[ok])))
+    weight = prob.m / tau
+    counts = {"nfev": 0}
+
+    def criterion(w):
+        counts["nfev"] += 1
+        r = prob.residuals(w)
+        ssr = float(r @ r)
+        lp, gp, _ = prior.evaluate(w)
+        if not (math.isfinite(ssr) and math.isfinite(lp)) or ssr <= 0:
+            return math.inf, np.zeros(len(w))
+        J = prob.jacobian(w)
+        return 0.5 * weight * math.log(ssr) - lp, weight * (J.T @ r) / ssr - gp
+
+    # from the least-squares optimum and from the prior's centre (where the records alone
+    # leave a parameter at a bound or on a ridge, the posterior's mode may lie far from it)
+    res = None
+    for start in (v_ls, np.clip(prior.centre(v_ls), lo, hi)):
+        if not math.isfinite(criterion(start)[0]):
+            continue
+        trial = minimize(
+            criterion,
+            start,
+            jac=True,
+            method="L-BFGS-B",
+            bounds=list(zip(lo, hi, strict=True)),
+            options={"maxiter": 2000, "ftol": 1e-15, "gtol": 1e-10 * max(weight, 1.0)},
+        )
+        if res is None or trial.fun < res.fun:
+            res = trial
+    if res is None:
+        raise ValueError("the posterior cannot be evaluated at the least-squares optimum")
+    # L-BFGS-B may end its line search at the optimum, where the criterion's rounding stalls
+    # it: converged as well when the gradient left (within the bounds) is negligible, a
+    # Newton step of at most 1e-6 in every log parameter (the criterion's curvature is at
+    # least the likelihood's weight times the squared relative sensitivities)
+    g = np.array(res.jac, dtype=float)
+    g[(res.x <= lo) & (g > 0)] = 0.0
+    g[(res.x >= hi) & (g < 0)] = 0.0
+    converged = bool(res.success) or float(np.max(np.abs(g), initial=0.0)) <= 1e-6 * weight
+    return (
+        SimpleNamespace(
+            x=res.x,
+            fun=prob.residuals(res.x),
+            success=converged,
+            status=1 if converged else 0,
+            nfev=int(sol.nfev) + counts["nfev"],
+            njev=int(sol.njev or 0) + counts["nfev"],
+            active_mask=np.where(res.x <= lo, -1, np.where(res.x >= hi, 1, 0)),
+            message=f"maximum a posteriori (L-BFGS-B, the better of two starts): {res.message}",
+        ),
+        weight,
+    )
 
 
 def _check_arguments(structure, experiments, fixed, x0: str, covariance: str, start: str) -> None:
@@ -960,8 +1058,26 @@ def _scale_aware_start(
 
 
 def _result(
-    structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy, box
+    structure,
+    prob,
+    sol,
+    v,
+    r,
+    J,
+    covariance,
+    start_used,
+    costs,
+    outputs,
+    bnds,
+    noisy,
+    box,
+    posterior=None,
 ):
+    """The :class:`FitResult` at ``v``. ``posterior``: (the log-prior, the likelihood's
+    weight) of a MAP estimate (:func:`_maximum_a_posteriori`), whose covariance is the
+    estimator's (HAC or iid) with the prior's curvature added to its information (the
+    Laplace approximation of the posterior); a direction neither the data nor a prior
+    determine keeps an infinite variance."""
     P, m = prob.P, prob.m
     p_all = J.shape[1]
     ssr = float(r @ r)
@@ -982,6 +1098,8 @@ def _result(
             v = moved
             r = prob.residuals(v)
             ssr = float(r @ r)
+    if posterior is not None:
+        cov, null, Vt = _with_prior(cov, null, Vt, posterior[0], v)
     var = np.diag(cov)[:P].copy()
     # directions the data do not determine: infinite variance for the parameters on them
     if null.any():
@@ -1033,6 +1151,22 @@ def _result(
         bandwidths=bandwidths,
         input_noise_sd=input_sd,
     )
+
+
+def _with_prior(cov: np.ndarray, null: np.ndarray, Vt: np.ndarray, prior: LogPrior, v):
+    """The covariance with the prior's curvature at ``v`` added to the information, with the
+    null directions of that sum and its eigenvectors (rows), as :func:`_singular` gives
+    them for :func:`_result`. The information is the inverse of ``cov`` on the directions
+    the data determine (``Vt``'s rows off ``null``); a direction of the sum whose
+    eigenvalue is below INFO_NULL of the largest is determined by neither."""
+    seen = Vt[~null]
+    info = seen.T @ np.linalg.pinv(seen @ cov @ seen.T, hermitian=True) @ seen
+    info = info + prior.information(v)
+    ev, vec = np.linalg.eigh((info + info.T) / 2.0)
+    top = float(ev.max()) if ev.size else 0.0
+    null = ev <= INFO_NULL * top if top > 0 else np.ones(ev.shape, bool)
+    inv = np.where(null, 0.0, 1.0 / np.where(null, 1.0, ev))
+    return (vec * inv) @ vec.T, null, vec.T
 
 
 def _singular(J: np.ndarray, P: int):

@@ -158,7 +158,10 @@ def systematic_budget(
     coefficient times u). The sources are independent, so their effects add in quadrature
     (:func:`combine_uncertainty`); the signed effects are kept for ratios such as delta."""
     warm = {**options, "initial": {p: result.theta[p] for p in result.free}, "start": "initial"}
-    warm["covariance"] = "iid"
+    if not options.get("priors"):
+        # only the point estimate is needed; a MAP estimate keeps its covariance setting,
+        # which sets its likelihood's weight against the prior (pem._maximum_a_posteriori)
+        warm["covariance"] = "iid"
     effects: dict[str, dict[str, float]] = {p: {} for p in result.free}
     # the same sources' effect on kA where the static test fixes it (eq. 10): with the free
     # parameters' effects, the joint distribution a prediction samples (railtherm.study.simulate)

@@ -58,6 +58,7 @@ import yaml
 from railtherm import structures
 from railtherm.errors import ConfigError
 from railtherm.estimation import pem
+from railtherm.estimation.priors import LinearT
 from railtherm.study import identifiability, quality
 from railtherm.study.fit import Fit, write_yaml
 from railtherm.yamlio import packaged_schema, read_yaml, validate_schema
@@ -570,6 +571,36 @@ class ReferenceModel:
             "K_veh": g["kappa_veh"].centre * self.surface_m2,
             "C_veh": C_veh,
         }
+
+    def prior_terms(self) -> list[LinearT]:
+        """The class as a prior of a vehicle's second-order fit: each generalised parameter's
+        predictive distribution for one new vehicle of the class (log centre + sd_log
+        sqrt(1 + 1/n) T_{n-1}, as :meth:`draws` samples it) as a term on the fit's log
+        parameters - c_veh: log C_veh - log m (eq. 24); delta: log C_veh - log C (eq. 25);
+        kappa_veh: log K_veh - log A; k: log kA - log A (none when k is given). The four
+        map (kA, C, K_veh, C_veh) one to one, so together they are the joint density of the
+        vehicle's parameters that :meth:`draws` samples
+        (:class:`railtherm.estimation.priors.LogPrior`)."""
+        g = self.generalised
+        log_m, log_A = math.log(self.mass_kg), math.log(self.surface_m2)
+        combos = {
+            "c_veh": ((("C_veh", 1.0),), -log_m),
+            "delta": ((("C_veh", 1.0), ("C", -1.0)), 0.0),
+            "kappa_veh": ((("K_veh", 1.0),), -log_A),
+            "k": ((("kA", 1.0),), -log_A),
+        }
+        return [
+            LinearT(
+                name=f"class:{name}",
+                weights=weights,
+                offset=offset,
+                centre_log=math.log(g[name].centre),
+                scale=g[name].scale,
+                dof=float(g[name].dof),
+            )
+            for name, (weights, offset) in combos.items()
+            if not (name == "k" and self.k_given is not None)
+        ]
 
     def _log_draws(self, n: int, seed: int) -> dict[str, np.ndarray]:
         """The logs of :meth:`draws` (sums of logs: no overflow however heavy the tails)."""

@@ -21,6 +21,7 @@ from railtherm.data import ingest
 from railtherm.errors import ConfigError, DataError
 from railtherm.estimation import models, pem
 from railtherm.estimation.kvalue import sensor_counts, sensor_u_K
+from railtherm.estimation.priors import prior_from_config
 from railtherm.study.quality import RHO_CP_AIR
 
 KA_BOUNDS = (1.0, 1.0e5)  # W/K, for joint estimation when the config gives none nor a scale
@@ -460,7 +461,24 @@ def stage_two_options(
         "covariance": model.get("covariance", "hac"),
         "start": model.get("start", "auto"),
     }
+    priors = model_priors(structure, model, estimator)
+    if priors:  # with none the options are the maximum-likelihood fit's, as before
+        options["priors"] = priors
     return options, k_source, notes
+
+
+def model_priors(structure, model: Mapping[str, Any], estimator: str) -> dict[str, Any]:
+    """The priors of ``model.priors`` (:class:`railtherm.estimation.priors.Prior`) that the
+    fit of ``structure`` by ``estimator`` can use: its parameters, and for the kalman
+    estimator its noise parameters (``sigma_<state>``, ``s_<output>``)."""
+    names = set(structure.parameters)
+    if estimator == "kalman":
+        names |= {f"sigma_{s}" for s in structure.states} | {f"s_{s}" for s in structure.states}
+    return {
+        name: prior_from_config(spec, f"model.priors.{name}")
+        for name, spec in (model.get("priors") or {}).items()
+        if name in names
+    }
 
 
 # the records contradict the two-stage fit when an estimate of the joint fit differs from it

@@ -20,6 +20,7 @@ import pandas as pd
 from railtherm.data import plausibility as units_plausibility
 from railtherm.errors import ConfigError
 from railtherm.estimation import common, metrics, models, pem
+from railtherm.estimation.priors import LinearT
 from railtherm.records import EstimateRecord, JudgedEstimate, ParameterEstimate
 from railtherm.study import identifiability
 from railtherm.study.budget import combine_uncertainty, systematic_budget
@@ -257,6 +258,7 @@ def identify(
     kvalue: Mapping[str, Any] | None,
     order: int,
     storage: Mapping[str, Any] | None = None,
+    prior_terms: Sequence[LinearT] = (),
 ) -> tuple[EstimateRecord, pd.DataFrame]:
     """Fit the model of ``order`` to all identification windows jointly (one parameter set,
     own initial states); cross-validate when there are two or more windows.
@@ -264,7 +266,9 @@ def identify(
     ``storage``: the storage-corrected k of the vehicle (:func:`storage_corrected_k`); where
     it is applied, its kA is the one held fixed (first- and second-order fits alike) and its
     uncertainty replaces the k stage's storage bound in the type-B budget. Without it (or not
-    applied) kA is that of eq. 10.
+    applied) kA is that of eq. 10. ``prior_terms``: joint prior terms on the model's log
+    parameters (the class as a prior,
+    :meth:`railtherm.study.classmodel.ReferenceModel.prior_terms`): a MAP fit (docs/bayes.md).
 
     Returns the estimate (:class:`~railtherm.records.EstimateRecord`, the content of
     identify/<model>.yaml) and the series table (per window: time,
@@ -275,6 +279,8 @@ def identify(
     outputs = compared_outputs(structure, vehicle_data, tables)
     estimator = split_key(order)[1]
     options, k_source, notes = stage_two_options(structure, vehicle_data, kvalue, tables, estimator)
+    if prior_terms:
+        options["prior_terms"] = list(prior_terms)
     fixed = options["fixed"]
     applied = bool(storage and storage.get("applied")) and "kA" in fixed
     if applied:
