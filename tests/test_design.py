@@ -3,6 +3,8 @@ of records simulated from a declared truth, and the programme file's checks."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 import yaml
@@ -97,9 +99,10 @@ def two_stage_storage_corrected(record, window, start):
         balance = kvalue.storage_corrected_kA(window, theta["C"], theta["K_veh"], theta["C_veh"])
         return balance.kA / kA - 1.0
 
-    kA0 = start["kA"]
-    root = root_scalar(gap, x0=kA0, x1=kA0 * 1.001, method="secant", xtol=1e-6 * kA0)
-    return fitted(root.root), root.root
+    # the secant steps in log kA: a steep alternation cannot step to a kA <= 0
+    x0 = math.log(start["kA"])
+    root = root_scalar(lambda x: gap(math.exp(x)), x0=x0, x1=x0 + 1e-3, method="secant", xtol=1e-6)
+    return fitted(math.exp(root.root)), math.exp(root.root)
 
 
 SLOW_BODY = {"kA": 400.0, "C": 3.0e5, "K_veh": 250.0, "C_veh": 6.0e6}  # C_veh / K_veh 6.7 h

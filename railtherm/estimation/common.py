@@ -320,3 +320,58 @@ def fit_flags(sol, v, th, free, ci, corr, cond, bnds) -> list[Flag]:
             )
         )
     return flags
+
+
+def heat_balance_kA(experiments: Sequence[Experiment]) -> float:
+    """The overall heat-loss coefficient from the heat balance of the records (the idea of
+    eq. 10 applied to the identification windows, which need not be steady): the heat
+    supplied up to each time t against the losses and the air node's storage,
+
+        integral_0^t Q_H dt = kA integral_0^t (T - T_o) dt + C_bar (T(t) - T(0)),
+
+    by least squares over every t of every window (T interpolated over missing rows). On a
+    steady window the storage term vanishes and this is eq. 10: kA = mean Q_H / mean
+    (T - T_o). Heat going into an unmeasured body and unmodelled gains still bias it; as
+    the centre of a start grid it need only be right to a factor of a few. NaN when the
+    records give no positive kA (no heated record)."""
+    rows = []
+    for e in experiments:
+        T = e.y[:, 0].copy()
+        ok = np.isfinite(T)
+        if ok.sum() < 3:
+            continue
+        T = np.interp(np.arange(len(T)), np.flatnonzero(ok), T[ok])
+        u = e.step_u
+        losses = (T[1:] + T[:-1]) / 2.0 - u[:-1, 0]  # over each step, as the model holds u
+        heat = np.concatenate([[0.0], np.cumsum(u[:-1, 1] * e.dt)])
+        loss = np.concatenate([[0.0], np.cumsum(losses * e.dt)])
+        rows.append(np.column_stack([loss, T - T[0], heat]))
+    if not rows:
+        return math.nan
+    X = np.concatenate(rows)
+    if np.isfinite(X).all():
+        kA = float(np.linalg.lstsq(X[:, :2], X[:, 2], rcond=None)[0][0])
+        if kA > 0 and math.isfinite(kA):
+            return kA
+    # the storage term taken as zero: eq. 10 over the whole records
+    q, loss = sum(float(r[-1, 2]) for r in rows), sum(float(r[-1, 0]) for r in rows)
+    return q / loss if q > 0 and loss > 0 and math.isfinite(q / loss) else math.nan
+
+
+def lumped_capacity(experiments: Sequence[Experiment], kA: float) -> float:
+    """C_bar of eq. 9 by equation error, kA given: C_bar dT/dt = Q_H - kA (T - T_o), with
+    dT/dt ~ (T[n+1] - T[n]) / dt and T at the step midpoint, the discretisation of
+    :func:`equation_error_start` (its noise is uncorrelated with the regressor). The slope of
+    dT/dt on the net heat z = Q_H - kA (T - T_o) through the origin is 1 / C_bar. With an
+    unmeasured body the one capacity lies between the air node's and the sum of all; it
+    sets the time constant C_bar / kA of a start. NaN when the regression gives none."""
+    szz = szd = 0.0
+    for e in experiments:
+        T = e.y[:, 0]
+        d = (T[1:] - T[:-1]) / e.dt
+        u = e.step_u
+        z = u[:-1, 1] - kA * ((T[1:] + T[:-1]) / 2.0 - u[:-1, 0])
+        ok = np.isfinite(d) & np.isfinite(z)
+        szz += float(z[ok] @ z[ok])
+        szd += float(z[ok] @ d[ok])
+    return szz / szd if szd > 0 and szz > 0 else math.nan

@@ -232,7 +232,43 @@ def _finite_information(Hk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @common.single_threaded_blas
-def fit(
+def fit(structure: Structure, experiments: Sequence[Experiment], **options: Any) -> KalmanResult:
+    """Maximum-likelihood (or, with priors, maximum a posteriori) fit of the stochastic model
+    of ``structure`` to ``experiments`` jointly: :func:`fit_with_density`'s estimate, whose
+    options it takes."""
+    return fit_with_density(structure, experiments, **options)[0]
+
+
+@dataclass
+class Density:
+    """The log density a posterior sampler explores (:mod:`railtherm.estimation.sampling`):
+    over the fit's unknowns ``names`` (the first ``n_log`` held as logarithms: the free
+    parameters and noise parameters; then offsets and initial states in K), within the
+    bounds ``lo``, ``hi``; ``v`` the fit's estimate. :meth:`log_density` is -NLL plus each
+    prior's log density of theta carried to the log parameter (the log Jacobian added);
+    an unknown without a prior is flat in the way the fit holds it."""
+
+    lik: Likelihood
+    prior: LogPrior
+    names: tuple[str, ...]
+    n_log: int
+    lo: np.ndarray
+    hi: np.ndarray
+    v: np.ndarray
+
+    def log_density(self, v: np.ndarray) -> tuple[float, np.ndarray]:
+        """(log density up to a constant, its gradient); -inf outside the bounds or where
+        the model cannot be evaluated."""
+        if np.any(v < self.lo) or np.any(v > self.hi):
+            return -math.inf, np.zeros(len(v))
+        nll, g, _ = self.lik.evaluate(v, 1)
+        lp, gp, _ = self.prior.evaluate(v, jacobian=True)
+        if not (math.isfinite(nll) and math.isfinite(lp)) or g is None:
+            return -math.inf, np.zeros(len(v))
+        return -nll + lp, gp - g
+
+
+def fit_with_density(
     structure: Structure,
     experiments: Sequence[Experiment],
     *,
@@ -247,9 +283,10 @@ def fit(
     offsets: Mapping[str, float] | None = None,
     priors: Mapping[str, Prior] | None = None,
     prior_terms: Sequence[LinearT] = (),
-) -> KalmanResult:
-    """Maximum-likelihood fit of the stochastic model of ``structure`` to ``experiments``
-    jointly (shared parameters, each experiment its own initial state).
+) -> tuple[KalmanResult, Density]:
+    """The fit and the posterior's :class:`Density` at it: the maximum-likelihood fit of the
+    stochastic model of ``structure`` to ``experiments`` jointly (shared parameters, each
+    experiment its own initial state).
 
     fixed / initial / bounds: as :func:`railtherm.estimation.pem.fit` for the structure's
     parameters, and may also name the noise parameters of :func:`noise_names` (``sigma_<state>`` in
@@ -269,10 +306,11 @@ def fit(
     Gaussian prior b ~ N(0, sd^2): the calibration offset of a sensor group relative to the
     others, which the filter would otherwise explain by diffusions (``b_<output>``).
     priors: {parameter: :class:`railtherm.estimation.priors.Prior`} of the structure's free
-    parameters or the noise parameters (``sigma_<state>``, ``s_<output>``, in their units
-    K/sqrt(s) and K^2): the maximum a posteriori estimate instead (NLL minus the log-prior of theta,
-    :class:`_Posterior`, searched from the start and from the prior's centre), its
-    covariance the inverse Hessian of that criterion (the Laplace approximation of the
+    parameters, the noise parameters (``sigma_<state>``, ``s_<output>``, in their units
+    K/sqrt(s) and K^2) or the estimated initial states (``x0_<state>``, K, normal or
+    uniform; in every record): the maximum a posteriori estimate instead (NLL minus the
+    log-prior, :class:`_Posterior`, searched from the start and from the prior's centre),
+    its covariance the inverse Hessian of that criterion (the Laplace approximation of the
     posterior); without priors the maximum-likelihood estimate.
     prior_terms: joint prior terms on the log parameters (a class reference model's,
     :meth:`railtherm.study.classmodel.ReferenceModel.prior_terms`), MAP alike.
@@ -285,12 +323,12 @@ def fit(
     if not experiments:
         raise ValueError("fit needs at least one experiment")
     outputs = common.compared_outputs(structure, experiments, outputs)
-    out_idx = tuple(structure.states.index(s) for s in outputs)
     noise = noise_names(structure, outputs)
     offsets = _checked_offsets(offsets, outputs)
     fixed_p, fixed_n = _split(fixed, structure, noise)
     initial_p, initial_n = _split(initial, structure, noise)
     bounds_p, bounds_n = _split(bounds, structure, noise)
+    noise_n = (fixed_n, initial_n)
     if any(v < 0 or not math.isfinite(v) for v in fixed_n.values()):
         raise ValueError(f"fixed noise parameters must be finite and >= 0, got {fixed_n}")
 
@@ -310,27 +348,12 @@ def fit(
     free = oe.free
     bnds = dict(structure.bounds)
     bnds.update({p: (float(b[0]), float(b[1])) for p, b in bounds_p.items()})
-    dt = float(np.median([e.dt for e in experiments]))
-    sigma, meas_var = _noise_start(
-        structure, outputs, oe, out_idx, dt, sigma_initial, fixed_n, initial_n
-    )
-    sigma_free = tuple(i for i, s in enumerate(structure.states) if f"sigma_{s}" not in fixed_n)
-    meas_var_free = tuple(j for j, o in enumerate(outputs) if f"s_{o}" not in fixed_n)
-    lik = Likelihood(
-        structure,
-        experiments,
-        oe.fixed,
-        free,
-        sigma,
-        sigma_free,
-        meas_var,
-        meas_var_free,
-        out_idx,
-        x0,
-        {outputs.index(o): float(sd) for o, sd in offsets.items()},
-    )
+    lik = _likelihood(structure, experiments, oe, outputs, x0, offsets, sigma_initial, noise_n)
     names, lo, hi = _unknowns(structure, outputs, experiments, lik, free, bnds, bounds_n)
-    prior = LogPrior(names[: lik.Qn], priors or {}, prior_terms)  # log parameters and noise
+    # on the log parameters and log noise; an initial state's prior (x0_<state>) on its
+    # value in every record
+    raw = [(i, name.split("[")[0]) for i, name in enumerate(names) if i >= lik.Qg]
+    prior = LogPrior(names[: lik.Qn], priors or {}, prior_terms, raw)
     target: Likelihood | _Posterior = lik
     if prior:
         lo, hi = prior.bounds(lo, hi)
@@ -341,24 +364,11 @@ def fit(
     def clip(v: np.ndarray) -> np.ndarray:
         return np.clip(v, lo + margin, hi - margin)
 
-    v0 = np.concatenate(
-        [
-            np.log([oe.theta[p] for p in free]),
-            np.log(sigma[list(sigma_free)]),
-            np.log(meas_var[list(meas_var_free)]),
-            np.zeros(len(lik.offset_out)),
-        ]
-        + [x[d.x0_free] for x, d in zip(oe.x0, lik.data, strict=True)]
-    )
-    v0 = clip(v0)
+    v0 = clip(_start_vector(lik, oe))
     start_cost = lik.evaluate(v0, 0)[0]
     if not math.isfinite(start_cost):
-        raise NotEvaluable(structure, oe.theta, dt)
-    sol = _optimise(target, v0, lo, hi, clip)
-    if prior:  # the posterior's mode may lie far from the likelihood's: a second start
-        other = _optimise(target, clip(prior.centre(v0)), lo, hi, clip)
-        if other.fun < sol.fun:
-            sol = other
+        raise NotEvaluable(structure, oe.theta, float(np.median([e.dt for e in experiments])))
+    sol = _search(target, prior, v0, lo, hi, clip)
     v = sol.x
     H = _hessian(target, v, _gradient(target, v))
     levels = common.noise_levels(structure, input_noise or {}, experiments)
@@ -370,12 +380,67 @@ def fit(
     )  # fmt: skip
     _one_step_series(result, lik, v_ml)  # the one-step predictor is the estimate's
     result.input_noise_sd = [dict(level) for level in levels] if any(levels) else []
-    if prior:  # the criterion was the posterior's: the likelihood is reported apart
-        nll = float(lik.evaluate(v, 0)[0])
-        result.cost, result.loglik = nll, -nll
-        result.priors = prior.to_dict()
-        result.log_prior = float(prior.evaluate(v)[0])
-    return result
+    if prior:
+        _posterior_terms(result, lik, prior, v)
+    return result, Density(lik, prior, tuple(names), lik.Qn, lo, hi, np.array(v, dtype=float))
+
+
+def _likelihood(structure, experiments, oe, outputs, x0, offsets, sigma_initial, noise_n):
+    """The filter's :class:`Likelihood` with the noise parameters started from the
+    output-error fit ``oe`` (:func:`_noise_start`); ``noise_n``: the fixed and initial
+    noise parameters given (:func:`fit_with_density`)."""
+    fixed_n, initial_n = noise_n
+    out_idx = tuple(structure.states.index(s) for s in outputs)
+    dt = float(np.median([e.dt for e in experiments]))
+    sigma, meas_var = _noise_start(
+        structure, outputs, oe, out_idx, dt, sigma_initial, fixed_n, initial_n
+    )
+    return Likelihood(
+        structure,
+        experiments,
+        oe.fixed,
+        oe.free,
+        sigma,
+        tuple(i for i, s in enumerate(structure.states) if f"sigma_{s}" not in fixed_n),
+        meas_var,
+        tuple(j for j, o in enumerate(outputs) if f"s_{o}" not in fixed_n),
+        out_idx,
+        x0,
+        {outputs.index(o): float(sd) for o, sd in offsets.items()},
+    )
+
+
+def _start_vector(lik: Likelihood, oe) -> np.ndarray:
+    """The unknowns at the start: the output-error estimate, the noise start, zero
+    offsets and the output-error fit's initial states."""
+    return np.concatenate(
+        [
+            np.log([oe.theta[p] for p in lik.free]),
+            np.log(lik.sigma0[list(lik.sigma_free)]),
+            np.log(lik.meas_var0[list(lik.meas_var_free)]),
+            np.zeros(len(lik.offset_out)),
+        ]
+        + [x[d.x0_free] for x, d in zip(oe.x0, lik.data, strict=True)]
+    )
+
+
+def _search(target, prior: LogPrior, v0: np.ndarray, lo, hi, clip) -> SimpleNamespace:
+    """:func:`_optimise` from ``v0``; with a prior also from the prior's centre (the
+    posterior's mode may lie far from the likelihood's), the better of the two."""
+    sol = _optimise(target, v0, lo, hi, clip)
+    if prior:
+        other = _optimise(target, clip(prior.centre(v0)), lo, hi, clip)
+        if other.fun < sol.fun:
+            sol = other
+    return sol
+
+
+def _posterior_terms(result: KalmanResult, lik: Likelihood, prior: LogPrior, v) -> None:
+    """A MAP result's likelihood (its criterion was the posterior's), priors and log-prior."""
+    nll = float(lik.evaluate(v, 0)[0])
+    result.cost, result.loglik = nll, -nll
+    result.priors = prior.to_dict()
+    result.log_prior = float(prior.evaluate(v)[0])
 
 
 class _Posterior:

@@ -44,14 +44,16 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from railtherm.estimation import hac, models, solver
+from railtherm.estimation import hac, leastsquares_map, models, solver
 from railtherm.estimation.common import (
     NULL_REL,
     Z95,
     Experiment,
     compared_outputs,
     fit_flags,
+    heat_balance_kA,
     identification,
+    lumped_capacity,
     measured_range,
     noise_levels,
     one_hold,
@@ -80,7 +82,6 @@ KA_FACTORS = (1.0 / 3.0, 1.0, 3.0)  # ... and around the heat balance's overall 
 START_KEEP = 3  # grid points refined
 RANK_SAMPLES = 500  # samples per experiment of the block-averaged copy the grid is ranked on
 COARSE_SAMPLES = 2000  # ... and of the copy the best grid points are refined on
-INFO_NULL = 1e-14  # a MAP estimate's information: eigenvalues below this (relative) are null
 
 
 def experiment_from_table(
@@ -658,9 +659,9 @@ def fit(
     simulation of :mod:`railtherm.estimation.loops` (numba, whose import a fit by output error
     alone need not pay; the Kalman fit, which loads it anyway, asks for it); the same costs.
     priors: {free parameter: :class:`railtherm.estimation.priors.Prior`}: the maximum a
-    posteriori estimate (:func:`_maximum_a_posteriori`) from the least-squares optimum;
-    without priors the least-squares (maximum-likelihood) estimate. prior_terms: joint
-    prior terms on the log parameters (a class reference model's), MAP alike.
+    posteriori estimate (:mod:`railtherm.estimation.leastsquares_map`) from the
+    least-squares optimum; without priors the least-squares (maximum-likelihood) estimate.
+    prior_terms: joint prior terms on the log parameters (a class reference model's).
     """
     fixed = {p: float(v) for p, v in (fixed or {}).items()}
     experiments = list(experiments)
@@ -721,119 +722,43 @@ def fit(
 
     lo = np.concatenate([lb, prob.x0_lo])
     hi = np.concatenate([ub, prob.x0_hi])
+    posterior = None
     if prob.P + prob.n_x0 == 0:  # every parameter and initial state given: evaluate only
-        r = prob.residuals(v0)
         sol = SimpleNamespace(
-            x=v0,
-            fun=r,
-            success=True,
-            status=1,
-            nfev=1,
-            njev=0,
+            x=v0, fun=prob.residuals(v0), success=True, status=1, nfev=1, njev=0,
             active_mask=np.zeros(0, int),
             message="nothing to estimate: every parameter and initial state is given",
-        )
-        J = np.zeros((prob.m, 0))
-        return _result(
-            structure, prob, sol, v0, r, J, covariance, start_used, costs, outputs, bnds, noisy,
-            (lo, hi),
         )  # fmt: skip
-    sol = _minimise(prob, v0, lo, hi, max_nfev)
-    weight = None
-    if prior:
-        sol, weight = _maximum_a_posteriori(prob, sol, prior, lo, hi, covariance)
+    else:
+        sol = _minimise(prob, v0, lo, hi, max_nfev)
+    if prior and prob.P + prob.n_x0:
+        posterior = (prior, _likelihood_weight(prob, sol, lo, hi, covariance))
+        sol = leastsquares_map.search(prob.residuals, prob.jacobian, sol, *posterior, lo, hi)
     v = sol.x
     r = prob.residuals(v)
-    J = prob.jacobian(v)  # cached: the solver evaluated it at sol.x
-    result = _result(
+    J = prob.jacobian(v) if len(v) else np.zeros((prob.m, 0))  # cached: the solver's last
+    return _result(
         structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy,
-        (lo, hi), None if weight is None else (prior, weight),
+        (lo, hi), posterior,
     )  # fmt: skip
-    if prior:
-        result.priors = prior.to_dict()
-        result.log_prior = float(prior.evaluate(sol.x)[0])
-    return result
 
 
-def _maximum_a_posteriori(prob, sol, prior: LogPrior, lo, hi, covariance: str):
-    """The MAP estimate from the least-squares optimum ``sol``: the minimum of
-
-        (m / (2 tau)) log(e^T e) - log p(theta),
-
-    the simulation error's Gaussian likelihood with its variance profiled out (eq. 17's
-    criterion, m compared samples) minus the log-prior of theta
-    (:class:`railtherm.estimation.priors.LogPrior`), by L-BFGS-B within the bounds from the
-    least-squares optimum and from the prior's centre (the better of the two). The residuals
-    of a simulation error are coloured: with the HAC covariance they count as m / tau
-    independent samples, tau the mean ratio of the HAC to the iid variance of the unknowns
-    at the least-squares optimum (at least 1; 1 with the iid covariance), so that the data
-    weigh against the prior as much as the intervals say they inform. Returns the solution
-    and the likelihood's weight m / tau."""
-    from scipy.optimize import minimize  # on first use: a job's start-up
-
-    v_ls = np.clip(sol.x, lo, hi)
-    tau = 1.0
-    if covariance == "hac":
-        r, J = prob.residuals(v_ls), prob.jacobian(v_ls)
-        _, Vt, null, inv_s, _ = _singular(J, prob.P)
-        meat = _hac_meat(prob, r, J)[0]
-        var_hac = np.diag(hac.sandwich(Vt, inv_s, meat))
-        var_iid = float(r @ r) / max(prob.m - J.shape[1], 1) * np.diag((Vt.T * inv_s**2) @ Vt)
-        ok = (var_iid > 0) & np.isfinite(var_hac) & (var_hac > 0)
-        if ok.any():
-            tau = max(1.0, float(np.mean(var_hac[ok] / var_iid[ok])))
-    weight = prob.m / tau
-    counts = {"nfev": 0}
-
-    def criterion(w):
-        counts["nfev"] += 1
-        r = prob.residuals(w)
-        ssr = float(r @ r)
-        lp, gp, _ = prior.evaluate(w)
-        if not (math.isfinite(ssr) and math.isfinite(lp)) or ssr <= 0:
-            return math.inf, np.zeros(len(w))
-        J = prob.jacobian(w)
-        return 0.5 * weight * math.log(ssr) - lp, weight * (J.T @ r) / ssr - gp
-
-    # from the least-squares optimum and from the prior's centre (where the records alone
-    # leave a parameter at a bound or on a ridge, the posterior's mode may lie far from it)
-    res = None
-    for start in (v_ls, np.clip(prior.centre(v_ls), lo, hi)):
-        if not math.isfinite(criterion(start)[0]):
-            continue
-        trial = minimize(
-            criterion,
-            start,
-            jac=True,
-            method="L-BFGS-B",
-            bounds=list(zip(lo, hi, strict=True)),
-            options={"maxiter": 2000, "ftol": 1e-15, "gtol": 1e-10 * max(weight, 1.0)},
-        )
-        if res is None or trial.fun < res.fun:
-            res = trial
-    if res is None:
-        raise ValueError("the posterior cannot be evaluated at the least-squares optimum")
-    # L-BFGS-B may end its line search at the optimum, where the criterion's rounding stalls
-    # it: converged as well when the gradient left (within the bounds) is negligible, a
-    # Newton step of at most 1e-6 in every log parameter (the criterion's curvature is at
-    # least the likelihood's weight times the squared relative sensitivities)
-    g = np.array(res.jac, dtype=float)
-    g[(res.x <= lo) & (g > 0)] = 0.0
-    g[(res.x >= hi) & (g < 0)] = 0.0
-    converged = bool(res.success) or float(np.max(np.abs(g), initial=0.0)) <= 1e-6 * weight
-    return (
-        SimpleNamespace(
-            x=res.x,
-            fun=prob.residuals(res.x),
-            success=converged,
-            status=1 if converged else 0,
-            nfev=int(sol.nfev) + counts["nfev"],
-            njev=int(sol.njev or 0) + counts["nfev"],
-            active_mask=np.where(res.x <= lo, -1, np.where(res.x >= hi, 1, 0)),
-            message=f"maximum a posteriori (L-BFGS-B, the better of two starts): {res.message}",
-        ),
-        weight,
-    )
+def _likelihood_weight(prob, sol, lo, hi, covariance: str) -> float:
+    """How many independent samples the simulation error's residuals count as for a MAP
+    estimate (:func:`railtherm.estimation.leastsquares_map.search`): m / tau, tau the mean
+    ratio of the HAC to the iid variance of the unknowns at the least-squares optimum (at
+    least 1; 1 with the iid covariance), so that the records weigh against the prior as
+    much as their intervals say they inform."""
+    if covariance != "hac":
+        return float(prob.m)
+    v = np.clip(sol.x, lo, hi)
+    r, J = prob.residuals(v), prob.jacobian(v)
+    _, Vt, _, inv_s, _ = _singular(J, prob.P)
+    var_hac = np.diag(hac.sandwich(Vt, inv_s, _hac_meat(prob, r, J)[0]))
+    var_iid = float(r @ r) / max(prob.m - J.shape[1], 1) * np.diag((Vt.T * inv_s**2) @ Vt)
+    ok = (var_iid > 0) & np.isfinite(var_hac) & (var_hac > 0)
+    tau = max(1.0, float(np.mean(var_hac[ok] / var_iid[ok]))) if ok.any() else 1.0
+    return prob.m / tau
 
 
 def _check_arguments(structure, experiments, fixed, x0: str, covariance: str, start: str) -> None:
@@ -890,61 +815,6 @@ def _minimise(prob, v0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_nfev: in
         sol.nfev += first.nfev
         sol.njev = (sol.njev or 0) + (first.njev or 0)
     return sol
-
-
-def heat_balance_kA(experiments: Sequence[Experiment]) -> float:
-    """The overall heat-loss coefficient from the heat balance of the records (the idea of
-    eq. 10 applied to the identification windows, which need not be steady): the heat
-    supplied up to each time t against the losses and the air node's storage,
-
-        integral_0^t Q_H dt = kA integral_0^t (T - T_o) dt + C_bar (T(t) - T(0)),
-
-    by least squares over every t of every window (T interpolated over missing rows). On a
-    steady window the storage term vanishes and this is eq. 10: kA = mean Q_H / mean
-    (T - T_o). Heat going into an unmeasured body and unmodelled gains still bias it; as
-    the centre of a start grid it need only be right to a factor of a few. NaN when the
-    records give no positive kA (no heated record)."""
-    rows = []
-    for e in experiments:
-        T = e.y[:, 0].copy()
-        ok = np.isfinite(T)
-        if ok.sum() < 3:
-            continue
-        T = np.interp(np.arange(len(T)), np.flatnonzero(ok), T[ok])
-        u = e.step_u
-        losses = (T[1:] + T[:-1]) / 2.0 - u[:-1, 0]  # over each step, as the model holds u
-        heat = np.concatenate([[0.0], np.cumsum(u[:-1, 1] * e.dt)])
-        loss = np.concatenate([[0.0], np.cumsum(losses * e.dt)])
-        rows.append(np.column_stack([loss, T - T[0], heat]))
-    if not rows:
-        return math.nan
-    X = np.concatenate(rows)
-    if np.isfinite(X).all():
-        kA = float(np.linalg.lstsq(X[:, :2], X[:, 2], rcond=None)[0][0])
-        if kA > 0 and math.isfinite(kA):
-            return kA
-    # the storage term taken as zero: eq. 10 over the whole records
-    q, loss = sum(float(r[-1, 2]) for r in rows), sum(float(r[-1, 0]) for r in rows)
-    return q / loss if q > 0 and loss > 0 and math.isfinite(q / loss) else math.nan
-
-
-def lumped_capacity(experiments: Sequence[Experiment], kA: float) -> float:
-    """C_bar of eq. 9 by equation error, kA given: C_bar dT/dt = Q_H - kA (T - T_o), with
-    dT/dt ~ (T[n+1] - T[n]) / dt and T at the step midpoint, the discretisation of
-    :func:`equation_error_start` (its noise is uncorrelated with the regressor). The slope of
-    dT/dt on the net heat z = Q_H - kA (T - T_o) through the origin is 1 / C_bar. With an
-    unmeasured body the one capacity lies between the air node's and the sum of all; it
-    sets the time constant C_bar / kA of a start. NaN when the regression gives none."""
-    szz = szd = 0.0
-    for e in experiments:
-        T = e.y[:, 0]
-        d = (T[1:] - T[:-1]) / e.dt
-        u = e.step_u
-        z = u[:-1, 1] - kA * ((T[1:] + T[:-1]) / 2.0 - u[:-1, 0])
-        ok = np.isfinite(d) & np.isfinite(z)
-        szz += float(z[ok] @ z[ok])
-        szd += float(z[ok] @ d[ok])
-    return szz / szd if szd > 0 and szz > 0 else math.nan
 
 
 def _coarse_problem(prob: _Problem, samples: int) -> _Problem:
@@ -1074,7 +944,8 @@ def _result(
     posterior=None,
 ):
     """The :class:`FitResult` at ``v``. ``posterior``: (the log-prior, the likelihood's
-    weight) of a MAP estimate (:func:`_maximum_a_posteriori`), whose covariance is the
+    weight) of a MAP estimate (:func:`railtherm.estimation.leastsquares_map.search`), whose
+    covariance is the
     estimator's (HAC or iid) with the prior's curvature added to its information (the
     Laplace approximation of the posterior); a direction neither the data nor a prior
     determine keeps an infinite variance."""
@@ -1099,7 +970,7 @@ def _result(
             r = prob.residuals(v)
             ssr = float(r @ r)
     if posterior is not None:
-        cov, null, Vt = _with_prior(cov, null, Vt, posterior[0], v)
+        cov, null, Vt = leastsquares_map.laplace_covariance(cov, null, Vt, posterior[0], v)
     var = np.diag(cov)[:P].copy()
     # directions the data do not determine: infinite variance for the parameters on them
     if null.any():
@@ -1150,23 +1021,9 @@ def _result(
         states=tuple(structure.states),
         bandwidths=bandwidths,
         input_noise_sd=input_sd,
+        priors={} if posterior is None else posterior[0].to_dict(),
+        log_prior=None if posterior is None else float(posterior[0].evaluate(v)[0]),
     )
-
-
-def _with_prior(cov: np.ndarray, null: np.ndarray, Vt: np.ndarray, prior: LogPrior, v):
-    """The covariance with the prior's curvature at ``v`` added to the information, with the
-    null directions of that sum and its eigenvectors (rows), as :func:`_singular` gives
-    them for :func:`_result`. The information is the inverse of ``cov`` on the directions
-    the data determine (``Vt``'s rows off ``null``); a direction of the sum whose
-    eigenvalue is below INFO_NULL of the largest is determined by neither."""
-    seen = Vt[~null]
-    info = seen.T @ np.linalg.pinv(seen @ cov @ seen.T, hermitian=True) @ seen
-    info = info + prior.information(v)
-    ev, vec = np.linalg.eigh((info + info.T) / 2.0)
-    top = float(ev.max()) if ev.size else 0.0
-    null = ev <= INFO_NULL * top if top > 0 else np.ones(ev.shape, bool)
-    inv = np.where(null, 0.0, 1.0 / np.where(null, 1.0, ev))
-    return (vec * inv) @ vec.T, null, vec.T
 
 
 def _singular(J: np.ndarray, P: int):

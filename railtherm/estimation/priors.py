@@ -66,11 +66,14 @@ class Prior:
             return float(self.args[0]), float(self.args[1])
         return 0.0, math.inf
 
-    def log_density(self, theta: float) -> tuple[float, float, float]:
+    def log_density(self, theta: float, positive: bool = True) -> tuple[float, float, float]:
         """(log p(theta), d log p / dtheta, d^2 log p / dtheta^2) up to the constant of the
-        kind; -inf (and zero derivatives) outside the support."""
+        kind; -inf (and zero derivatives) outside the support. ``positive=False``: theta is
+        a quantity of either sign (an initial temperature), for which a normal prior is not
+        truncated at 0 and a uniform one is its interval."""
         lo, hi = self.support()
-        if not (lo <= theta <= hi) or theta <= 0.0:
+        signed = not positive and self.kind in ("normal", "uniform")
+        if not (lo <= theta <= hi) or (theta <= 0.0 and not signed):
             return -math.inf, 0.0, 0.0
         if self.kind == "lognormal":
             median, s = self.args
@@ -212,11 +215,15 @@ class LogPrior:
         free: Sequence[str],
         priors: Mapping[str, Prior],
         terms: Sequence[LinearT] = (),
+        raw: Sequence[tuple[int, str]] = (),
     ):
         self.free = tuple(free)
         self.priors = dict(priors)
         self.index = [(i, self.priors[p]) for i, p in enumerate(self.free) if p in self.priors]
-        self.unused = tuple(p for p in self.priors if p not in self.free)
+        # unknowns held as values, not logarithms (an initial state in K): (position, name)
+        self.raw = [(i, name, self.priors[name]) for i, name in raw if name in self.priors]
+        named = set(self.free) | {name for _, name in raw}
+        self.unused = tuple(p for p in self.priors if p not in named)
         # joint terms over free parameters only (one on a fixed parameter conditions nothing
         # the fit estimates: it is left out, like a prior on a fixed parameter)
         self.terms = [t for t in terms if all(p in self.free for p, _ in t.weights)]
@@ -232,7 +239,7 @@ class LogPrior:
         )
 
     def __bool__(self) -> bool:
-        return bool(self.index) or bool(self.terms)
+        return bool(self.index) or bool(self.terms) or bool(self.raw)
 
     def evaluate(self, v: np.ndarray, jacobian: bool = False):
         """(log-prior, gradient, Hessian) in v = log theta, over ``len(v)`` unknowns (those
@@ -250,6 +257,13 @@ class LogPrior:
             total += lp + (float(v[i]) if jacobian else 0.0)
             g[i] = theta * d1 + (1.0 if jacobian else 0.0)
             H[i, i] = theta * d1 + theta**2 * d2
+        for i, _, prior in self.raw:  # on the value itself: no Jacobian either way
+            lp, d1, d2 = prior.log_density(float(v[i]), positive=False)
+            if not math.isfinite(lp):
+                return -math.inf, g, H
+            total += lp
+            g[i] += d1
+            H[i, i] += d2
         for term in self.terms:  # densities of the log parameters
             w = np.zeros(U)
             for p, weight in term.weights:
@@ -285,6 +299,11 @@ class LogPrior:
                     "half_normal": lambda a: stats.halfnorm(scale=a[0]),
                 }[prior.kind](prior.args)
                 w[i] = math.log(float(dist.median()))
+        for i, _, prior in self.raw:
+            if prior.kind == "normal":
+                w[i] = prior.args[0]
+            elif prior.kind == "uniform":
+                w[i] = 0.5 * (prior.args[0] + prior.args[1])
         if self.terms:
             cols = self.jacobian_of_terms
             W = np.zeros((len(self.terms), len(cols)))
@@ -315,6 +334,9 @@ class LogPrior:
                 lo[i] = max(lo[i], math.log(a))
             if math.isfinite(b):
                 hi[i] = min(hi[i], math.log(b))
+        for i, _, prior in self.raw:
+            if prior.kind == "uniform":
+                lo[i], hi[i] = max(lo[i], prior.args[0]), min(hi[i], prior.args[1])
         return lo, hi
 
     def to_dict(self) -> dict[str, dict[str, object]]:
@@ -322,5 +344,6 @@ class LogPrior:
         {term name: the term} for the joint terms."""
         return {
             **{self.free[i]: prior.to_dict() for i, prior in self.index},
+            **{name: prior.to_dict() for _, name, prior in self.raw},
             **{t.name: t.to_dict() for t in self.terms},
         }

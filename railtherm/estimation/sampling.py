@@ -1,0 +1,184 @@
+"""Posterior sampling of the stochastic grey-box model: the No-U-Turn sampler (NUTS) of
+nutpie on the exact Kalman-filter likelihood of :mod:`railtherm.estimation.filtering`, with its
+exact gradient, times the priors of :mod:`railtherm.estimation.priors`.
+
+The sampler explores the estimator's unknowns as the fit holds them: the logarithms of the
+structure's free parameters and of the noise parameters, the output offsets and the
+estimated initial states (K). Its target is the log density of those unknowns,
+
+    log p(v | y) = -NLL(v) + sum_i [log p_i(exp v_i) + v_i] + const,
+
+the likelihood of the filter times each prior's density of theta carried to v = log theta
+(the log Jacobian v_i). An unknown without a prior is flat in v: a log-uniform prior on a
+positive parameter, a uniform one on an initial state or offset; within the fit's bounds,
+outside which the density is zero. nutpie (the PyMC project's NUTS in Rust, with its
+mass-matrix adaptation) calls the target as a Python function that returns the value and
+the gradient together (:meth:`railtherm.estimation.kalman.Density.log_density`): each
+leapfrog step costs one pass of the filter with its forward sensitivities.
+
+nutpie and ArviZ are the optional extra ``railtherm[bayes]``; they are imported on first use
+only.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from railtherm.estimation import kalman
+from railtherm.estimation.common import Experiment
+from railtherm.estimation.models import Structure
+
+__all__ = ["Posterior", "sample"]
+
+EXTRA = "railtherm[bayes]"  # what to install for sampling
+JITTER = 0.1  # chains start at the estimate moved by this many of its standard deviations
+
+
+def _nutpie():
+    try:
+        import arviz
+        import nutpie
+        from nutpie import compiled_pyfunc
+    except ImportError as err:
+        raise ImportError(
+            f"posterior sampling needs nutpie and ArviZ ({err.name} is missing): "
+            f"pip install '{EXTRA}'"
+        ) from None
+    return nutpie, compiled_pyfunc, arviz
+
+
+@dataclass
+class Posterior:
+    """Draws of a posterior and what a reader must check before using them.
+
+    ``idata``: ArviZ InferenceData (nutpie's); its ``posterior`` group holds every unknown
+    under its name (a parameter or noise parameter in its own unit, an offset or initial
+    state in K),
+    ``sample_stats`` the sampler's statistics (divergences, tree depth, step size).
+    ``names``: the unknowns; ``estimate``: the MAP (or maximum-likelihood, without priors)
+    fit the chains started from; ``seconds``: wall time of the sampling (tuning included);
+    ``settings``: chains, draws, tune, target_accept, seed."""
+
+    idata: Any
+    names: tuple[str, ...]
+    estimate: kalman.KalmanResult
+    seconds: float
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    def summary(self):
+        """ArviZ's summary (mean, sd, 2.5 % and 97.5 % quantiles, R-hat, bulk and tail ESS)
+        of every unknown, as a pandas DataFrame."""
+        _, _, az = _nutpie()
+        return az.summary(self.idata, hdi_prob=0.95, stat_focus="mean", round_to="none", kind="all")
+
+    def quantiles(self, name: str, q: Sequence[float] = (0.025, 0.5, 0.975)) -> np.ndarray:
+        """Quantiles of one unknown over all chains and draws."""
+        return np.quantile(self.idata.posterior[name].values.ravel(), q)
+
+    def divergences(self) -> int:
+        return int(self.idata.sample_stats["diverging"].values.sum())
+
+    def write(self, path: str) -> None:
+        """The InferenceData as NetCDF (the ecosystem's format: ``arviz.from_netcdf``)."""
+        self.idata.to_netcdf(path)
+
+
+def sample(
+    structure: Structure,
+    experiments: Sequence[Experiment],
+    *,
+    chains: int = 4,
+    draws: int = 1000,
+    tune: int = 1000,
+    seed: int = 0,
+    target_accept: float = 0.8,
+    **fit_options: Any,
+) -> Posterior:
+    """Draws of the posterior of the stochastic model of ``structure`` given
+    ``experiments``: first the fit (:func:`railtherm.estimation.kalman.fit` with
+    ``fit_options``: fixed, initial, bounds, outputs, x0, priors, prior_terms, ...), then
+    ``chains`` chains of NUTS, one after the other in this process (one thread), each
+    ``tune`` tuning steps (discarded) and ``draws`` draws, each chain started at the fit's
+    estimate moved by JITTER of its standard deviations, seeded by ``seed``."""
+    if chains < 1 or draws < 1 or tune < 0:
+        raise ValueError(
+            f"chains and draws must be >= 1 and tune >= 0, got {chains}, {draws}, {tune}"
+        )
+    nutpie, compiled_pyfunc, az = _nutpie()
+    estimate, density = kalman.fit_with_density(structure, experiments, **fit_options)
+    names, n_log = density.names, density.n_log
+    spread = _spread(estimate, density)
+
+    def make_logp():
+        def logp(v):
+            lp, g = density.log_density(np.asarray(v, dtype=float))
+            return float(lp), np.ascontiguousarray(g, dtype=float)
+
+        return logp
+
+    def make_expand(seed1, seed2, chain):
+        def expand(v):
+            v = np.asarray(v, dtype=float)
+            return {
+                name: np.asarray(math.exp(v[i]) if i < n_log else v[i])
+                for i, name in enumerate(names)
+            }
+
+        return expand
+
+    def initial_point(seed):  # the estimate, moved a little (its gradient there is ~0)
+        rng = np.random.default_rng(seed)
+        v = density.v + JITTER * spread * rng.standard_normal(len(density.v))
+        return np.clip(v, density.lo, density.hi)
+
+    model = compiled_pyfunc.from_pyfunc(
+        len(names),
+        make_logp,
+        make_expand,
+        [np.dtype("float64")] * len(names),
+        [()] * len(names),
+        list(names),
+        make_initial_point_fn=initial_point,
+    )
+    start = time.perf_counter()
+    idata = nutpie.sample(
+        model,
+        draws=draws,
+        tune=tune,
+        chains=chains,
+        seed=seed,
+        cores=1,
+        target_accept=target_accept,
+        progress_bar=False,
+    )
+    seconds = time.perf_counter() - start
+    idata.attrs.update(
+        {
+            "sampler": f"nutpie {nutpie.__version__} (NUTS)",
+            "target": "railtherm's Kalman-filter likelihood with its exact gradient",
+            "structure": structure.name,
+        }
+    )
+    settings = {
+        "chains": chains,
+        "draws": draws,
+        "tune": tune,
+        "seed": seed,
+        "target_accept": target_accept,
+        "cores": 1,
+    }
+    return Posterior(idata, tuple(names), estimate, seconds, settings)
+
+
+def _spread(estimate, density) -> np.ndarray:
+    """The estimate's standard deviation of each unknown (its covariance's diagonal; 0.01
+    where that is not finite)."""
+    cov = np.asarray(estimate.covariance_log, dtype=float)
+    sd = np.sqrt(np.abs(np.diag(cov))) if cov.size else np.zeros(len(density.v))
+    return np.where(np.isfinite(sd) & (sd > 0), sd, 0.01)

@@ -1,0 +1,101 @@
+"""Posterior sampling (railtherm.estimation.sampling): NUTS draws against the posterior
+computed on a grid from railtherm's public likelihood and scipy.stats' prior density, and
+the InferenceData written and read back."""
+
+import math
+
+import arviz as az
+import numpy as np
+import pytest
+from scipy import stats
+from test_kalman import sde_experiment
+
+from railtherm.estimation import filtering, models, sampling
+from railtherm.estimation.priors import Prior
+
+S1 = models.STRUCTURES["first_order"]
+TRUTH = {"kA": 900.0, "C_bar": 2.4e7}
+NOISE = {"sigma": {"T": 2e-3}, "meas_var": {"T": 0.02}}
+
+
+@pytest.fixture(scope="module")
+def record():
+    return sde_experiment(theta=TRUTH, sigma=(2e-3,), meas_var=(0.02,), n=300, seed=8, structure=S1)
+
+
+@pytest.fixture(scope="module")
+def posterior(record):
+    """kA and C_bar free (C_bar with a lognormal prior, kA without: flat in log kA), the
+    noise given, the initial state from the first reading: a two-dimensional posterior."""
+    return sampling.sample(
+        S1,
+        [record],
+        x0="measured",
+        fixed={"sigma_T": NOISE["sigma"]["T"], "s_T": NOISE["meas_var"]["T"]},
+        priors={"C_bar": Prior("lognormal", (2.0e7, 0.3))},
+        chains=2,
+        draws=1000,
+        tune=600,
+        seed=3,
+    )
+
+
+def grid_posterior(record, n=161, half_width=7.0, centre=None, sd=None):
+    """The posterior density of (log kA, log C_bar) on a grid of +- half_width sd: the
+    filter's likelihood (railtherm.estimation.filtering.negative_log_likelihood, public)
+    times scipy.stats' lognormal density of C_bar times C_bar (the density of log C_bar);
+    flat in log kA."""
+    axes = [
+        np.linspace(c - half_width * s, c + half_width * s, n)
+        for c, s in zip(centre, sd, strict=True)
+    ]
+    prior = stats.lognorm(s=0.3, scale=2.0e7)
+    logp = np.empty((n, n))
+    for i, a in enumerate(axes[0]):
+        for j, b in enumerate(axes[1]):
+            theta = {"kA": math.exp(a), "C_bar": math.exp(b)}
+            nll = filtering.negative_log_likelihood(
+                S1, [record], theta, NOISE["sigma"], NOISE["meas_var"], [[math.nan]],
+                x0_mode="measured",
+            )  # fmt: skip
+            logp[i, j] = -nll + prior.logpdf(theta["C_bar"]) + b
+    w = np.exp(logp - logp.max())
+    return axes, w / w.sum()
+
+
+def marginal_quantiles(axis, weights, q):
+    cdf = np.cumsum(weights)
+    return np.interp(q, cdf, axis)
+
+
+def test_nuts_draws_are_the_posterior_computed_on_a_grid(record, posterior):
+    summary = posterior.summary()
+    assert (summary["r_hat"] < 1.01).all(), summary
+    assert (summary["ess_bulk"] > 400).all(), summary
+    assert posterior.divergences() == 0
+    draws = {p: np.log(posterior.idata.posterior[p].values.ravel()) for p in ("kA", "C_bar")}
+    centre = [float(np.mean(draws[p])) for p in ("kA", "C_bar")]
+    sd = [float(np.std(draws[p])) for p in ("kA", "C_bar")]
+    axes, w = grid_posterior(record, centre=centre, sd=sd)
+    marginals = {"kA": w.sum(axis=1), "C_bar": w.sum(axis=0)}
+    for k, p in enumerate(("kA", "C_bar")):
+        grid_mean = float(axes[k] @ marginals[p])
+        grid_sd = math.sqrt(float((axes[k] - grid_mean) ** 2 @ marginals[p]))
+        assert np.mean(draws[p]) == pytest.approx(grid_mean, abs=0.1 * grid_sd), p
+        assert np.std(draws[p]) == pytest.approx(grid_sd, rel=0.1), p
+        q = [0.025, 0.5, 0.975]
+        ours = np.quantile(draws[p], q)
+        theirs = marginal_quantiles(axes[k], marginals[p], q)
+        np.testing.assert_allclose(ours, theirs, atol=0.2 * grid_sd, err_msg=p)
+    # the chains started at the fit's MAP estimate, which lies inside the posterior's bulk
+    lo, hi = np.quantile(draws["C_bar"], [0.025, 0.975])
+    assert lo < math.log(posterior.estimate.theta["C_bar"]) < hi
+
+
+def test_the_posterior_is_written_as_netcdf_and_read_back(posterior, tmp_path):
+    path = tmp_path / "posterior.nc"
+    posterior.write(str(path))
+    back = az.from_netcdf(path)
+    for p in ("kA", "C_bar"):
+        np.testing.assert_array_equal(back.posterior[p].values, posterior.idata.posterior[p].values)
+    assert back.attrs["structure"] == "first_order"
