@@ -63,6 +63,7 @@ from railtherm.estimation.common import (
 from railtherm.estimation.estimate import Estimate, Flag
 from railtherm.estimation.models import Structure
 from railtherm.estimation.priors import LinearT, LogPrior, Prior
+from railtherm.estimation.profile import ProfileLimit, profile_limit
 
 __all__ = [
     "Experiment",
@@ -74,6 +75,7 @@ __all__ = [
     "heat_balance_kA",
     "identification",
     "lumped_capacity",
+    "profile",
 ]
 
 _LSMR_ABOVE = 300_000  # Jacobian entries above which the trust-region step uses LSMR
@@ -130,11 +132,14 @@ class FitResult(Estimate):
     """The simulation-error estimate (eqs. 17-18 with K = 0), an :class:`Estimate` with
     ``estimator`` output_error: ``cost`` = e^T e (eq. 17, K^2), ``cond`` the condition number
     of the Jacobian of the log parameters, ``covariance`` "hac" or "iid", ``bandwidths`` the
-    HAC bandwidth of each record and output, ``input_noise_sd`` the declared input noise."""
+    HAC bandwidth of each record and output, ``input_noise_sd`` the declared input noise;
+    ``samples_weight`` the independent samples the residuals count as (m / tau,
+    :func:`_tau`; not written)."""
 
     CONDITION: ClassVar[str] = "jacobian_condition"
 
     estimator: str = "output_error"
+    samples_weight: float | None = None
 
 
 # ----------------------------------------------------------------------------------------------
@@ -743,22 +748,67 @@ def fit(
     )  # fmt: skip
 
 
+def profile(
+    structure: Structure,
+    experiments: Sequence[Experiment],
+    parameter: str,
+    estimate: FitResult,
+    *,
+    weight: float | None = None,
+    points: int = 16,
+    **options: Any,
+) -> ProfileLimit:
+    """The profile-likelihood limits of ``parameter``
+    (:func:`railtherm.estimation.profile.profile_limit`) around ``estimate``, the fit of
+    :func:`fit` with ``options`` (fixed, bounds, outputs, x0, input_noise, priors ...): at each
+    value the parameter is fixed and the rest re-fitted (warm-started, the iid covariance:
+    only the point is needed). The criterion is (weight / 2) log(e^T e), ``weight`` the
+    samples the residuals count as (default: the estimate's ``samples_weight``, fewer than
+    the compared samples where the HAC covariance finds the residuals coloured). Within the
+    parameter's search bounds."""
+    default = estimate.samples_weight if estimate.samples_weight else estimate.n_obs
+    w = float(default if weight is None else weight)
+    bounds = dict(structure.bounds)
+    bounds.update({p: (float(b[0]), float(b[1])) for p, b in (options.get("bounds") or {}).items()})
+    fixed = dict(options.get("fixed") or {})
+    base = {**options, "start": "initial", "covariance": "iid"}
+    others = {p: estimate.theta[p] for p in estimate.free if p != parameter}
+
+    def criterion(value: float, warm):
+        r = fit(
+            structure, experiments, **{**base, "fixed": {**fixed, parameter: value},
+            "initial": warm or others},
+        )  # fmt: skip
+        return 0.5 * w * math.log(r.cost), {p: r.theta[p] for p in r.free}
+
+    minimum = 0.5 * w * math.log(estimate.cost)
+    return profile_limit(
+        parameter, estimate.theta[parameter], bounds[parameter], criterion,
+        minimum=minimum, points=points,
+    )  # fmt: skip
+
+
 def _likelihood_weight(prob, sol, lo, hi, covariance: str) -> float:
     """How many independent samples the simulation error's residuals count as for a MAP
-    estimate (:func:`railtherm.estimation.leastsquares_map.search`): m / tau, tau the mean
-    ratio of the HAC to the iid variance of the unknowns at the least-squares optimum (at
-    least 1; 1 with the iid covariance), so that the records weigh against the prior as
-    much as their intervals say they inform."""
+    estimate (:func:`railtherm.estimation.leastsquares_map.search`): m / tau at the
+    least-squares optimum (:func:`_tau`; m with the iid covariance), so that the records
+    weigh against the prior as much as their intervals say they inform."""
     if covariance != "hac":
         return float(prob.m)
     v = np.clip(sol.x, lo, hi)
     r, J = prob.residuals(v), prob.jacobian(v)
     _, Vt, _, inv_s, _ = _singular(J, prob.P)
-    var_hac = np.diag(hac.sandwich(Vt, inv_s, _hac_meat(prob, r, J)[0]))
-    var_iid = float(r @ r) / max(prob.m - J.shape[1], 1) * np.diag((Vt.T * inv_s**2) @ Vt)
+    cov_hac = hac.sandwich(Vt, inv_s, _hac_meat(prob, r, J)[0])
+    cov_iid = float(r @ r) / max(prob.m - J.shape[1], 1) * ((Vt.T * inv_s**2) @ Vt)
+    return prob.m / _tau(cov_hac, cov_iid)
+
+
+def _tau(cov_hac: np.ndarray, cov_iid: np.ndarray) -> float:
+    """The mean ratio of the HAC to the iid variance of the unknowns (at least 1): how many
+    samples of coloured residuals count as one independent one."""
+    var_hac, var_iid = np.diag(cov_hac), np.diag(cov_iid)
     ok = (var_iid > 0) & np.isfinite(var_hac) & (var_hac > 0)
-    tau = max(1.0, float(np.mean(var_hac[ok] / var_iid[ok]))) if ok.any() else 1.0
-    return prob.m / tau
+    return max(1.0, float(np.mean(var_hac[ok] / var_iid[ok]))) if ok.any() else 1.0
 
 
 def _check_arguments(structure, experiments, fixed, x0: str, covariance: str, start: str) -> None:
@@ -954,12 +1004,13 @@ def _result(
     ssr = float(r @ r)
     s, Vt, null, inv_s, cond = _singular(J, P)
     bandwidths, capped = [], []
-    if covariance == "iid":
-        s2 = ssr / max(m - p_all, 1)
-        cov = s2 * ((Vt.T * inv_s**2) @ Vt)  # s^2 (J^T J)^+
-    else:
+    s2 = ssr / max(m - p_all, 1)
+    cov_iid = s2 * ((Vt.T * inv_s**2) @ Vt)  # s^2 (J^T J)^+
+    cov, tau = cov_iid, 1.0
+    if covariance != "iid":
         meat, bandwidths, capped = _hac_meat(prob, r, J)
         cov = hac.sandwich(Vt, inv_s, meat)
+        tau = _tau(cov, cov_iid)
     input_sd = [dict(level) for level in noisy] if any(noisy) else []
     if input_sd:
         cov = cov + hac.sandwich(Vt, inv_s, _input_noise_meat(structure, prob, v, J, noisy))
@@ -1021,6 +1072,7 @@ def _result(
         states=tuple(structure.states),
         bandwidths=bandwidths,
         input_noise_sd=input_sd,
+        samples_weight=m / tau,
         priors={} if posterior is None else posterior[0].to_dict(),
         log_prior=None if posterior is None else float(posterior[0].evaluate(v)[0]),
     )

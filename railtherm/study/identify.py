@@ -328,6 +328,7 @@ def identify(
             # the reported fit's assumptions is in doubt (the joint fit is judged itself)
             (method_notes if check["use_joint"] else notes).append(check["note"])
         static_check = check
+    fitted = profile_limits(structure, exps, options, result, fitted)
     fit_section = fitted.to_dict()
     if static_check is not None:
         fit_section["static_kA_check"] = static_check
@@ -506,6 +507,30 @@ def _sd_log_total(entry: ParameterEstimate) -> float:
     if entry.sd_log_total is not None:
         return entry.sd_log_total
     return 0.0 if entry.sd_log is None else entry.sd_log
+
+
+def profile_limits(structure, exps, options, result, fitted: JudgedEstimate) -> JudgedEstimate:
+    """``fitted`` with each estimated parameter it judges not identified given the limits
+    of its profile likelihood (:func:`railtherm.estimation.pem.profile`: the other
+    parameters re-fitted at each value), for the output-error estimator: a one-sided limit
+    the data give ("lower": at least, "upper": at most) replaces ``limit: none``; the profile
+    is kept under ``profile`` and said in the reason. A parameter the profile bounds on both
+    sides stays not identified (its interval at the optimum said otherwise), with the
+    profile's interval in the reason. Other estimators: ``fitted`` as it is."""
+    if options.get("estimator", "output_error") != "output_error":
+        return fitted
+    content = fitted.to_dict()
+    fit_options = {k: v for k, v in options.items() if k != "estimator"}
+    for p, entry in content["parameters"].items():
+        if not entry.get("estimated") or entry.get("identified", True) or p not in result.free:
+            continue
+        limit = pem.profile(structure, exps, p, result, **fit_options)
+        entry["profile"] = limit.to_dict()
+        entry["reason"] = f"{entry.get('reason', 'not identified')}; {limit.phrase()}"
+        if limit.kind in ("lower", "upper"):
+            entry["limit"] = limit.kind
+            entry["limit_value"] = float(limit.lower if limit.kind == "lower" else limit.upper)
+    return JudgedEstimate.from_dict(content)
 
 
 def judge_identification(
