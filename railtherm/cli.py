@@ -203,7 +203,41 @@ def _fit(args: argparse.Namespace) -> int:
         print(fit.summary())
     if out:
         print(f"written to {os.path.join(out, 'vehicles', vehicle.id)}")
+    if args.posterior:
+        _posterior(args, vehicle, result, out)
     return 0
+
+
+def _posterior(args: argparse.Namespace, vehicle, result, out: str | None) -> None:
+    """``railtherm fit --posterior``: each fitted model's posterior by NUTS, its summary
+    printed and its InferenceData written beside the fit file (under --out), else in the
+    working directory."""
+    from railtherm.study import posterior
+
+    for key, value in (("chains", args.chains), ("draws", args.draws)):
+        if value < 1:
+            raise ConfigError(f"--{key}", key, value, "expected 1 or more")
+    if args.tune < 0:
+        raise ConfigError("--tune", "tune", args.tune, "expected 0 or more")
+    for model in result.fits:
+        post = posterior.vehicle_posterior(
+            vehicle, model, result, chains=args.chains, draws=args.draws, tune=args.tune,
+            seed=args.seed,
+        )  # fmt: skip
+        table = post.summary()[["mean", "sd", "hdi_2.5%", "hdi_97.5%", "r_hat", "ess_bulk"]]
+        print(
+            f"{vehicle.id} {model}: posterior by NUTS ({post.settings['chains']} chains x "
+            f"{post.settings['draws']} draws after {post.settings['tune']} tuning, seed "
+            f"{post.settings['seed']}; {post.divergences()} divergences; "
+            f"{post.seconds:.1f} s); trust it only with R-hat <= 1.01, bulk ESS >= 400 and no "
+            "divergences (docs/bayes.md)"
+        )
+        print(table.to_string(float_format=lambda x: f"{x:.5g}"))
+        if out:  # beside the fit file
+            path = os.path.join(out, "vehicles", vehicle.id, f"fit_{model}.posterior.nc")
+        else:
+            path = os.path.join(args.directory, f"{vehicle.id}.fit_{model}.posterior.nc")
+        print(f"written to {posterior.write(post, path)}")
 
 
 def _reference_model(args: argparse.Namespace) -> int:
@@ -679,6 +713,18 @@ def _add_fit(commands: Any) -> None:
         ),
     )
     fit.add_argument("--out", metavar="DIR", help="results directory to write into")
+    fit.add_argument(
+        "--posterior",
+        action="store_true",
+        help=(
+            "also sample each model's posterior by NUTS (the extra railtherm[bayes]); print "
+            "its summary and write fit_<model>.posterior.nc (docs/bayes.md)"
+        ),
+    )
+    fit.add_argument("--chains", type=int, default=4, help="posterior chains (default: 4)")
+    fit.add_argument("--draws", type=int, default=1000, help="draws per chain (default: 1000)")
+    fit.add_argument("--tune", type=int, default=1000, help="tuning steps (default: 1000)")
+    fit.add_argument("--seed", type=int, default=0, help="the sampler's seed (default: 0)")
     fit.add_argument(
         "--config",
         default="config/config.yaml",

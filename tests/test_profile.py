@@ -1,4 +1,4 @@
-"""Profile-likelihood limits (railtherm.estimation.profile, pem.profile) on hand-built
+"""Profile-likelihood limits (railtherm.estimation.profile) on hand-built
 records whose limit is known: computed here with an independent first-order recursion
 (numpy) and scipy's scalar minimiser, not railtherm's model code."""
 
@@ -9,7 +9,7 @@ import pytest
 from scipy import optimize
 
 from railtherm.estimation import models, pem
-from railtherm.estimation.profile import CHI2_1_95
+from railtherm.estimation.profile import CHI2_1_95, output_error_profile
 
 S1 = models.STRUCTURES["first_order"]
 DT = 600.0
@@ -80,7 +80,7 @@ def test_a_body_faster_than_the_step_has_an_upper_limit_the_data_give():
     fit = pem.fit(S1, [e], covariance="iid", x0="measured")
     lo, hi = fit.ci95["C_bar"]
     assert not (lo > 0 and hi / lo <= 1000.0) or fit.flags  # the fit cannot say
-    limit = pem.profile(S1, [e], "C_bar", fit, x0="measured")
+    limit = output_error_profile(S1, [e], "C_bar", fit, x0="measured")
     assert limit.kind == "upper", limit
     grid = np.geomspace(1e3, 3e6, 400)
     ref = reference_profile(e, grid)
@@ -97,7 +97,7 @@ def test_a_determined_parameter_gets_its_two_sided_interval():
     the Wald interval of the fit's iid covariance, the problem being nearly linear)."""
     e = record(1.6e7)
     fit = pem.fit(S1, [e], covariance="iid", x0="measured")
-    limit = pem.profile(S1, [e], "C_bar", fit, x0="measured")
+    limit = output_error_profile(S1, [e], "C_bar", fit, x0="measured")
     assert limit.kind == "two_sided"
     c = fit.theta["C_bar"]
     grid = np.geomspace(c * 0.99, c * 1.01, 401)

@@ -99,3 +99,67 @@ def test_the_posterior_is_written_as_netcdf_and_read_back(posterior, tmp_path):
     for p in ("kA", "C_bar"):
         np.testing.assert_array_equal(back.posterior[p].values, posterior.idata.posterior[p].values)
     assert back.attrs["structure"] == "first_order"
+
+
+def test_output_error_draws_are_its_posterior_computed_on_a_grid():
+    """The simulation error's posterior (iid residuals: the likelihood's weight is m) of kA
+    and C_bar, C_bar with a lognormal prior: NUTS draws against the grid of
+    -(m/2) ln(e^T e) + ln p(C_bar) + ln C_bar, e^T e by an independent recursion
+    (tests/test_profile.py)."""
+    from test_profile import record as oe_record
+    from test_profile import simulate
+
+    e = oe_record(1.6e7, n=120, seed=4, sd=0.2)
+    prior = stats.lognorm(s=0.3, scale=2.0e7)
+    post = sampling.sample(
+        S1, [e], estimator="output_error", covariance="iid", x0="measured",
+        priors={"C_bar": Prior("lognormal", (2.0e7, 0.3))}, chains=2, draws=1000, tune=600,
+        seed=5,
+    )  # fmt: skip
+    assert (post.summary()["r_hat"] < 1.01).all() and post.divergences() == 0
+    draws = {p: np.log(post.idata.posterior[p].values.ravel()) for p in ("kA", "C_bar")}
+    y = e.y[:, 0]
+    m = len(y) - 1
+    n = 121
+    axes = [np.linspace(np.mean(d) - 7 * np.std(d), np.mean(d) + 7 * np.std(d), n)
+            for d in draws.values()]  # fmt: skip
+    logp = np.empty((n, n))
+    for i, a in enumerate(axes[0]):
+        for j, b in enumerate(axes[1]):
+            sse = float(np.sum((simulate(math.exp(a), math.exp(b), e.u, y[0])[1:] - y[1:]) ** 2))
+            logp[i, j] = -0.5 * m * math.log(sse) + prior.logpdf(math.exp(b)) + b
+    w = np.exp(logp - logp.max())
+    w /= w.sum()
+    for k, (p, marginal) in enumerate(zip(("kA", "C_bar"), (w.sum(1), w.sum(0)), strict=True)):
+        mean = float(axes[k] @ marginal)
+        sd = math.sqrt(float((axes[k] - mean) ** 2 @ marginal))
+        assert np.mean(draws[p]) == pytest.approx(mean, abs=0.1 * sd), p
+        assert np.std(draws[p]) == pytest.approx(sd, rel=0.1), p
+
+
+def test_railtherm_fit_posterior_prints_its_summary_and_writes_the_inference_data(
+    tmp_path, monkeypatch, capsys
+):
+    """`railtherm fit VEHICLE --posterior` on the Armadillo box (its Kalman fit): the summary
+    with R-hat and bulk ESS per unknown, the InferenceData beside the fit file."""
+    from pathlib import Path
+
+    from railtherm.cli import main
+
+    repo = Path(__file__).resolve().parents[1]
+    monkeypatch.chdir(repo / "validation")
+    code = main(
+        ["fit", "config/vehicles/Armadillo.yaml", "--model", "interior_envelope_kalman",
+         "--posterior", "--chains", "2", "--draws", "200", "--tune", "200", "--seed", "2",
+         "--out", str(tmp_path)]
+    )  # fmt: skip
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "posterior by NUTS (2 chains x 200 draws after 200 tuning, seed 2" in out
+    for name in ("C ", "K_i", "C_e", "K_o", "r_hat", "ess_bulk"):
+        assert name in out
+    path = tmp_path / "vehicles" / "Armadillo" / "fit_interior_envelope_kalman.posterior.nc"
+    assert f"written to {path}" in out
+    back = az.from_netcdf(path)
+    assert back.posterior["K_o"].shape == (2, 200)
+    assert (tmp_path / "vehicles" / "Armadillo" / "fit_interior_envelope_kalman.yaml").is_file()

@@ -16,15 +16,48 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
 
 from railtherm.estimation.priors import LogPrior
 
-__all__ = ["INFO_NULL", "laplace_covariance", "search"]
+__all__ = ["INFO_NULL", "Density", "laplace_covariance", "search"]
 
 INFO_NULL = 1e-14  # eigenvalues of the posterior's information below this (relative) are null
+
+
+@dataclass
+class Density:
+    """The log posterior density a sampler explores (:mod:`railtherm.estimation.sampling`)
+    over the least-squares fit's unknowns ``names`` (the first ``n_log`` held as logarithms:
+    the free parameters; then the estimated initial states, K), within ``lo``, ``hi``; ``v``
+    the fit's estimate. :meth:`log_density` is -(weight / 2) log(e^T e) (the Gaussian
+    likelihood with its variance integrated out under p(sigma) ~ 1/sigma) plus each prior's
+    log density of the log parameter; an unknown without a prior is flat as held."""
+
+    residuals: Callable[[np.ndarray], np.ndarray]
+    jacobian: Callable[[np.ndarray], np.ndarray]
+    prior: LogPrior
+    weight: float
+    names: tuple[str, ...]
+    n_log: int
+    lo: np.ndarray
+    hi: np.ndarray
+    v: np.ndarray
+
+    def log_density(self, v: np.ndarray) -> tuple[float, np.ndarray]:
+        """(log density up to a constant, its gradient); -inf outside the bounds."""
+        if np.any(v < self.lo) or np.any(v > self.hi):
+            return -math.inf, np.zeros(len(v))
+        r = self.residuals(v)
+        ssr = float(r @ r)
+        lp, gp, _ = self.prior.evaluate(v, jacobian=True)
+        if not (math.isfinite(ssr) and ssr > 0 and math.isfinite(lp)):
+            return -math.inf, np.zeros(len(v))
+        grad = gp - self.weight * (self.jacobian(v).T @ r) / ssr
+        return -0.5 * self.weight * math.log(ssr) + lp, grad
 
 
 def search(

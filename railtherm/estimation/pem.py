@@ -63,7 +63,6 @@ from railtherm.estimation.common import (
 from railtherm.estimation.estimate import Estimate, Flag
 from railtherm.estimation.models import Structure
 from railtherm.estimation.priors import LinearT, LogPrior, Prior
-from railtherm.estimation.profile import ProfileLimit, profile_limit
 
 __all__ = [
     "Experiment",
@@ -75,7 +74,6 @@ __all__ = [
     "heat_balance_kA",
     "identification",
     "lumped_capacity",
-    "profile",
 ]
 
 _LSMR_ABOVE = 300_000  # Jacobian entries above which the trust-region step uses LSMR
@@ -634,7 +632,13 @@ def _input_noise_bias(structure, prob, v, Vt, inv_s, levels) -> np.ndarray:
 
 
 @single_threaded_blas
-def fit(
+def fit(structure: Structure, experiments: Sequence[Experiment], **options: Any) -> FitResult:
+    """Simulation-error PEM (eqs. 17-18, K = 0) of ``structure`` to ``experiments`` jointly:
+    :func:`fit_with_density`'s estimate, whose options it takes."""
+    return fit_with_density(structure, experiments, **options)[0]
+
+
+def fit_with_density(
     structure: Structure,
     experiments: Sequence[Experiment],
     *,
@@ -650,8 +654,10 @@ def fit(
     compiled: bool = False,
     priors: Mapping[str, Prior] | None = None,
     prior_terms: Sequence[LinearT] = (),
-) -> FitResult:
-    """Simulation-error PEM (eqs. 17-18, K = 0) of ``structure`` to ``experiments`` jointly.
+) -> tuple[FitResult, leastsquares_map.Density]:
+    """The fit and the posterior's density at it
+    (:class:`railtherm.estimation.leastsquares_map.Density`): simulation-error PEM
+    (eqs. 17-18, K = 0) of ``structure`` to ``experiments`` jointly.
 
     fixed: {param: value} held (two-stage: {"kA": k A}); initial: start values of free
     parameters (default: the paper's, ``structure.initial``); bounds: {param: (lo, hi)} in SI
@@ -742,49 +748,15 @@ def fit(
     v = sol.x
     r = prob.residuals(v)
     J = prob.jacobian(v) if len(v) else np.zeros((prob.m, 0))  # cached: the solver's last
-    return _result(
+    result = _result(
         structure, prob, sol, v, r, J, covariance, start_used, costs, outputs, bnds, noisy,
         (lo, hi), posterior,
     )  # fmt: skip
-
-
-def profile(
-    structure: Structure,
-    experiments: Sequence[Experiment],
-    parameter: str,
-    estimate: FitResult,
-    *,
-    weight: float | None = None,
-    points: int = 16,
-    **options: Any,
-) -> ProfileLimit:
-    """The profile-likelihood limits of ``parameter``
-    (:func:`railtherm.estimation.profile.profile_limit`) around ``estimate``, the fit of
-    :func:`fit` with ``options`` (fixed, bounds, outputs, x0, input_noise, priors ...): at each
-    value the parameter is fixed and the rest re-fitted (warm-started, the iid covariance:
-    only the point is needed). The criterion is (weight / 2) log(e^T e), ``weight`` the
-    samples the residuals count as (default: the estimate's ``samples_weight``, fewer than
-    the compared samples where the HAC covariance finds the residuals coloured). Within the
-    parameter's search bounds."""
-    default = estimate.samples_weight if estimate.samples_weight else estimate.n_obs
-    w = float(default if weight is None else weight)
-    bounds = dict(structure.bounds)
-    bounds.update({p: (float(b[0]), float(b[1])) for p, b in (options.get("bounds") or {}).items()})
-    fixed = dict(options.get("fixed") or {})
-    base = {**options, "start": "initial", "covariance": "iid"}
-    others = {p: estimate.theta[p] for p in estimate.free if p != parameter}
-
-    def criterion(value: float, warm):
-        r = fit(
-            structure, experiments, **{**base, "fixed": {**fixed, parameter: value},
-            "initial": warm or others},
-        )  # fmt: skip
-        return 0.5 * w * math.log(r.cost), {p: r.theta[p] for p in r.free}
-
-    minimum = 0.5 * w * math.log(estimate.cost)
-    return profile_limit(
-        parameter, estimate.theta[parameter], bounds[parameter], criterion,
-        minimum=minimum, points=points,
+    names = [*free, *(f"x0_{s}[{e.name}]" for e, f in zip(experiments, prob.x0_free, strict=True)
+                      for s in (structure.states[i] for i in f))]  # fmt: skip
+    return result, leastsquares_map.Density(
+        prob.residuals, prob.jacobian, prior, result.samples_weight, tuple(names), len(free),
+        lo, hi, np.array(v, dtype=float),
     )  # fmt: skip
 
 

@@ -18,18 +18,20 @@ The walk is in log p on a grid of ``points`` steps between the bounds, each fit 
 from the previous one (a profile follows its valley), and a crossing is refined by bisection
 to ``tol`` of its distance from the estimate in log p. The criterion is the estimator's:
 for the simulation error the Gaussian log-likelihood with its variance profiled out,
-(w / 2) log(e^T e) with w the samples the residuals count as (:func:`railtherm.estimation.
-pem.profile`); for the Kalman filter its negative log-likelihood.
+(w / 2) log(e^T e) with w the samples the residuals count as
+(:func:`output_error_profile`); for the Kalman filter its negative log-likelihood.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["CHI2_1_95", "ProfileLimit", "profile_limit"]
+from railtherm.estimation import models, pem
+
+__all__ = ["CHI2_1_95", "ProfileLimit", "output_error_profile", "profile_limit"]
 
 CHI2_1_95 = 3.841458820694124  # the 95 % quantile of chi-square with one degree of freedom
 
@@ -137,3 +139,42 @@ def profile_limit(
     }[(lower is not None, upper is not None)]
     rises = [(v, c - best[0]) for v, c in seen]
     return ProfileLimit(parameter, kind, lower, upper, 0.95, rises)
+
+
+def output_error_profile(
+    structure: models.Structure,
+    experiments: Sequence[pem.Experiment],
+    parameter: str,
+    estimate: pem.FitResult,
+    *,
+    weight: float | None = None,
+    points: int = 16,
+    **options: Any,
+) -> ProfileLimit:
+    """The profile-likelihood limits of ``parameter`` (:func:`profile_limit`) around
+    ``estimate``, the fit of :func:`railtherm.estimation.pem.fit` with ``options`` (fixed,
+    bounds, outputs, x0, input_noise, priors ...): at each value the parameter is fixed and
+    the rest re-fitted (warm-started, the iid covariance: only the point is needed). The
+    criterion is (weight / 2) log(e^T e), ``weight`` the samples the residuals count as
+    (default: the estimate's ``samples_weight``, fewer than the compared samples where the
+    HAC covariance finds the residuals coloured). Within the parameter's search bounds."""
+    default = estimate.samples_weight if estimate.samples_weight else estimate.n_obs
+    w = float(default if weight is None else weight)
+    bounds = dict(structure.bounds)
+    bounds.update({p: (float(b[0]), float(b[1])) for p, b in (options.get("bounds") or {}).items()})
+    fixed = dict(options.get("fixed") or {})
+    base = {**options, "start": "initial", "covariance": "iid"}
+    others = {p: estimate.theta[p] for p in estimate.free if p != parameter}
+
+    def criterion(value: float, warm):
+        r = pem.fit(
+            structure, experiments, **{**base, "fixed": {**fixed, parameter: value},
+            "initial": warm or others},
+        )  # fmt: skip
+        return 0.5 * w * math.log(r.cost), {p: r.theta[p] for p in r.free}
+
+    minimum = 0.5 * w * math.log(estimate.cost)
+    return profile_limit(
+        parameter, estimate.theta[parameter], bounds[parameter], criterion,
+        minimum=minimum, points=points,
+    )  # fmt: skip

@@ -1,6 +1,7 @@
-"""Posterior sampling of the stochastic grey-box model: the No-U-Turn sampler (NUTS) of
-nutpie on the exact Kalman-filter likelihood of :mod:`railtherm.estimation.filtering`, with its
-exact gradient, times the priors of :mod:`railtherm.estimation.priors`.
+"""Posterior sampling: the No-U-Turn sampler (NUTS) of nutpie on either estimator's
+likelihood with its exact gradient - the Kalman filter's of :mod:`railtherm.estimation.
+filtering`, or the simulation error's (:class:`railtherm.estimation.leastsquares_map.Density`)
+- times the priors of :mod:`railtherm.estimation.priors`.
 
 The sampler explores the estimator's unknowns as the fit holds them: the logarithms of the
 structure's free parameters and of the noise parameters, the output offsets and the
@@ -8,13 +9,13 @@ estimated initial states (K). Its target is the log density of those unknowns,
 
     log p(v | y) = -NLL(v) + sum_i [log p_i(exp v_i) + v_i] + const,
 
-the likelihood of the filter times each prior's density of theta carried to v = log theta
+the likelihood times each prior's density of theta carried to v = log theta
 (the log Jacobian v_i). An unknown without a prior is flat in v: a log-uniform prior on a
 positive parameter, a uniform one on an initial state or offset; within the fit's bounds,
 outside which the density is zero. nutpie (the PyMC project's NUTS in Rust, with its
 mass-matrix adaptation) calls the target as a Python function that returns the value and
-the gradient together (:meth:`railtherm.estimation.kalman.Density.log_density`): each
-leapfrog step costs one pass of the filter with its forward sensitivities.
+the gradient together (``Density.log_density``): each leapfrog step costs one pass of the
+filter with its forward sensitivities, or one simulation with its sensitivities.
 
 nutpie and ArviZ are the optional extra ``railtherm[bayes]``; they are imported on first use
 only.
@@ -30,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from railtherm.estimation import kalman
+from railtherm.estimation import kalman, pem
 from railtherm.estimation.common import Experiment
 from railtherm.estimation.models import Structure
 
@@ -67,7 +68,7 @@ class Posterior:
 
     idata: Any
     names: tuple[str, ...]
-    estimate: kalman.KalmanResult
+    estimate: kalman.KalmanResult | pem.FitResult
     seconds: float
     settings: dict[str, Any] = field(default_factory=dict)
 
@@ -98,10 +99,15 @@ def sample(
     tune: int = 1000,
     seed: int = 0,
     target_accept: float = 0.8,
+    estimator: str = "kalman",
     **fit_options: Any,
 ) -> Posterior:
-    """Draws of the posterior of the stochastic model of ``structure`` given
-    ``experiments``: first the fit (:func:`railtherm.estimation.kalman.fit` with
+    """Draws of the posterior of the model of ``structure`` given ``experiments`` under
+    ``estimator``'s likelihood: ``kalman`` (the stochastic model's filter) or
+    ``output_error`` (the simulation error, Gaussian with its variance integrated out, its
+    residuals counted as the HAC covariance counts them:
+    :class:`railtherm.estimation.leastsquares_map.Density`). First the fit
+    (:func:`railtherm.estimation.kalman.fit` or :func:`railtherm.estimation.pem.fit` with
     ``fit_options``: fixed, initial, bounds, outputs, x0, priors, prior_terms, ...), then
     ``chains`` chains of NUTS, one after the other in this process (one thread), each
     ``tune`` tuning steps (discarded) and ``draws`` draws, each chain started at the fit's
@@ -111,7 +117,19 @@ def sample(
             f"chains and draws must be >= 1 and tune >= 0, got {chains}, {draws}, {tune}"
         )
     nutpie, compiled_pyfunc, az = _nutpie()
-    estimate, density = kalman.fit_with_density(structure, experiments, **fit_options)
+    if estimator not in ("kalman", "output_error"):
+        raise ValueError(f"estimator must be 'kalman' or 'output_error', got {estimator!r}")
+    fitter = kalman if estimator == "kalman" else pem
+    estimate, density = fitter.fit_with_density(structure, experiments, **fit_options)
+    held = getattr(estimate, "noise_at_bound", ())
+    if held:  # as the fit holds them: a diffusion the records do not show stays at its bound
+        fixed = {**(fit_options.get("fixed") or {})}
+        for name in held:
+            kind, of = name.split("_", 1)
+            fixed[name] = (estimate.sigma if kind == "sigma" else estimate.meas_var)[of]
+        estimate, density = fitter.fit_with_density(
+            structure, experiments, **{**fit_options, "fixed": fixed}
+        )
     names, n_log = density.names, density.n_log
     spread = _spread(estimate, density)
 
@@ -177,8 +195,11 @@ def sample(
 
 
 def _spread(estimate, density) -> np.ndarray:
-    """The estimate's standard deviation of each unknown (its covariance's diagonal; 0.01
-    where that is not finite)."""
-    cov = np.asarray(estimate.covariance_log, dtype=float)
-    sd = np.sqrt(np.abs(np.diag(cov))) if cov.size else np.zeros(len(density.v))
+    """The estimate's standard deviation of each unknown (the Kalman fit's covariance; the
+    output-error fit's sd of the log parameters); 0.01 where none is known or finite."""
+    cov = np.asarray(getattr(estimate, "covariance_log", np.zeros((0, 0))), dtype=float)
+    if cov.shape == (len(density.v), len(density.v)):
+        sd = np.sqrt(np.abs(np.diag(cov)))
+    else:
+        sd = np.array([estimate.sd_log.get(name, np.nan) for name in density.names])
     return np.where(np.isfinite(sd) & (sd > 0), sd, 0.01)

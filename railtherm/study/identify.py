@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -21,6 +22,7 @@ from railtherm.data import plausibility as units_plausibility
 from railtherm.errors import ConfigError
 from railtherm.estimation import common, metrics, models, pem
 from railtherm.estimation.priors import LinearT
+from railtherm.estimation.profile import output_error_profile
 from railtherm.records import EstimateRecord, JudgedEstimate, ParameterEstimate
 from railtherm.study import identifiability
 from railtherm.study.budget import combine_uncertainty, systematic_budget
@@ -252,6 +254,42 @@ STATIC_CONFLICT = "the static test and the records disagree"
 WHITENESS_OF_JOINT = "the fit with kA free (the two-stage check's joint fit)"
 
 
+def fit_setup(
+    tables: Mapping[str, pd.DataFrame],
+    vehicle_data: Mapping[str, Any],
+    kvalue: Mapping[str, Any] | None,
+    order: int | str,
+    storage: Mapping[str, Any] | None = None,
+    prior_terms: Sequence[LinearT] = (),
+) -> SimpleNamespace:
+    """What the stage-two fit of the model ``order`` (a model key) runs on, as
+    :func:`identify` sets it up: ``structure``, ``tables`` (with the envelope's),
+    ``exps`` (the experiments), ``options`` (the estimator's, kA held at the static or the
+    storage-corrected value), ``outputs``, ``estimator``, ``k_source``, ``notes`` and
+    ``storage`` (the storage correction where applied, else None)."""
+    structure = model_structure(order, vehicle_data)
+    tables = envelope_tables(structure, vehicle_data, tables)
+    outputs = compared_outputs(structure, vehicle_data, tables)
+    estimator = split_key(order)[1]
+    options, k_source, notes = stage_two_options(structure, vehicle_data, kvalue, tables, estimator)
+    if prior_terms:
+        options["prior_terms"] = list(prior_terms)
+    applied = bool(storage and storage.get("applied")) and "kA" in options["fixed"]
+    if applied:
+        options["fixed"]["kA"] = float(storage["kA_corrected"])
+        k_source += ", storage-corrected"
+    if estimator == "kalman":
+        options["estimator"] = "kalman"
+        options["offsets"] = surface_offsets(structure, vehicle_data, options["outputs"])
+    exps = experiments(structure, tables, input_hold(vehicle_data))
+    options["input_noise"] = input_noise(structure, vehicle_data, exps)
+    return SimpleNamespace(
+        structure=structure, tables=tables, exps=exps, options=options, outputs=outputs,
+        estimator=estimator, k_source=k_source, notes=notes,
+        storage=storage if applied else None,
+    )  # fmt: skip
+
+
 def identify(
     tables: Mapping[str, pd.DataFrame],
     vehicle_data: Mapping[str, Any],
@@ -274,25 +312,17 @@ def identify(
     identify/<model>.yaml) and the series table (per window: time,
     measured and simulated states, residuals and inputs).
     """
-    structure = model_structure(order, vehicle_data)
-    tables = envelope_tables(structure, vehicle_data, tables)
-    outputs = compared_outputs(structure, vehicle_data, tables)
-    estimator = split_key(order)[1]
-    options, k_source, notes = stage_two_options(structure, vehicle_data, kvalue, tables, estimator)
-    if prior_terms:
-        options["prior_terms"] = list(prior_terms)
+    setup = fit_setup(tables, vehicle_data, kvalue, order, storage, prior_terms)
+    structure, tables, exps, options = setup.structure, setup.tables, setup.exps, setup.options
+    outputs, estimator, k_source, notes = (
+        setup.outputs,
+        setup.estimator,
+        setup.k_source,
+        setup.notes,
+    )
     fixed = options["fixed"]
-    applied = bool(storage and storage.get("applied")) and "kA" in fixed
-    if applied:
-        fixed["kA"] = float(storage["kA_corrected"])
-        k_source += ", storage-corrected"
-    if estimator == "kalman":
-        options["estimator"] = "kalman"
-        options["offsets"] = surface_offsets(structure, vehicle_data, options["outputs"])
     rows = rows_used(structure, tables, outputs, vehicle_data)
-    exps = experiments(structure, tables, input_hold(vehicle_data))
-    options["input_noise"] = input_noise(structure, vehicle_data, exps)
-    storage_used = storage if applied else None
+    storage_used = setup.storage
     from railtherm.estimation.kalman import NotEvaluable
 
     try:
@@ -511,7 +541,7 @@ def _sd_log_total(entry: ParameterEstimate) -> float:
 
 def profile_limits(structure, exps, options, result, fitted: JudgedEstimate) -> JudgedEstimate:
     """``fitted`` with each estimated parameter it judges not identified given the limits
-    of its profile likelihood (:func:`railtherm.estimation.pem.profile`: the other
+    of its profile likelihood (:func:`railtherm.estimation.profile.output_error_profile`: the other
     parameters re-fitted at each value), for the output-error estimator: a one-sided limit
     the data give ("lower": at least, "upper": at most) replaces ``limit: none``; the profile
     is kept under ``profile`` and said in the reason. A parameter the profile bounds on both
@@ -524,7 +554,7 @@ def profile_limits(structure, exps, options, result, fitted: JudgedEstimate) -> 
     for p, entry in content["parameters"].items():
         if not entry.get("estimated") or entry.get("identified", True) or p not in result.free:
             continue
-        limit = pem.profile(structure, exps, p, result, **fit_options)
+        limit = output_error_profile(structure, exps, p, result, **fit_options)
         entry["profile"] = limit.to_dict()
         entry["reason"] = f"{entry.get('reason', 'not identified')}; {limit.phrase()}"
         if limit.kind in ("lower", "upper"):
