@@ -41,7 +41,7 @@ from railtherm.estimation.filtering import (
     negative_log_likelihood,
 )
 from railtherm.estimation.models import Structure
-from railtherm.estimation.priors import LinearT, LogPrior, Prior
+from railtherm.estimation.priors import LinearT, LogPrior, PosteriorDensity, Prior
 
 __all__ = [
     "KalmanResult",
@@ -240,7 +240,7 @@ def fit(structure: Structure, experiments: Sequence[Experiment], **options: Any)
 
 
 @dataclass
-class Density:
+class Density(PosteriorDensity):
     """The log density a posterior sampler explores (:mod:`railtherm.estimation.sampling`):
     over the fit's unknowns ``names`` (the first ``n_log`` held as logarithms: the free
     parameters and noise parameters; then offsets and initial states in K), within the
@@ -248,18 +248,12 @@ class Density:
     prior's log density of theta carried to the log parameter (the log Jacobian added);
     an unknown without a prior is flat in the way the fit holds it."""
 
-    lik: Likelihood
-    prior: LogPrior
-    names: tuple[str, ...]
-    n_log: int
-    lo: np.ndarray
-    hi: np.ndarray
-    v: np.ndarray
+    lik: Likelihood = field(kw_only=True)
 
     def log_density(self, v: np.ndarray) -> tuple[float, np.ndarray]:
         """(log density up to a constant, its gradient); -inf outside the bounds or where
         the model cannot be evaluated."""
-        if np.any(v < self.lo) or np.any(v > self.hi):
+        if self.outside(v):
             return -math.inf, np.zeros(len(v))
         nll, g, _ = self.lik.evaluate(v, 1)
         lp, gp, _ = self.prior.evaluate(v, jacobian=True)
@@ -382,7 +376,8 @@ def fit_with_density(
     result.input_noise_sd = [dict(level) for level in levels] if any(levels) else []
     if prior:
         _posterior_terms(result, lik, prior, v)
-    return result, Density(lik, prior, tuple(names), lik.Qn, lo, hi, np.array(v, dtype=float))
+    density = Density(prior, tuple(names), lik.Qn, lo, hi, np.array(v, dtype=float), lik=lik)
+    return result, density
 
 
 def _likelihood(structure, experiments, oe, outputs, x0, offsets, sigma_initial, noise_n):

@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import SimpleNamespace
 
 import numpy as np
 
-from railtherm.estimation.priors import LogPrior
+from railtherm.estimation.priors import LogPrior, PosteriorDensity
 
 __all__ = ["INFO_NULL", "Density", "laplace_covariance", "search"]
 
@@ -29,7 +29,7 @@ INFO_NULL = 1e-14  # eigenvalues of the posterior's information below this (rela
 
 
 @dataclass
-class Density:
+class Density(PosteriorDensity):
     """The log posterior density a sampler explores (:mod:`railtherm.estimation.sampling`)
     over the least-squares fit's unknowns ``names`` (the first ``n_log`` held as logarithms:
     the free parameters; then the estimated initial states, K), within ``lo``, ``hi``; ``v``
@@ -37,19 +37,13 @@ class Density:
     likelihood with its variance integrated out under p(sigma) ~ 1/sigma) plus each prior's
     log density of the log parameter; an unknown without a prior is flat as held."""
 
-    residuals: Callable[[np.ndarray], np.ndarray]
-    jacobian: Callable[[np.ndarray], np.ndarray]
-    prior: LogPrior
-    weight: float
-    names: tuple[str, ...]
-    n_log: int
-    lo: np.ndarray
-    hi: np.ndarray
-    v: np.ndarray
+    residuals: Callable[[np.ndarray], np.ndarray] = field(kw_only=True)
+    jacobian: Callable[[np.ndarray], np.ndarray] = field(kw_only=True)
+    weight: float = field(kw_only=True)
 
     def log_density(self, v: np.ndarray) -> tuple[float, np.ndarray]:
         """(log density up to a constant, its gradient); -inf outside the bounds."""
-        if np.any(v < self.lo) or np.any(v > self.hi):
+        if self.outside(v):
             return -math.inf, np.zeros(len(v))
         r = self.residuals(v)
         ssr = float(r @ r)

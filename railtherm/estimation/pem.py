@@ -755,8 +755,8 @@ def fit_with_density(
     names = [*free, *(f"x0_{s}[{e.name}]" for e, f in zip(experiments, prob.x0_free, strict=True)
                       for s in (structure.states[i] for i in f))]  # fmt: skip
     return result, leastsquares_map.Density(
-        prob.residuals, prob.jacobian, prior, result.samples_weight, tuple(names), len(free),
-        lo, hi, np.array(v, dtype=float),
+        prior, tuple(names), len(free), lo, hi, np.array(v, dtype=float),
+        residuals=prob.residuals, jacobian=prob.jacobian, weight=result.samples_weight,
     )  # fmt: skip
 
 

@@ -30,7 +30,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["KINDS", "LinearT", "LogPrior", "Prior", "PriorError", "prior_from_config"]
+__all__ = [
+    "KINDS",
+    "LinearT",
+    "LogPrior",
+    "PosteriorDensity",
+    "Prior",
+    "PriorError",
+    "prior_from_config",
+]
 
 # kind: its parameters, in the order they are written
 KINDS: dict[str, tuple[str, ...]] = {
@@ -347,3 +355,22 @@ class LogPrior:
             **{name: prior.to_dict() for _, name, prior in self.raw},
             **{t.name: t.to_dict() for t in self.terms},
         }
+
+
+@dataclass
+class PosteriorDensity:
+    """What a posterior sampler needs of an estimator (:mod:`railtherm.estimation.sampling`):
+    the log-prior ``prior``, the unknowns' ``names`` (the first ``n_log`` held as
+    logarithms), their bounds ``lo``, ``hi`` and the fit's estimate ``v``; each estimator's
+    subclass adds :meth:`log_density`, its likelihood plus ``prior``'s log density of the
+    log parameters, -inf outside the bounds (:meth:`outside`)."""
+
+    prior: LogPrior
+    names: tuple[str, ...]
+    n_log: int
+    lo: np.ndarray
+    hi: np.ndarray
+    v: np.ndarray
+
+    def outside(self, v: np.ndarray) -> bool:
+        return bool(np.any(v < self.lo) or np.any(v > self.hi))
