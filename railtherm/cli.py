@@ -238,6 +238,8 @@ def _posterior(args: argparse.Namespace, vehicle, result, out: str | None) -> No
         else:
             path = os.path.join(args.directory, f"{vehicle.id}.fit_{model}.posterior.nc")
         print(f"written to {posterior.write(post, path)}")
+        figure = posterior.pair_plot(post, path.removesuffix(".nc") + ".png")
+        print(f"pair plot: {figure}")
 
 
 def _reference_model(args: argparse.Namespace) -> int:

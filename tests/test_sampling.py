@@ -163,3 +163,5 @@ def test_railtherm_fit_posterior_prints_its_summary_and_writes_the_inference_dat
     back = az.from_netcdf(path)
     assert back.posterior["K_o"].shape == (2, 200)
     assert (tmp_path / "vehicles" / "Armadillo" / "fit_interior_envelope_kalman.yaml").is_file()
+    png = path.with_suffix(".png")
+    assert f"pair plot: {png}" in out and png.stat().st_size > 10_000

@@ -8,11 +8,13 @@ from __future__ import annotations
 import os
 from typing import Any
 
+import numpy as np
+
 from railtherm.estimation import sampling
 from railtherm.study import identify
 from railtherm.study.storage import storage_corrected_k
 
-__all__ = ["vehicle_posterior", "write"]
+__all__ = ["pair_plot", "vehicle_posterior", "write"]
 
 
 def vehicle_posterior(
@@ -39,4 +41,25 @@ def write(posterior: sampling.Posterior, path: str) -> str:
     """The posterior's InferenceData as NetCDF at ``path`` (its directory made); returns it."""
     os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
     posterior.write(path)
+    return path
+
+
+def pair_plot(posterior: sampling.Posterior, path: str) -> str:
+    """ArviZ's pair plot of the structure's parameters (the draws of every pair, each one's
+    marginal on the diagonal, divergent draws marked) as PNG at ``path``; returns it."""
+    import arviz as az
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [n for n in posterior.estimate.free if n in posterior.idata.posterior]
+    axes = az.plot_pair(
+        posterior.idata, var_names=names, kind="scatter", marginals=True, divergences=True,
+        scatter_kwargs={"alpha": 0.4, "s": 5, "color": "C0"}, figsize=(8.0, 8.0),
+        textsize=9,
+    )  # fmt: skip
+    figure = np.asarray(axes).ravel()[0].figure
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
     return path
