@@ -143,11 +143,13 @@ def main() -> None:
         for estimator in args.estimators.split(",")
         for i in range(args.records)
     ]
+    rows = []
     with ProcessPoolExecutor(args.jobs) as pool:
-        rows = list(pool.map(one, jobs, chunksize=4))
+        for row in pool.map(one, jobs, chunksize=4):  # each record's ranks as they come
+            rows.append(row)
+            if args.out:
+                pd.DataFrame(rows).to_csv(args.out, index=False)
     df = pd.DataFrame(rows)
-    if args.out:
-        df.to_csv(args.out, index=False)
     print(
         f"SBC: {args.records} records per estimator (seed {args.seed}); ranks of the truth "
         f"among {RANKS} of {CHAINS} x {DRAWS} draws ({TUNE} tuning), 10 bins, chi-square 9 dof"
