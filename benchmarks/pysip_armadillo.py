@@ -15,8 +15,9 @@ Like for like: the same estimator, rows, hold and threads on both sides.
 - Mode: maximum likelihood on both sides. pySIP's regression test
   (``tests/data/test_armadillo.py``) puts a prior on every free parameter, which makes its
   fit a maximum a posteriori one; here its set-up is taken without the priors (pySIP's
-  criterion is then its negative log-likelihood plus its bounds' 1e-4 penalty). railtherm's
-  Kalman fit has no priors, so there is no MAP against MAP comparison to make.
+  criterion is then its negative log-likelihood plus its bounds' 1e-4 penalty), and
+  railtherm's Kalman fit is run without priors too. The posteriors with the test's priors
+  are compared in benchmarks/pysip_posterior.py.
 - Model and data: TwTi_RoRi (pySIP) and ``interior_envelope`` (railtherm), the same network;
   the first 232 rows of the record (pySIP's set-up drops the last); the first-order hold; the
   indoor state's initial value from its first reading; diffusion on the wall state only
