@@ -226,7 +226,7 @@ def report(threads: str, got: dict, rounds: int) -> None:
     print(f"\n## threads: {threads} ({setting}); {rounds} interleaved rounds, wall seconds per fit")
     mode = {
         "pySIP": "maximum likelihood (regression-test set-up without its priors)",
-        "railtherm": "maximum likelihood (no priors exist)",
+        "railtherm": "maximum likelihood (no priors given)",
     }
     print(
         "| tool | mode | rows | hold | threads (numba; BLAS) | median wall | min wall "
@@ -269,7 +269,8 @@ def main(argv: list[str] | None = None) -> int:
     print(
         "# pysip_armadillo: pySIP 1.0.0 (TwTi_RoRi) and railtherm (kalman.fit of "
         f"interior_envelope) on the Armadillo record, {ROWS} rows, first-order hold, maximum "
-        "likelihood on both sides (railtherm has no priors: no MAP comparison)"
+        "likelihood on both sides (no priors on either: the posteriors with pySIP's priors are "
+        "compared in benchmarks/pysip_posterior.py)"
     )
     for threads in args.threads:
         report(threads, run(threads, args), args.rounds)
