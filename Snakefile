@@ -36,6 +36,7 @@ include: "workflow/rules/study.smk"
 include: "workflow/rules/audit.smk"
 include: "workflow/rules/sindy.smk"
 include: "workflow/rules/predict.smk"
+include: "workflow/rules/bayes.smk"
 
 
 rule all:

@@ -233,6 +233,13 @@ def _posterior(args: argparse.Namespace, vehicle, result, out: str | None) -> No
             "divergences (docs/bayes.md)"
         )
         print(table.to_string(float_format=lambda x: f"{x:.5g}"))
+        intervals = post.intervals()
+        if "with_systematic_lo" in intervals:
+            print(
+                "95 % intervals (equal-tailed): the data's (statistical) and with the "
+                "systematic budget (type B) mixed in by draws"
+            )
+            print(intervals.dropna().to_string(float_format=lambda x: f"{x:.5g}"))
         if out:  # beside the fit file
             path = os.path.join(out, "vehicles", vehicle.id, f"fit_{model}.posterior.nc")
         else:

@@ -165,3 +165,34 @@ def test_railtherm_fit_posterior_prints_its_summary_and_writes_the_inference_dat
     assert (tmp_path / "vehicles" / "Armadillo" / "fit_interior_envelope_kalman.yaml").is_file()
     png = path.with_suffix(".png")
     assert f"pair plot: {png}" in out and png.stat().st_size > 10_000
+
+
+def test_the_systematic_budget_is_mixed_into_the_draws_as_the_gum_adds_it():
+    """Two parameters with independent log-normal posteriors (sd 0.02, 0.01) and two type-B
+    sources moving them (effects 0.03 and -0.01 on a, 0.04 on b) plus a held parameter c:
+    the mixed draws' log sd is the root sum of squares (GUM), their correlation the shared
+    sources' (0.03 * 0.04 / (sd_a sd_b)), their medians the posterior's; the posterior itself
+    is left as it was."""
+    rng = np.random.default_rng(1)
+    log_a = math.log(5.0) + 0.02 * rng.standard_normal((4, 5000))
+    log_b = math.log(2e6) + 0.01 * rng.standard_normal((4, 5000))
+    idata = az.from_dict(posterior={"a": np.exp(log_a), "b": np.exp(log_b)})
+    post = sampling.Posterior(idata, ("a", "b"), estimate=None, seconds=0.0)
+    effects = {
+        "a": {"power": 0.03, "offset": -0.01},
+        "b": {"power": 0.04},
+        "c": {"offset": 0.05},
+    }
+    post.add_systematic(effects, {"c": 700.0}, seed=3)
+    mixed = post.idata.posterior_systematic
+    sd_a, sd_b = math.hypot(0.02, 0.03, 0.01), math.hypot(0.01, 0.04)
+    la, lb, lc = (np.log(mixed[p].values.ravel()) for p in ("a", "b", "c"))
+    assert np.std(la) == pytest.approx(sd_a, rel=0.03)
+    assert np.std(lb) == pytest.approx(sd_b, rel=0.03)
+    assert np.std(lc) == pytest.approx(0.05, rel=0.03)
+    assert np.median(lc) == pytest.approx(math.log(700.0), abs=0.003)
+    assert np.corrcoef(la, lb)[0, 1] == pytest.approx(0.03 * 0.04 / (sd_a * sd_b), abs=0.03)
+    np.testing.assert_array_equal(post.idata.posterior["a"].values, np.exp(log_a))
+    table = post.intervals()
+    assert table.loc["a", "with_systematic_hi"] > table.loc["a", "statistical_hi"]
+    assert math.isnan(table.loc["c", "statistical_lo"])

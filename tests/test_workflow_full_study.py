@@ -167,3 +167,41 @@ def test_editing_one_vehicle_config_reruns_only_its_jobs_and_the_aggregates(full
     # the other vehicles rest, but for the SINDy job they share (sindy.vehicles_per_job)
     assert [rule for rule, line in planned if "Tram2" in line] == ["sindy"]
     assert "figure3" not in counts  # Tram2's figure
+
+
+def test_inference_posterior_samples_each_vehicle_with_the_class_of_the_others(full_run, tmp_path):
+    """`inference: posterior` plans a posterior job per Table 1 and Table 2 fit and the pooling
+    table; the posterior of a vehicle (Regio1, the smallest record) runs alone on the finished
+    study, its prior the regional class without it, its file the diagnostics and each
+    parameter's maximum-likelihood and posterior intervals, its InferenceData readable."""
+    import arviz as az
+
+    study = copy_of(full_run, tmp_path)
+    cfg_path = study / "config" / "config.yaml"
+    cfg = yaml.safe_load(cfg_path.read_text())
+    cfg["inference"] = "posterior"
+    cfg["posterior"] = {"chains": 2, "draws": 150, "tune": 150, "seed": 3}
+    cfg_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    plan = snakemake(study, "--dry-run")
+    assert plan.returncode == 0, plan.stderr[-3000:]
+    counts = job_counts(plan.stdout + plan.stderr)
+    fits = sum(len(yaml.safe_load((study / v).read_text()).get("model", {}).get("orders", [1, 2]))
+               for v in cfg["vehicles"])  # fmt: skip
+    assert counts["posterior"] == fits and counts["pooling"] == 1
+    assert not {"identify", "check", "aggregate"} & set(counts)  # nothing else reruns
+    target = "results/vehicles/Regio1/posterior_order2.yaml"
+    run = snakemake(study, target)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert job_counts(run.stdout + run.stderr) == {"posterior": 1}
+    rec = yaml.safe_load((study / target).read_text())
+    assert rec["prior"]["kind"] == "class" and rec["prior"]["class"] == "regional"
+    assert "Regio1" not in rec["prior"]["vehicles"] and rec["prior"]["vehicles"]
+    assert set(rec["diagnostics"]) == {"r_hat_max", "ess_bulk_min", "divergences", "trusted"}
+    for p in ("C", "K_veh", "C_veh"):
+        entry = rec["parameters"][p]
+        lo, hi = entry["ci95"]
+        ml_lo, ml_hi = entry["ml"]["ci95"]
+        assert lo < entry["median"] < hi and lo < ml_hi and ml_lo < hi  # intervals meet
+    back = az.from_netcdf(study / "results/vehicles/Regio1/fit_order2.posterior.nc")
+    assert back.posterior["C_veh"].shape == (2, 150)
+    assert "posterior_systematic" in back.groups()

@@ -665,15 +665,12 @@ def free_response_head(d: Discretisation, N: int) -> np.ndarray:
     else:
         n_cut = N
     if d.diagonal:
-        steps = np.arange(n_cut)[:, None]
-        lam = d.lam[None, :]
-        with np.errstate(under="ignore"):
-            pw = np.where(
-                np.abs(lam) > 0, np.exp(steps * np.log(np.abs(lam) + (lam == 0))), 0.0
-            ) * np.where(lam < 0, (-1.0) ** steps, 1.0)
-        pw[0] = 1.0
+        with np.errstate(under="ignore"):  # lam^t, exact in sign and at lam = 0 (0^0 = 1)
+            pw = np.power(d.lam.real[None, :], np.arange(n_cut)[:, None])
         pw[np.abs(pw) < FREE_RESPONSE_CUT] = 0.0
-        return np.einsum("ij,nj,jk->nik", d.Q, pw, d.Qinv)
+        # Ad^t = sum_j pw[t, j] Q[:, j] Qinv[j, :]: one (n_cut x n) (n x n^2) product
+        outer = (d.Q.T[:, :, None] * d.Qinv[:, None, :]).reshape(n, n * n)
+        return (pw @ outer).reshape(n_cut, n, n)
     w = np.zeros((n, n, n_cut), dtype=complex)
     z = _propagate(d, w, d.Qinv.astype(complex))  # (modes, columns of x0, N)
     x = np.einsum("ij,jkn->nik", d.Q, z).real

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -88,6 +88,71 @@ class Posterior:
     def write(self, path: str) -> None:
         """The InferenceData as NetCDF (the ecosystem's format: ``arviz.from_netcdf``)."""
         self.idata.to_netcdf(path)
+
+    def add_systematic(
+        self,
+        effects_log: Mapping[str, Mapping[str, float]],
+        values: Mapping[str, float] | None = None,
+        seed: int = 0,
+    ) -> None:
+        """Mix the systematic (GUM type B) budget into the draws: the InferenceData's group
+        ``posterior_systematic`` holds, for each parameter p of ``effects_log`` (p's signed
+        change of log theta per standard uncertainty of each source j, as the ML fit's
+        budget gives it), per chain and draw
+
+            log theta_p = log theta_p(draw) + sum_j effects_log[p][j] xi_j,  xi_j ~ N(0, 1),
+
+        one xi per source and draw, shared by every parameter (a source moves them
+        together). A parameter the posterior does not sample (held by the fit, as kA from
+        eq. 10 in the two-stage approach) enters at ``values[p]``. The posterior itself
+        stays the data's: the statistical part."""
+        post = self.idata.posterior
+        chains, draws = post.sizes["chain"], post.sizes["draw"]
+        sources = sorted({s for effects in effects_log.values() for s in effects})
+        rng = np.random.default_rng([seed, 0x7B])  # apart from the sampler's own stream
+        xi = rng.standard_normal((chains, draws, len(sources)))
+        out = {}
+        for p, effects in effects_log.items():
+            if p in post:
+                log_theta = np.log(post[p].values)
+            elif values is not None and p in values:
+                log_theta = np.full((chains, draws), math.log(float(values[p])))
+            else:
+                continue
+            shift = xi @ np.array([float(effects.get(s, 0.0)) for s in sources])
+            out[p] = (("chain", "draw"), np.exp(log_theta + shift))
+        if not out:
+            return
+        import xarray as xr  # ArviZ's own dependency
+
+        group = xr.Dataset(out, coords={"chain": post["chain"], "draw": post["draw"]})
+        group.attrs["method"] = (
+            "type-B sources mixed in by draws: log theta + sum_j effects_log[p][j] xi_j, "
+            "xi_j ~ N(0, 1) per source and draw"
+        )
+        group.attrs["sources"] = ", ".join(sources)
+        if "posterior_systematic" in self.idata.groups():
+            del self.idata["posterior_systematic"]
+        self.idata.add_groups({"posterior_systematic": group})
+
+    def intervals(self, prob: float = 0.95):
+        """Per parameter: the equal-tailed ``prob`` interval and median of the posterior
+        (``statistical``) and, where :meth:`add_systematic` added it, of the posterior with
+        the type-B budget mixed in (``with_systematic``); a pandas DataFrame."""
+        import pandas as pd
+
+        q = ((1.0 - prob) / 2.0, 0.5, (1.0 + prob) / 2.0)
+        rows = {}
+        groups = [("statistical", self.idata.posterior)]
+        if "posterior_systematic" in self.idata.groups():
+            groups.append(("with_systematic", self.idata.posterior_systematic))
+        for label, group in groups:
+            for p in group.data_vars:
+                lo, med, hi = np.quantile(group[p].values.ravel(), q)
+                rows.setdefault(p, {}).update(
+                    {f"{label}_lo": lo, f"{label}_median": med, f"{label}_hi": hi}
+                )
+        return pd.DataFrame.from_dict(rows, orient="index")
 
 
 def sample(

@@ -253,6 +253,35 @@ class StudyPlan:
         targets = [f"results/tables/annual_energy.{ext}" for ext in ("csv", "md")]
         return targets + [f"results/figures/annual_energy.{ext}" for ext in FIGURE_FORMATS]
 
+    def posterior_targets(self) -> list[tuple[str, str]]:
+        """(vehicle, model key) of every Table 1 and Table 2 fit sampled by NUTS, with
+        ``inference: posterior`` (rule posterior)."""
+        if self.config.get("inference", "ml") != "posterior":
+            return []
+        return [(vid, self.table_key(vid, n)) for vid, n in self.fit_targets()]
+
+    def class_prior_input(self, vehicle: str, model: str) -> list[str]:
+        """What rule posterior reads for a class prior: the study's Table 2, for a
+        second-order model with ``posterior.prior: class`` (none otherwise)."""
+        second = fitsettings.split_key(model)[0] == "order2"
+        wanted = self.config["posterior"]["prior"] == "class" and second
+        return ["results/tables/table2.csv"] if wanted and self.paper_tables() else []
+
+    def posterior_outputs(self) -> list[str]:
+        """Targets of the rules posterior and pooling."""
+        targets = [
+            f"results/vehicles/{vid}/{name}"
+            for vid, key in self.posterior_targets()
+            for name in (
+                f"fit_{key}.posterior.nc",
+                f"fit_{key}.posterior.png",
+                f"posterior_{key}.yaml",
+            )
+        ]
+        if targets:
+            targets += [f"results/tables/pooling.{ext}" for ext in ("csv", "md")]
+        return targets
+
     def all_outputs(self) -> list[str]:
         """Every target of the study (rule all), in a stable order."""
         cfg = self.config
@@ -293,6 +322,7 @@ class StudyPlan:
         targets += self.prediction_outputs()
         targets += self.design_outputs()
         targets += self.energy_outputs()
+        targets += self.posterior_outputs()
         if self.study.campaign_data:
             targets += [
                 "results/campaign/ground_truth.csv",

@@ -14,7 +14,7 @@ from railtherm.estimation import sampling
 from railtherm.study import identify
 from railtherm.study.storage import storage_corrected_k
 
-__all__ = ["pair_plot", "vehicle_posterior", "write"]
+__all__ = ["add_systematic", "pair_plot", "sample_model", "vehicle_posterior", "write"]
 
 
 def vehicle_posterior(
@@ -22,19 +22,63 @@ def vehicle_posterior(
 ) -> sampling.Posterior:
     """The posterior of ``model`` (a model key: order2, order2_kalman, ...) of ``vehicle``
     given its identification windows, from ``result`` (:func:`railtherm.study.run.
-    fit_vehicle`'s: its tables and k stage): the two-stage set-up of the study's fit."""
+    fit_vehicle`'s: its tables, k stage and fits): the two-stage set-up of the study's fit,
+    the fit's type-B budget mixed into the draws."""
     windows = {w["name"]: result.tables[w["name"]] for w in vehicle.windows["identification"]}
     k_stage = None if result.kvalue is None else result.kvalue.to_dict()
-    storage = storage_corrected_k(windows, result.tables.get("kvalue"), vehicle.data, k_stage)
-    setup = identify.fit_setup(windows, vehicle.data, k_stage, model, storage)
+    return sample_model(
+        windows, vehicle.data, k_stage, result.tables.get("kvalue"), model,
+        fit=result.fits.get(model), chains=chains, draws=draws, tune=tune, seed=seed,
+    )  # fmt: skip
+
+
+def sample_model(
+    windows,
+    vehicle_data,
+    k_stage,
+    k_window,
+    model: str,
+    *,
+    fit=None,
+    prior_terms=(),
+    chains: int,
+    draws: int,
+    tune: int,
+    seed: int,
+) -> sampling.Posterior:
+    """The posterior of ``model`` of a vehicle (its config ``vehicle_data``) given its
+    identification ``windows``, its static k result ``k_stage`` and k window: kA held at the
+    static or storage-corrected value (:func:`railtherm.study.identify.fit_setup`), the
+    vehicle's priors and ``prior_terms`` (e.g. the class's:
+    :mod:`railtherm.study.pooling`); ``fit``'s type-B budget, where given, mixed into the
+    draws (:func:`add_systematic`)."""
+    storage = storage_corrected_k(windows, k_window, vehicle_data, k_stage)
+    setup = identify.fit_setup(windows, vehicle_data, k_stage, model, storage, prior_terms)
     options: dict[str, Any] = dict(setup.options)
     estimator = options.pop("estimator", "output_error")
     if estimator == "kalman":
         options.pop("covariance", None)  # the filter's observed information gives it
-    return sampling.sample(
+    post = sampling.sample(
         setup.structure, setup.exps, chains=chains, draws=draws, tune=tune, seed=seed,
         estimator=estimator, **options,
     )  # fmt: skip
+    if fit is not None:
+        add_systematic(post, fit, seed)
+    return post
+
+
+def add_systematic(post: sampling.Posterior, fit, seed: int) -> None:
+    """The fit's type-B budget (its ``systematic`` section: each source's signed effect on
+    every log parameter, the held kA's included) mixed into the posterior's draws
+    (:meth:`railtherm.estimation.sampling.Posterior.add_systematic`)."""
+    systematic = fit.section("systematic")
+    effects = {
+        **(systematic.get("effects_log") or {}),
+        **(systematic.get("effects_log_fixed") or {}),
+    }
+    values = {p: float(e["value"]) for p, e in fit.section("parameters").items()}
+    if effects:
+        post.add_systematic(effects, values, seed=seed)
 
 
 def write(posterior: sampling.Posterior, path: str) -> str:

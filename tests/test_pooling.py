@@ -1,0 +1,114 @@
+"""Partial pooling (railtherm.study.pooling): a vehicle's class prior is built without it, the
+class prior in the sampler is the Student-t density scipy gives, and the study table shows
+maximum likelihood, prior and posterior side by side."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+from test_profile import record, simulate
+
+from railtherm.estimation import models, sampling
+from railtherm.estimation.priors import LinearT
+from railtherm.study import pooling
+from railtherm.study.classmodel import ClassMember
+
+S1 = models.STRUCTURES["first_order"]
+
+
+def member(vid, vehicle_class, c_veh):
+    return ClassMember(
+        vehicle=vid, vehicle_class=vehicle_class, mass_kg=40_000.0, surface_m2=250.0, k=2.5,
+        c_veh=c_veh, delta=2.0, kappa_veh=2.0, usable=True, why="",
+    )  # fmt: skip
+
+
+VEHICLE = {"class": "metro", "mass_kg": 40_000.0, "surface_m2": 250.0}
+
+
+def test_a_vehicles_class_prior_is_built_without_it_and_falls_back_to_all_classes():
+    members = [member("M1", "metro", 300.0), member("M2", "metro", 400.0),
+               member("M3", "metro", 500.0), member("R1", "regional", 600.0)]  # fmt: skip
+    prior = pooling.class_prior(members, "M1", VEHICLE, kA_held=625.0)
+    assert prior.basis == "class" and prior.reference.basis == ["M2", "M3"]
+    # c_veh's centre: the geometric mean of the others' (400, 500); no k term (kA held)
+    assert prior.reference.generalised["c_veh"].centre == pytest.approx(math.sqrt(400 * 500))
+    assert {t.name for t in prior.terms} == {"class:c_veh", "class:delta", "class:kappa_veh"}
+    # a class with one other vehicle: every rail class pooled, still without the vehicle
+    prior = pooling.class_prior(members[:2] + members[3:], "M1", VEHICLE, kA_held=None)
+    assert prior.basis == "all" and sorted(prior.reference.basis) == ["M2", "R1"]
+    assert "class:k" in {t.name for t in prior.terms}
+    # no surface: no class prior, and the reason
+    prior = pooling.class_prior(members, "M1", {"class": "metro", "mass_kg": 4e4}, None)
+    assert prior.reference is None and "surface_m2" in prior.reason
+    assert prior.to_dict() == {"kind": "vehicle", "reason": prior.reason}
+
+
+def test_nuts_with_a_class_term_samples_the_likelihood_times_scipys_student_t():
+    """A first-order record (kA held), C_bar with a class-like term: log C_bar ~ log centre +
+    scale T_3. NUTS draws of log C_bar against the grid of -(m/2) ln(e^T e) + ln t_3 density
+    (scipy.stats.t), e^T e by an independent recursion (tests/test_profile.py)."""
+    e = record(1.6e7, n=60, seed=11, sd=0.4)
+    kA = 800.0  # the record's truth (tests/test_profile.py KA)
+    term = LinearT("class:C_bar", (("C_bar", 1.0),), 0.0, math.log(2.2e7), 0.25, 3.0)
+    post = sampling.sample(
+        S1, [e], estimator="output_error", covariance="iid", x0="measured", fixed={"kA": kA},
+        prior_terms=[term], chains=2, draws=1500, tune=600, seed=4,
+    )  # fmt: skip
+    assert (post.summary()["r_hat"] < 1.01).all() and post.divergences() == 0
+    draws = np.log(post.idata.posterior["C_bar"].values.ravel())
+    y = e.y[:, 0]
+    m = len(y) - 1
+    grid = np.linspace(draws.mean() - 8 * draws.std(), draws.mean() + 8 * draws.std(), 801)
+    sse = np.array([np.sum((simulate(kA, math.exp(g), e.u, y[0])[1:] - y[1:]) ** 2) for g in grid])
+    logp = -0.5 * m * np.log(sse) + stats.t(3.0, loc=math.log(2.2e7), scale=0.25).logpdf(grid)
+    w = np.exp(logp - logp.max())
+    w /= w.sum()
+    mean = float(grid @ w)
+    sd = math.sqrt(float((grid - mean) ** 2 @ w))
+    assert np.mean(draws) == pytest.approx(mean, abs=0.1 * sd)
+    assert np.std(draws) == pytest.approx(sd, rel=0.1)
+    cdf = np.cumsum(w)
+    for q in (0.025, 0.975):
+        assert np.quantile(draws, q) == pytest.approx(np.interp(q, cdf, grid), abs=0.2 * sd)
+
+
+def record_file(ml_identified=True):
+    ml = {"value": 5e6, "estimated": True, "identified": ml_identified, "ci95": [4e6, 6e6]}
+    if not ml_identified:
+        ml["profile"] = {"kind": "upper", "lower": None, "upper": 7.04e6}
+    return {
+        "vehicle": "Metro3", "model": "order2",
+        "prior": {"kind": "class", "class": "metro", "basis": "class",
+                  "vehicles": ["Metro1", "Metro2"],
+                  "parameters": {"C_veh": {"value": 6e6, "ci95": [2e6, 1.8e7]}}},
+        "diagnostics": {"r_hat_max": 1.002, "ess_bulk_min": 1500.0, "divergences": 0,
+                        "trusted": True},
+        "parameters": {
+            "kA": {"ml": {"value": 700.0, "estimated": False, "identified": True,
+                          "ci95": [680.0, 720.0]},
+                   "median": 700.0, "ci95": [681.0, 719.0], "sampled": False},
+            "C_veh": {"ml": ml, "median": 5.6e6, "ci95": [4.1e6, 7.9e6], "sampled": True},
+        },
+    }  # fmt: skip
+
+
+def test_the_pooling_table_puts_ml_prior_and_posterior_side_by_side():
+    table = pooling.pooling_rows([record_file(False)])
+    assert list(table["parameter"]) == ["kA", "C_veh"]
+    row = table.set_index("parameter").loc["C_veh"]
+    assert math.isnan(row["ml"]) and row["ml_status"] == "not identified (<= 7.04e+06)"
+    assert (row["prior"], row["prior_lo"], row["prior_hi"]) == (6e6, 2e6, 1.8e7)
+    assert (row["posterior"], row["posterior_lo"]) == (5.6e6, 4.1e6)
+    md = pooling.pooling_markdown(table, "synthetic")
+    row = (
+        "| Metro3 (order2) | C_veh | not identified (<= 7.04e+06) | 6e+06 [2e+06, 1.8e+07] "
+        "| 5.6e+06 [4.1e+06, 7.9e+06] | 1.002 / 1500 / 0 | metro without it (Metro1, Metro2) |"
+    )
+    assert row in md
+    assert "| Metro3 (order2) | kA | 700 [680, 720] (held) |" in md
+    untrusted = record_file(True)
+    untrusted["diagnostics"].update(r_hat_max=1.05, trusted=False)
+    md = pooling.pooling_markdown(pooling.pooling_rows([untrusted]), "synthetic")
+    assert "5e+06 [4e+06, 6e+06]" in md and "(not trusted)" in md
