@@ -112,3 +112,55 @@ def test_the_pooling_table_puts_ml_prior_and_posterior_side_by_side():
     untrusted["diagnostics"].update(r_hat_max=1.05, trusted=False)
     md = pooling.pooling_markdown(pooling.pooling_rows([untrusted]), "synthetic")
     assert "5e+06 [4e+06, 6e+06]" in md and "(not trusted)" in md
+
+
+def _posterior_file(path, draws):
+    import arviz as az
+
+    az.from_dict(posterior={p: v.reshape(2, -1) for p, v in draws.items()}).to_netcdf(str(path))
+    return path
+
+
+def test_predictions_take_the_posteriors_draws_where_a_posterior_is_given(fit_files, tmp_path):
+    """simulate and design draw from a fit's posterior when it is read with one: a posterior
+    whose every draw has C_veh 1.5 times the fit's collapses the band onto the prediction
+    of the fit with that C_veh; a file without the systematic group says its band is
+    statistical only; a posterior of other parameters is refused, naming the file."""
+    import shutil
+
+    import yaml
+
+    from railtherm.errors import ConfigError
+    from railtherm.study import design
+    from railtherm.study import simulate as sim
+    from railtherm.study.fit import read_fit
+    from railtherm.study.scenario import load_scenario
+
+    fit_path, _ = fit_files("Metro2", "order2")
+    local = tmp_path / "fit_order2.yaml"
+    shutil.copy(fit_path, local)
+    fit = read_fit(local)
+    theta = {p: float(q.value) for p, q in fit.parameters.items()}
+    n = 400
+    shifted = {p: np.full(n, theta[p] * (1.5 if p == "C_veh" else 1.0)) for p in theta}
+    _posterior_file(tmp_path / "fit_order2.posterior.nc", {p: shifted[p] for p in
+                    ("C", "K_veh", "C_veh")})  # fmt: skip
+    scenario = load_scenario("config/scenarios/preheat_cold_soak.yaml")
+    with_post = sim.simulate(sim.load_parameters(local), scenario, draws=50, seed=1)
+    assert "statistical only" in " ".join(sim.load_parameters(local).band_sources)
+    edited = yaml.safe_load(local.read_text())
+    edited["parameters"]["C_veh"]["value"] = theta["C_veh"] * 1.5
+    other = tmp_path / "other" / "fit_order2.yaml"
+    other.parent.mkdir()
+    other.write_text(yaml.safe_dump(edited, sort_keys=False))
+    point = sim.simulate(sim.load_parameters(other), scenario, draws=0).outcomes
+    for name in ("heat_up_time_s", "final_T_C"):
+        o = with_post.outcomes[name]
+        assert o.lo == pytest.approx(point[name].value, rel=1e-9), name
+        assert o.hi == pytest.approx(point[name].value, rel=1e-9), name
+    draws = design.fit_draws(read_fit(local, posterior="auto"), 30, seed=2)
+    np.testing.assert_allclose(draws["C_veh"], theta["C_veh"] * 1.5)
+    np.testing.assert_allclose(draws["kA"], theta["kA"])  # held: its value
+    _posterior_file(tmp_path / "fit_order2.posterior.nc", {"C_bar": np.ones(n)})
+    with pytest.raises(ConfigError, match="fit_order2.posterior.nc"):
+        read_fit(local, posterior="auto")

@@ -655,7 +655,11 @@ def fit_draws(fit, n: int, seed: int = 0) -> dict[str, np.ndarray] | None:
     (``sd_log_total``, statistical and systematic) and the fit's correlation of the free log
     parameters; the parameters it held (kA from the static test) at their values.
     Deterministic with ``seed``; None where ``n`` is 0 or a parameter is not identified (its
-    interval gives no spread to draw from)."""
+    interval gives no spread to draw from). A fit read with its posterior
+    (:attr:`railtherm.study.fit.Fit.posterior`) gives ``n`` of the posterior's own draws,
+    the systematic budget mixed in."""
+    if n >= 1 and getattr(fit, "posterior", None) is not None:
+        return fit.posterior_sample(n, np.random.default_rng(seed))
     params = fit.parameters
     estimated = [p for p in fit.structure.parameters if params[p].estimated is True]
     if n < 1 or not estimated or not all(params[p].identified for p in estimated):
@@ -710,7 +714,7 @@ def _read_with_series(path: str | Path):
     fit = read_fit(path)
     check_fit_file(path, fit)
     series = Path(path).parent / "identify" / f"{fit.model}_series.csv"
-    return read_fit(path, series) if series.is_file() else fit
+    return read_fit(path, series if series.is_file() else None, posterior="auto")
 
 
 def prior_from_fit_file(path: str | Path, n: int = 0, seed: int = 0) -> Prior:

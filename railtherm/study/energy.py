@@ -901,15 +901,19 @@ def study_markdown(table, profiles: Sequence[Profile], dt_s: float, source: str)
     return "\n".join(lines) + "\n"
 
 
-def _best_fits(fit_files: Sequence[str], owners: Sequence[str]) -> dict[str, Fit]:
+def _best_fits(
+    fit_files: Sequence[str], owners: Sequence[str], posteriors: Sequence[str] = ()
+) -> dict[str, Fit]:
     """{vehicle: fit}: per vehicle the first acceptable of its ``fit_files`` (each of the
-    vehicle ``owners`` names; the second order listed first), else its first."""
+    vehicle ``owners`` names; the second order listed first), else its first; read with
+    their ``posteriors`` (one per fit file, in order) where given."""
     from railtherm.study.fit import read_fit
     from railtherm.study.quality import ACCEPTABLE
 
     fits: dict[str, Fit] = {}
-    for vid, path in zip(owners, fit_files, strict=True):
-        fit = read_fit(path)
+    ncs = list(posteriors) or [None] * len(fit_files)
+    for vid, path, nc in zip(owners, fit_files, ncs, strict=True):
+        fit = read_fit(path, posterior=nc)
         if vid not in fits or (fits[vid].verdict != ACCEPTABLE and fit.verdict == ACCEPTABLE):
             fits[vid] = fit
     return fits
@@ -923,11 +927,13 @@ def vehicle_energy(
     profile_file: str,
     what_if: Sequence[str] = (),
     index: int = 0,
+    posteriors: Sequence[str] = (),
     **options: Any,
 ):
     """The rows of one vehicle (rule energy, :func:`study_rows`): its best fit of
-    ``fit_files`` (second order listed first), the typical years (files, or as read:
-    :func:`railtherm.study.weather.load_year`), its class's profile and
+    ``fit_files`` (second order listed first; with its posterior of ``posteriors``, one per
+    fit file, where given: the draws are then the posterior's), the typical years (files,
+    or as read: :func:`railtherm.study.weather.load_year`), its class's profile and
     the what-ifs as the config writes them, seeded by its place ``index`` in the study;
     ``options`` go to :func:`study_rows` (dt_s, draws, seed, hold). Returns the table (no
     rows without an acceptable fit)."""
@@ -936,7 +942,7 @@ def vehicle_energy(
     from railtherm.study.quality import ACCEPTABLE
     from railtherm.study.weather import load_year
 
-    fits = _best_fits(fit_files, [vid] * len(fit_files))
+    fits = _best_fits(fit_files, [vid] * len(fit_files), posteriors)
     if all(fit.verdict != ACCEPTABLE for fit in fits.values()):  # no row: no weather read
         return pd.DataFrame([], columns=study_columns())
     weathers = [load_year(path) for path in weather_files]

@@ -59,9 +59,24 @@ class Fit(FitRecord):
     """A checked fit as a model: its :class:`~railtherm.records.FitRecord` (the content of
     ``fit_<model>.yaml``: parameters, intervals, the verdict) with the identified model as a
     state-space system and a simulator; ``series`` the measured and simulated states per
-    window (time, T, T_sim, ..., inputs), when known."""
+    window (time, T, T_sim, ..., inputs), when known; ``posterior`` the draws of its
+    posterior (:func:`railtherm.study.posterior.read_draws`: every parameter, the systematic
+    budget mixed in) where one was sampled and read with it, and ``posterior_file`` where
+    they came from, ``posterior_systematic`` whether they carry the systematic budget."""
 
     series: pd.DataFrame | None = field(default=None, repr=False)
+    posterior: Mapping[str, np.ndarray] | None = field(default=None, repr=False)
+    posterior_file: str = ""
+    posterior_systematic: bool = False
+
+    def posterior_sample(self, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """``n`` parameter sets drawn (with replacement) from :attr:`posterior`: predictions
+        from the posterior itself instead of a Gaussian about the estimate."""
+        if self.posterior is None:
+            raise ValueError(f"{self.vehicle} {self.model}: no posterior draws")
+        size = len(next(iter(self.posterior.values())))
+        at = rng.integers(0, size, n)
+        return {p: np.asarray(v)[at] for p, v in self.posterior.items()}
 
     @classmethod
     def from_dict(cls, content: Mapping[str, Any], series: pd.DataFrame | None = None) -> Fit:
@@ -231,7 +246,17 @@ def write_yaml(data: Mapping[str, Any], path: str | os.PathLike[str]) -> None:
     results_io.write_result(data, path)
 
 
-def read_fit(path: str | os.PathLike[str], series: str | os.PathLike[str] | None = None) -> Fit:
+def posterior_file(path: str | os.PathLike[str]) -> str:
+    """Where a fit file's posterior is written: ``fit_<model>.posterior.nc`` beside it."""
+    text = str(path)
+    return (text[: -len(".yaml")] if text.endswith(".yaml") else text) + ".posterior.nc"
+
+
+def read_fit(
+    path: str | os.PathLike[str],
+    series: str | os.PathLike[str] | None = None,
+    posterior: str | os.PathLike[str] | None = None,
+) -> Fit:
     """A :class:`Fit` from ``fit_<model>.yaml`` (read by :func:`railtherm.io.read_fit`)
     and its series CSV, if given.
 
@@ -241,6 +266,10 @@ def read_fit(path: str | os.PathLike[str], series: str | os.PathLike[str] | None
         The ``fit_<model>.yaml``.
     series : str or os.PathLike, optional
         Its ``identify/<model>_series.csv``.
+    posterior : str or os.PathLike, optional
+        Its posterior (``fit_<model>.posterior.nc``, :func:`posterior_file`), whose draws
+        the predictions then take (:attr:`Fit.posterior`); ``"auto"``: the one beside the
+        fit file where it exists.
 
     Returns
     -------
@@ -251,7 +280,15 @@ def read_fit(path: str | os.PathLike[str], series: str | os.PathLike[str] | None
     ConfigError
         A missing file, bad YAML or one that holds no mapping, naming the file.
     """
-    return Fit.of(results_io.read_fit(path), None if series is None else pd.read_csv(series))
+    fit = Fit.of(results_io.read_fit(path), None if series is None else pd.read_csv(series))
+    if posterior == "auto":
+        posterior = posterior_file(path) if os.path.isfile(posterior_file(path)) else None
+    if posterior is None:
+        return fit
+    from railtherm.study.posterior import read_draws  # ArviZ only where a posterior is read
+
+    draws, systematic = read_draws(posterior, fit)
+    return Fit(fit.content, fit.series, draws, str(posterior), systematic)
 
 
 def check_fit_file(file: str | os.PathLike[str], fit: FitRecord) -> None:

@@ -267,6 +267,13 @@ class StudyPlan:
         wanted = self.config["posterior"]["prior"] == "class" and second
         return ["results/tables/table2.csv"] if wanted and self.paper_tables() else []
 
+    def posteriors_of(self, fit_files: Sequence[str]) -> list[str]:
+        """With ``inference: posterior``, the posterior files of ``fit_files`` (the
+        predictions then draw from them: rules simulate and energy); none otherwise."""
+        if self.config.get("inference", "ml") != "posterior":
+            return []
+        return [f.removesuffix(".yaml") + ".posterior.nc" for f in fit_files]
+
     def posterior_outputs(self) -> list[str]:
         """Targets of the rules posterior and pooling."""
         targets = [

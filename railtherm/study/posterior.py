@@ -14,7 +14,14 @@ from railtherm.estimation import sampling
 from railtherm.study import identify
 from railtherm.study.storage import storage_corrected_k
 
-__all__ = ["add_systematic", "pair_plot", "sample_model", "vehicle_posterior", "write"]
+__all__ = [
+    "add_systematic",
+    "pair_plot",
+    "read_draws",
+    "sample_model",
+    "vehicle_posterior",
+    "write",
+]
 
 
 def vehicle_posterior(
@@ -107,3 +114,40 @@ def pair_plot(posterior: sampling.Posterior, path: str) -> str:
     figure.savefig(path, dpi=110)
     plt.close(figure)
     return path
+
+
+def read_draws(path, fit) -> tuple[dict[str, np.ndarray], bool]:
+    """The draws of every parameter of ``fit`` from its posterior file ``path`` (NetCDF, as
+    :func:`write` writes it), chains and draws in one axis: a parameter's draws with the
+    systematic budget mixed in (group ``posterior_systematic``) where there are such, else
+    the posterior's own, else (a parameter neither sampled nor moved by a type-B source) its
+    value in the fit file; and whether the file carries the systematic budget. A ConfigError
+    names the file when it cannot be read or holds no posterior of the fit's parameters."""
+    from railtherm.errors import ConfigError
+
+    try:
+        _, _, az = sampling._nutpie()
+        idata = az.from_netcdf(str(path))
+    except (OSError, ValueError) as err:
+        reason = f"not a posterior: {err}"
+        raise ConfigError(str(path), "(file)", type(err).__name__, reason) from None
+    groups = idata.groups()
+    if "posterior" not in groups:
+        raise ConfigError(str(path), "posterior", groups, "no posterior group")
+    mixed = idata.posterior_systematic if "posterior_systematic" in groups else None
+    own = idata.posterior
+    params = fit.section("parameters")
+    if not any(p in own for p in params):
+        raise ConfigError(
+            str(path), "posterior", sorted(own.data_vars), f"no parameter of {fit.model}"
+        )
+    size = own.sizes["chain"] * own.sizes["draw"]
+    out = {}
+    for p, entry in params.items():
+        if mixed is not None and p in mixed:
+            out[p] = mixed[p].values.ravel()
+        elif p in own:
+            out[p] = own[p].values.ravel()
+        else:
+            out[p] = np.full(size, float(entry["value"]))
+    return out, mixed is not None

@@ -260,7 +260,14 @@ class SimulationResult:
 def _fit_draws(fit: Any) -> tuple[Callable | None, tuple[str, ...]]:
     """Joint draws of a fit's parameters: log theta = log theta_hat + L z + E xi, with
     L L^T the statistical covariance of the free log parameters (sd_log, correlation) and
-    E the signed effect of each type-B source on every parameter (xi ~ N(0, 1) per source)."""
+    E the signed effect of each type-B source on every parameter (xi ~ N(0, 1) per source).
+    A fit read with its posterior (:attr:`railtherm.study.fit.Fit.posterior`) gives the
+    posterior's own draws instead, the systematic budget mixed in as the same E xi."""
+    if getattr(fit, "posterior", None) is not None:
+        what = (f"posterior draws (NUTS, {fit.posterior_file})",)
+        if fit.posterior_systematic:
+            return fit.posterior_sample, (*what, "systematic error sources (type B)")
+        return fit.posterior_sample, (*what, "no systematic budget: statistical only")
     params = fit.section("parameters")
     free = [p for p in fit.free if p in params]
     if not free:
@@ -461,11 +468,11 @@ def load_parameters(path: str | os.PathLike[str]) -> ParameterSet:
 
         return parameter_set(classmodel.read_reference_model(path))
     if isinstance(data, dict) and {"vehicle", "parameters", "structure"} <= set(data):
-        from railtherm.study.fit import Fit, check_fit_file
+        from railtherm.study.fit import Fit, check_fit_file, read_fit
 
         fit = Fit.of(rt_io.read_fit(path, display=name))
         check_fit_file(name, fit)
-        return parameter_set(fit)
+        return parameter_set(read_fit(path, posterior="auto"))
     keys = sorted(data) if isinstance(data, dict) else type(data).__name__
     raise ConfigError(
         name,

@@ -8,6 +8,13 @@ rule simulate:
             f"results/vehicles/{vid}/fit_{table_key(vid, 2)}.yaml"
             for vid in second_order_vehicles()
         ],
+        # with inference: posterior, the bands come from the posteriors
+        posteriors=PLAN.posteriors_of(
+            [
+                f"results/vehicles/{vid}/fit_{table_key(vid, 2)}.yaml"
+                for vid in second_order_vehicles()
+            ]
+        ),
         scenarios=scenario_files(),
     output:
         csv=report(
@@ -167,6 +174,14 @@ rule energy:
             for vid, n in PLAN.energy_fits()
             if vid == wc.vehicle
         ],
+        # with inference: posterior, the draws come from the posteriors
+        posteriors=lambda wc: PLAN.posteriors_of(
+            [
+                f"results/vehicles/{wc.vehicle}/fit_{table_key(wc.vehicle, n)}.yaml"
+                for vid, n in PLAN.energy_fits()
+                if vid == wc.vehicle
+            ]
+        ),
         weather=[f"results/weather/{year}.year.pickle" for year in weather_years(config)],
         profile=lambda wc: energy_profile(config, STUDY.vehicles[wc.vehicle].data.get("class", "")),
     output:

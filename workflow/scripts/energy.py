@@ -19,6 +19,7 @@ table = energy.vehicle_energy(
     draws=snakemake.params.draws,
     seed=snakemake.params.seed,
     hold=snakemake.params.hold,
+    posteriors=snakemake.input.posteriors,
 )
 tables.write_csv(table, snakemake.output[0], digits=10)
 log.info("%d rows", len(table))

@@ -7,7 +7,11 @@ from railtherm.study.scenario import load_scenario
 
 log = logs.to_file(snakemake.log[0])
 vehicles = snakemake.params.vehicles
-fits = {vid: read_fit(path) for vid, path in zip(vehicles, snakemake.input.fits, strict=True)}
+posteriors = snakemake.input.posteriors or [None] * len(snakemake.input.fits)
+fits = {
+    vid: read_fit(path, posterior=nc)
+    for vid, path, nc in zip(vehicles, snakemake.input.fits, posteriors, strict=True)
+}
 scenarios = [load_scenario(path) for path in snakemake.params.scenarios]
 predictions.write_study_predictions(
     fits,
