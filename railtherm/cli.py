@@ -208,6 +208,15 @@ def _fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def loo_line(loo: dict) -> str:
+    """PSIS-LOO's figures as one line (docs/bayes.md)."""
+    return (
+        f"PSIS-LOO: elpd_loo {loo['elpd_loo']:.6g} ± {loo['se']:.3g}, p_loo "
+        f"{loo['p_loo']:.3g} ({loo['observations']} observations, {loo['draws']} draws); "
+        f"Pareto k max {loo['pareto_k_max']:.2f}, {loo['pareto_k_above_0.7']} above 0.7"
+    )
+
+
 def _posterior(args: argparse.Namespace, vehicle, result, out: str | None) -> None:
     """``railtherm fit --posterior``: each fitted model's posterior by NUTS, its summary
     printed and its InferenceData written beside the fit file (under --out), else in the
@@ -240,6 +249,8 @@ def _posterior(args: argparse.Namespace, vehicle, result, out: str | None) -> No
                 "systematic budget (type B) mixed in by draws"
             )
             print(intervals.dropna().to_string(float_format=lambda x: f"{x:.5g}"))
+        if args.loo:
+            print(loo_line(post.loo()))
         if out:  # beside the fit file
             path = os.path.join(out, "vehicles", vehicle.id, f"fit_{model}.posterior.nc")
         else:
@@ -731,6 +742,12 @@ def _add_fit(commands: Any) -> None:
         ),
     )
     fit.add_argument("--chains", type=int, default=4, help="posterior chains (default: 4)")
+    fit.add_argument(
+        "--loo",
+        action="store_true",
+        help="with --posterior, also PSIS-LOO by ArviZ (each observation's likelihood at up "
+        "to 400 draws; a Kalman model's by the filter's row loop, slow on long records)",
+    )
     fit.add_argument("--draws", type=int, default=1000, help="draws per chain (default: 1000)")
     fit.add_argument("--tune", type=int, default=1000, help="tuning steps (default: 1000)")
     fit.add_argument("--seed", type=int, default=0, help="the sampler's seed (default: 0)")

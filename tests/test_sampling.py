@@ -151,12 +151,12 @@ def test_railtherm_fit_posterior_prints_its_summary_and_writes_the_inference_dat
     code = main(
         ["fit", "config/vehicles/Armadillo.yaml", "--model", "interior_envelope_kalman",
          "--posterior", "--chains", "2", "--draws", "200", "--tune", "200", "--seed", "2",
-         "--out", str(tmp_path)]
+         "--loo", "--out", str(tmp_path)]
     )  # fmt: skip
     assert code == 0
     out = capsys.readouterr().out
     assert "posterior by NUTS (2 chains x 200 draws after 200 tuning, seed 2" in out
-    for name in ("C ", "K_i", "C_e", "K_o", "r_hat", "ess_bulk"):
+    for name in ("C ", "K_i", "C_e", "K_o", "r_hat", "ess_bulk", "PSIS-LOO: elpd_loo"):
         assert name in out
     path = tmp_path / "vehicles" / "Armadillo" / "fit_interior_envelope_kalman.posterior.nc"
     assert f"written to {path}" in out
@@ -196,3 +196,32 @@ def test_the_systematic_budget_is_mixed_into_the_draws_as_the_gum_adds_it():
     table = post.intervals()
     assert table.loc["a", "with_systematic_hi"] > table.loc["a", "statistical_hi"]
     assert math.isnan(table.loc["c", "statistical_lo"])
+
+
+def test_psis_loo_is_the_leave_one_out_density_by_quadrature(record, posterior):
+    """ArviZ's PSIS-LOO over railtherm's pointwise terms (each row's one-step-ahead term of
+    the filter, which add up to the public likelihood) against the exact leave-one-out
+    predictive density by quadrature on a grid: sum_i log [int p(y|t) p(t) dt /
+    int p(y|t) p(t) / p(y_i|t) dt]."""
+    from scipy.special import logsumexp
+
+    loo = posterior.loo()
+    assert loo["observations"] == len(record.y) - 1 and loo["pareto_k_above_0.7"] == 0
+    density = posterior.density
+    nll = filtering.negative_log_likelihood(
+        S1, [record], {"kA": 900.0, "C_bar": 2.4e7}, NOISE["sigma"], NOISE["meas_var"],
+        [[math.nan]], x0_mode="measured",
+    )  # fmt: skip
+    assert density.pointwise(np.log([900.0, 2.4e7])).sum() == pytest.approx(-nll, rel=1e-10)
+    draws = {p: np.log(posterior.idata.posterior[p].values.ravel()) for p in ("kA", "C_bar")}
+    axes = [np.linspace(d.mean() - 6 * d.std(), d.mean() + 6 * d.std(), 25) for d in draws.values()]
+    prior = stats.lognorm(s=0.3, scale=2.0e7)
+    terms, log_w = [], []
+    for a in axes[0]:
+        for b in axes[1]:
+            pw = density.pointwise(np.array([a, b]))
+            terms.append(pw)
+            log_w.append(pw.sum() + prior.logpdf(math.exp(b)) + b)
+    terms, log_w = np.array(terms), np.array(log_w)
+    exact = float(np.sum(logsumexp(log_w) - logsumexp(log_w[:, None] - terms, axis=0)))
+    assert loo["elpd_loo"] == pytest.approx(exact, abs=0.2)

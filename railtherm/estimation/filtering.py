@@ -457,6 +457,7 @@ class _Pass:
     xp: np.ndarray | None = None  # x_{k|k-1}, N x n
     eps: np.ndarray | None = None  # innovations, N x n_out (NaN: not measured)
     rvar: np.ndarray | None = None  # diagonal of R_k, N x n_out (NaN: not measured)
+    ll: np.ndarray | None = None  # each row's log-likelihood term, N (NaN: none measured)
     steady_from: list[int] = field(default_factory=list)  # rows where a stationary run began
 
 
@@ -500,6 +501,7 @@ def _filter(
         out.xp = np.empty((N, n))
         out.eps = np.full((N, n_out), np.nan)
         out.rvar = np.full((N, n_out), np.nan)
+        out.ll = np.full(N, np.nan)
     nll = 0.0
     for k0, k1, code in d.runs:
         o = _outputs_of(code, n_out)
@@ -545,12 +547,14 @@ def _filter(
                     raise np.linalg.LinAlgError("the innovation covariance is not positive")
                 Rinv = (V / lam) @ V.T
                 a = Rinv @ eps
-                nll += 0.5 * (float(np.log(lam).sum()) + float(eps @ a) + len(o) * LOG_2PI)
+                term = 0.5 * (float(np.log(lam).sum()) + float(eps @ a) + len(o) * LOG_2PI)
+                nll += term
                 K = PCt @ Rinv
                 KR = K @ R
                 if series:
                     out.eps[k, o] = eps
                     out.rvar[k, o] = R.diagonal()
+                    out.ll[k] = -term
                 if order >= 1:
                     dPCt = dP @ CoT  # (Q, n, no)
                     dR = Co @ dPCt + dSo  # (Q, no, no)
@@ -1025,9 +1029,18 @@ class Likelihood:
             out.append(replace(d, y=d.y - b, x0_base=x0_base))
         return out
 
-    def passes(self, v: np.ndarray, order: int, steady: bool = True, series: bool = False):
+    def passes(
+        self,
+        v: np.ndarray,
+        order: int,
+        steady: bool = True,
+        series: bool = False,
+        compiled: bool | None = None,
+    ):
         """One filter pass per experiment (list of _Pass; the x0 directions of each are its
-        own, after the Qg global ones)."""
+        own, after the Qg global ones); ``compiled=False``: by the row loop of
+        :func:`_filter` whatever :data:`COMPILED` says (its series hold each row's
+        log-likelihood term, ``ll``, with ``steady=False``)."""
         systems: dict[float, _System] = {}
         out = []
         data = self.shifted(v)
@@ -1037,7 +1050,7 @@ class Likelihood:
             sysm = systems[d.e.dt]
             Q = self.Qg + len(d.x0_free)
             x0, dx0, P0, dP0 = self._prior(sysm, d, x0, order, Q)
-            run = _filter_rows if COMPILED else _filter
+            run = _filter_rows if (COMPILED if compiled is None else compiled) else _filter
             out.append(run(sysm, d, x0, dx0, P0, dP0, order, steady=steady, series=series))
         return out
 

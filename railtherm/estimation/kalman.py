@@ -261,6 +261,17 @@ class Density(PosteriorDensity):
             return -math.inf, np.zeros(len(v))
         return -nll + lp, gp - g
 
+    def pointwise(self, v: np.ndarray) -> np.ndarray:
+        """Each measured row's term of the filter's log-likelihood at v (its innovation e
+        with covariance R over the outputs read at that row): -(ln det(2 pi R) +
+        e^T R^-1 e) / 2, by the filter's row loop (no stationary shortcut); they add up to
+        -NLL (less the output offsets' prior)."""
+        runs = self.lik.passes(
+            np.asarray(v, dtype=float), 0, steady=False, series=True, compiled=False
+        )
+        parts = [run.ll[np.isfinite(run.ll)] for run in runs]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
 
 def fit_with_density(
     structure: Structure,

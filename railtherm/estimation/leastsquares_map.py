@@ -53,6 +53,16 @@ class Density(PosteriorDensity):
         grad = gp - self.weight * (self.jacobian(v).T @ r) / ssr
         return -0.5 * self.weight * math.log(ssr) + lp, grad
 
+    def pointwise(self, v: np.ndarray) -> np.ndarray:
+        """Each residual's Gaussian log density at v with the variance it implies,
+        s^2 = e^T e / m, counted as weight / m of a sample (coloured residuals are worth
+        fewer than m): (weight / m) (-(ln(2 pi s^2) + e_i^2 / s^2) / 2); they add up to
+        the profiled likelihood -(weight / 2) (ln(2 pi e^T e / m) + 1)."""
+        r = np.asarray(self.residuals(np.asarray(v, dtype=float)), dtype=float)
+        m = len(r)
+        s2 = float(r @ r) / m
+        return (self.weight / m) * -0.5 * (np.log(2.0 * math.pi * s2) + r**2 / s2)
+
 
 def search(
     residuals: Callable[[np.ndarray], np.ndarray],

@@ -374,3 +374,8 @@ class PosteriorDensity:
 
     def outside(self, v: np.ndarray) -> bool:
         return bool(np.any(v < self.lo) or np.any(v > self.hi))
+
+    def pointwise(self, v: np.ndarray) -> np.ndarray:
+        """The likelihood's log density of each observation at v (one value per compared
+        sample), for PSIS-LOO (:meth:`railtherm.estimation.sampling.Posterior.loo`)."""
+        raise NotImplementedError

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -39,6 +40,7 @@ __all__ = ["Posterior", "sample"]
 
 EXTRA = "railtherm[bayes]"  # what to install for sampling
 JITTER = 0.1  # chains start at the estimate moved by this many of its standard deviations
+LOO_DRAWS = 400  # the draws PSIS-LOO evaluates every observation's likelihood at
 
 
 def _nutpie():
@@ -71,6 +73,7 @@ class Posterior:
     estimate: kalman.KalmanResult | pem.FitResult
     seconds: float
     settings: dict[str, Any] = field(default_factory=dict)
+    density: Any = field(default=None, repr=False)  # the target, for :meth:`loo`
 
     def summary(self):
         """ArviZ's summary (mean, sd, 2.5 % and 97.5 % quantiles, R-hat, bulk and tail ESS)
@@ -88,6 +91,56 @@ class Posterior:
     def write(self, path: str) -> None:
         """The InferenceData as NetCDF (the ecosystem's format: ``arviz.from_netcdf``)."""
         self.idata.to_netcdf(path)
+
+    def loo(self, max_draws: int = LOO_DRAWS) -> dict[str, Any]:
+        """PSIS-LOO (Vehtari, Gelman & Gabry 2017) by ArviZ: the expected log predictive
+        density of each observation left out, estimated from the posterior's draws by
+        Pareto-smoothed importance sampling, over at most ``max_draws`` draws taken evenly
+        from every chain. Each observation's log-likelihood is the estimator's own term
+        (:meth:`railtherm.estimation.priors.PosteriorDensity.pointwise`): a row's
+        one-step-ahead term for the Kalman filter, a residual's for the simulation error.
+        Returns elpd_loo, its standard error, p_loo (the effective number of parameters),
+        the number of observations and draws, the largest Pareto k and how many exceed 0.7
+        (where the estimate of that observation's term is unreliable)."""
+        if self.density is None:
+            raise ValueError("PSIS-LOO needs the posterior's density (sampling.sample's)")
+        _, _, az = _nutpie()
+        post = self.idata.posterior
+        chains, draws = post.sizes["chain"], post.sizes["draw"]
+        keep = max(1, min(draws, max_draws // chains))
+        at = np.unique(np.linspace(0, draws - 1, keep).round().astype(int))
+        n_log = self.density.n_log
+        values = {name: post[name].values[:, at] for name in self.names}
+        ll = np.array(
+            [
+                [
+                    self.density.pointwise(
+                        np.array(
+                            [
+                                math.log(values[n][c, j]) if i < n_log else values[n][c, j]
+                                for i, n in enumerate(self.names)
+                            ]
+                        )
+                    )
+                    for j in range(len(at))
+                ]
+                for c in range(chains)
+            ]
+        )
+        data = az.from_dict(posterior=values, log_likelihood={"y": ll})
+        with warnings.catch_warnings():  # the Pareto k are reported, not warned about
+            warnings.simplefilter("ignore")
+            result = az.loo(data, pointwise=True)
+        k = np.asarray(result.pareto_k).ravel()
+        return {
+            "elpd_loo": float(result.elpd_loo),
+            "se": float(result.se),
+            "p_loo": float(result.p_loo),
+            "observations": int(ll.shape[2]),
+            "draws": int(chains * len(at)),
+            "pareto_k_max": float(np.max(k)) if k.size else math.nan,
+            "pareto_k_above_0.7": int(np.sum(k > 0.7)),
+        }
 
     def add_systematic(
         self,
@@ -256,7 +309,7 @@ def sample(
         "target_accept": target_accept,
         "cores": 1,
     }
-    return Posterior(idata, tuple(names), estimate, seconds, settings)
+    return Posterior(idata, tuple(names), estimate, seconds, settings, density)
 
 
 def _spread(estimate, density) -> np.ndarray:

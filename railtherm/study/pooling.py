@@ -109,13 +109,19 @@ def _interval(values, prob: float = 0.95) -> list[float]:
 
 
 def posterior_record(
-    vehicle_id: str, model: str, post: sampling.Posterior, fit, prior: ClassPrior | None
+    vehicle_id: str,
+    model: str,
+    post: sampling.Posterior,
+    fit,
+    prior: ClassPrior | None,
+    loo: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The content of a vehicle's posterior file (results/vehicles/<id>/posterior_<model>.
     yaml): the prior it was given, the sampler's settings, the diagnostics a reader must
     check (and whether they pass :data:`TRUST`), and per parameter the posterior's median
     and 95 % interval - the data's (statistical) and with the type-B budget mixed in - beside
-    the maximum-likelihood fit's (``fit``)."""
+    the maximum-likelihood fit's (``fit``); PSIS-LOO's figures where ``loo`` gives them
+    (:meth:`railtherm.estimation.sampling.Posterior.loo`)."""
     import numpy as np
 
     summary = post.summary()
@@ -156,6 +162,7 @@ def posterior_record(
         "sampler": {"method": post.idata.attrs.get("sampler", "NUTS"), **post.settings},
         "diagnostics": diagnostics,
         "trust": dict(TRUST),
+        **({"loo": dict(loo)} if loo is not None else {}),
         "parameters": out,
         "systematic": (
             "type-B sources mixed in by draws (the fit's budget: log theta + sum_j "

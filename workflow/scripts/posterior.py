@@ -41,7 +41,8 @@ post = posterior.sample_model(
     tune=settings["tune"],
     seed=settings["seed"],
 )
-record = pooling.posterior_record(vid, model, post, fit, prior)
+loo = post.loo() if settings["loo"] else None
+record = pooling.posterior_record(vid, model, post, fit, prior, loo)
 posterior.write(post, snakemake.output.nc)
 posterior.pair_plot(post, snakemake.output.png)
 rt_io.write_result(record, snakemake.output.record)
