@@ -183,7 +183,8 @@ def _fit(args: argparse.Namespace) -> int:
         print(f"{path}: written by the virtual climatic wind tunnel (synthetic)")
     (vehicle,) = study.vehicles.values()
     out = None if args.out is None else os.path.join(args.directory, args.out)
-    result = fit_vehicle(vehicle, args.model, out=out, workdir=args.directory)
+    terms = _class_prior_terms(args, vehicle) if args.class_prior else ()
+    result = fit_vehicle(vehicle, args.model, out=out, workdir=args.directory, prior_terms=terms)
     if result.kvalue is not None:
         k = result.kvalue
         value = (
@@ -204,8 +205,26 @@ def _fit(args: argparse.Namespace) -> int:
     if out:
         print(f"written to {os.path.join(out, 'vehicles', vehicle.id)}")
     if args.posterior:
-        _posterior(args, vehicle, result, out)
+        _posterior(args, vehicle, result, out, terms)
     return 0
+
+
+def _class_prior_terms(args: argparse.Namespace, vehicle) -> list:
+    """``railtherm fit --class-prior``: the class reference model of the study's Table 2
+    without the vehicle, as joint prior terms of its second-order fits (docs/bayes.md)."""
+    from railtherm.study import classmodel, pooling
+
+    members = classmodel.members_from_study(args.config, args.results, args.directory)
+    prior = pooling.class_prior(members, vehicle.id, vehicle.data, None)
+    if prior.reference is None:
+        raise ConfigError(
+            vehicle.path, "class", vehicle.data.get("class"), f"no class prior: {prior.reason}"
+        )
+    where = "its class" if prior.basis == "class" else "every rail class pooled"
+    table = os.path.join(args.results, "tables", "table2.csv")
+    basis = ", ".join(prior.reference.basis)
+    print(f"{vehicle.id}: class prior from {where} without it ({basis}; {table})")
+    return prior.terms
 
 
 def loo_line(loo: dict) -> str:
@@ -217,7 +236,7 @@ def loo_line(loo: dict) -> str:
     )
 
 
-def _posterior(args: argparse.Namespace, vehicle, result, out: str | None) -> None:
+def _posterior(args: argparse.Namespace, vehicle, result, out: str | None, prior_terms=()) -> None:
     """``railtherm fit --posterior``: each fitted model's posterior by NUTS, its summary
     printed and its InferenceData written beside the fit file (under --out), else in the
     working directory."""
@@ -229,9 +248,10 @@ def _posterior(args: argparse.Namespace, vehicle, result, out: str | None) -> No
     if args.tune < 0:
         raise ConfigError("--tune", "tune", args.tune, "expected 0 or more")
     for model in result.fits:
+        second = model.startswith("order2")
         post = posterior.vehicle_posterior(
             vehicle, model, result, chains=args.chains, draws=args.draws, tune=args.tune,
-            seed=args.seed,
+            seed=args.seed, prior_terms=prior_terms if second else (),
         )  # fmt: skip
         table = post.summary()[["mean", "sd", "hdi_2.5%", "hdi_97.5%", "r_hat", "ess_bulk"]]
         print(
@@ -742,6 +762,18 @@ def _add_fit(commands: Any) -> None:
         ),
     )
     fit.add_argument("--chains", type=int, default=4, help="posterior chains (default: 4)")
+    fit.add_argument(
+        "--class-prior",
+        action="store_true",
+        help="give the second-order fit the class reference model of the study's Table 2 "
+        "(RESULTS/tables/table2.csv) without this vehicle as its prior: a MAP fit, and "
+        "the posterior's prior with --posterior (docs/bayes.md)",
+    )
+    fit.add_argument(
+        "--results",
+        default="results",
+        help="the study's results directory --class-prior reads (default: results)",
+    )
     fit.add_argument(
         "--loo",
         action="store_true",

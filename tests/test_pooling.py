@@ -164,3 +164,39 @@ def test_predictions_take_the_posteriors_draws_where_a_posterior_is_given(fit_fi
     _posterior_file(tmp_path / "fit_order2.posterior.nc", {"C_bar": np.ones(n)})
     with pytest.raises(ConfigError, match="fit_order2.posterior.nc"):
         read_fit(local, posterior="auto")
+
+
+def test_railtherm_fit_class_prior_fits_with_the_class_of_the_other_vehicles(
+    campaign_study, tmp_path, capsys
+):
+    """`railtherm fit VEHICLE --class-prior`: the study's Table 2 without the vehicle gives
+    its second-order fit a class prior (a MAP fit whose file lists the class terms); a
+    vehicle whose class cannot be built is refused, naming the file and the reason."""
+    import shutil
+    from pathlib import Path
+
+    import yaml
+
+    from railtherm.cli import main
+
+    root, _, _ = campaign_study
+    repo = Path(__file__).resolve().parents[1]
+    work = tmp_path / "study"
+    shutil.copytree(root / "config", work / "config")
+    (work / "resources").symlink_to(root / "resources")
+    (work / "results" / "tables").mkdir(parents=True)
+    shutil.copy(repo / "results" / "tables" / "table2.csv", work / "results" / "tables")
+    args = ["fit", "config/vehicles/Regio1.yaml", "--model", "order2", "--class-prior",
+            "-d", str(work), "--out", "out"]  # fmt: skip
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "Regio1: class prior from its class without it (Regio2, Regio4;" in out
+    fit = yaml.safe_load((work / "out" / "vehicles" / "Regio1" / "fit_order2.yaml").read_text())
+    assert fit["inference"] == "MAP"
+    assert {"class:c_veh", "class:delta", "class:kappa_veh"} <= set(fit["priors"])
+    vehicle = yaml.safe_load((work / "config/vehicles/Regio1.yaml").read_text())
+    vehicle.pop("surface_m2")
+    (work / "config/vehicles/Regio1.yaml").write_text(yaml.safe_dump(vehicle, sort_keys=False))
+    assert main(args) != 0
+    err = capsys.readouterr().err
+    assert "config/vehicles/Regio1.yaml" in err and "surface_m2" in err

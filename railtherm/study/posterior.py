@@ -25,7 +25,15 @@ __all__ = [
 
 
 def vehicle_posterior(
-    vehicle, model: str, result, *, chains: int, draws: int, tune: int, seed: int
+    vehicle,
+    model: str,
+    result,
+    *,
+    chains: int,
+    draws: int,
+    tune: int,
+    seed: int,
+    prior_terms=(),
 ) -> sampling.Posterior:
     """The posterior of ``model`` (a model key: order2, order2_kalman, ...) of ``vehicle``
     given its identification windows, from ``result`` (:func:`railtherm.study.run.
@@ -35,7 +43,8 @@ def vehicle_posterior(
     k_stage = None if result.kvalue is None else result.kvalue.to_dict()
     return sample_model(
         windows, vehicle.data, k_stage, result.tables.get("kvalue"), model,
-        fit=result.fits.get(model), chains=chains, draws=draws, tune=tune, seed=seed,
+        fit=result.fits.get(model), prior_terms=prior_terms, chains=chains, draws=draws,
+        tune=tune, seed=seed,
     )  # fmt: skip
 
 

@@ -610,6 +610,8 @@ def _record(
         "input_hold": content.get("input_hold", "zero_order"),
         "k_source": content["k_source"],
         **{key: content.get(key) for key in K_STAGE_FIELDS},
+        # a MAP fit says so, with its priors (docs/bayes.md); a maximum-likelihood one does not
+        **{key: fit[key] for key in ("inference", "priors", "log_prior") if key in fit},
     }
     tail = {
         "parameters": fit["parameters"],

@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import pandas as pd
 
@@ -54,6 +55,7 @@ def fit_vehicle(
     models: Sequence[str] | None = None,
     out: str | os.PathLike[str] | None = None,
     workdir: str | os.PathLike[str] = ".",
+    prior_terms: Sequence[Any] = (),
 ) -> VehicleResult:
     """Clean, static k, fit and check ``models`` (default: every model the config asks for,
     :func:`railtherm.study.fitsettings.model_keys`). ``out``: a results directory to write the
@@ -70,6 +72,9 @@ def fit_vehicle(
         A results directory to write into.
     workdir : str or os.PathLike
         The directory the vehicle's raw files are relative to.
+    prior_terms : sequence of LinearT, optional
+        Joint prior terms for the second-order models (the class's:
+        :func:`railtherm.study.pooling.class_prior`): their fits are then MAP fits.
 
     Returns
     -------
@@ -105,7 +110,10 @@ def fit_vehicle(
     for key in keys:
         model = fitsettings.model_key(key)
         try:
-            estimate, series = identify.identify(windows, vehicle.data, k_stage, model, storage)
+            terms = prior_terms if fitsettings.split_key(model)[0] == "order2" else ()
+            estimate, series = identify.identify(
+                windows, vehicle.data, k_stage, model, storage, prior_terms=terms
+            )
         except ConfigError as err:
             if err.file != f"vehicle {vehicle.id}":
                 raise
