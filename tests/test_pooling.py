@@ -145,7 +145,10 @@ def test_predictions_take_the_posteriors_draws_where_a_posterior_is_given(fit_fi
     shifted = {p: np.full(n, theta[p] * (1.5 if p == "C_veh" else 1.0)) for p in theta}
     _posterior_file(tmp_path / "fit_order2.posterior.nc", {p: shifted[p] for p in
                     ("C", "K_veh", "C_veh")})  # fmt: skip
-    scenario = load_scenario("config/scenarios/preheat_cold_soak.yaml")
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    scenario = load_scenario(repo / "config" / "scenarios" / "preheat_cold_soak.yaml")
     with_post = sim.simulate(sim.load_parameters(local), scenario, draws=50, seed=1)
     assert "statistical only" in " ".join(sim.load_parameters(local).band_sources)
     edited = yaml.safe_load(local.read_text())

@@ -461,6 +461,14 @@ class _Pass:
     steady_from: list[int] = field(default_factory=list)  # rows where a stationary run began
 
 
+def _series_arrays(out: _Pass, N: int, n: int, n_out: int) -> None:
+    """A pass's series, to be filled row by row (NaN where a row has no such value)."""
+    out.xp = np.empty((N, n))
+    out.eps = np.full((N, n_out), np.nan)
+    out.rvar = np.full((N, n_out), np.nan)
+    out.ll = np.full(N, np.nan)
+
+
 def _filter(
     sysm: _System,
     d: _Data,
@@ -498,10 +506,7 @@ def _filter(
     dx, dP = np.array(dx0, dtype=float), np.array(dP0, dtype=float)
     out = _Pass(nll=0.0, grad=np.zeros(Q), fisher=np.zeros((Q, Q)) if order >= 2 else None)
     if series:
-        out.xp = np.empty((N, n))
-        out.eps = np.full((N, n_out), np.nan)
-        out.rvar = np.full((N, n_out), np.nan)
-        out.ll = np.full(N, np.nan)
+        _series_arrays(out, N, n, n_out)
     nll = 0.0
     for k0, k1, code in d.runs:
         o = _outputs_of(code, n_out)

@@ -70,8 +70,21 @@ class Fit(FitRecord):
     posterior_systematic: bool = False
 
     def posterior_sample(self, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        """``n`` parameter sets drawn (with replacement) from :attr:`posterior`: predictions
-        from the posterior itself instead of a Gaussian about the estimate."""
+        """Parameter sets drawn (with replacement) from :attr:`posterior`: predictions from
+        the posterior itself instead of a Gaussian about the estimate.
+
+        Parameters
+        ----------
+        n : int
+            How many parameter sets.
+        rng : numpy.random.Generator
+            The draws' generator.
+
+        Returns
+        -------
+        dict of str to ndarray
+            Each parameter's ``n`` values.
+        """
         if self.posterior is None:
             raise ValueError(f"{self.vehicle} {self.model}: no posterior draws")
         size = len(next(iter(self.posterior.values())))
