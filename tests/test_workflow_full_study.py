@@ -180,7 +180,7 @@ def test_inference_posterior_samples_each_vehicle_with_the_class_of_the_others(f
     cfg_path = study / "config" / "config.yaml"
     cfg = yaml.safe_load(cfg_path.read_text())
     cfg["inference"] = "posterior"
-    cfg["posterior"] = {"chains": 2, "draws": 150, "tune": 150, "seed": 3}
+    cfg["posterior"] = {"chains": 2, "draws": 100, "tune": 100, "seed": 3}
     cfg_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
     plan = snakemake(study, "--dry-run")
     assert plan.returncode == 0, plan.stderr[-3000:]
@@ -197,11 +197,12 @@ def test_inference_posterior_samples_each_vehicle_with_the_class_of_the_others(f
     assert rec["prior"]["kind"] == "class" and rec["prior"]["class"] == "regional"
     assert "Regio1" not in rec["prior"]["vehicles"] and rec["prior"]["vehicles"]
     assert set(rec["diagnostics"]) == {"r_hat_max", "ess_bulk_min", "divergences", "trusted"}
+    assert rec["loo"]["observations"] > 100 and rec["loo"]["draws"] == 200
     for p in ("C", "K_veh", "C_veh"):
         entry = rec["parameters"][p]
         lo, hi = entry["ci95"]
         ml_lo, ml_hi = entry["ml"]["ci95"]
         assert lo < entry["median"] < hi and lo < ml_hi and ml_lo < hi  # intervals meet
     back = az.from_netcdf(study / "results/vehicles/Regio1/fit_order2.posterior.nc")
-    assert back.posterior["C_veh"].shape == (2, 150)
+    assert back.posterior["C_veh"].shape == (2, 100)
     assert "posterior_systematic" in back.groups()
