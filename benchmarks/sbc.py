@@ -3,7 +3,7 @@ estimators, on records written by a generator of this file (not railtherm.synth,
 railtherm.estimation.models).
 
     python benchmarks/sbc.py [--records 200] [--jobs 2] [--estimators output_error,kalman]
-        [--seed 2018] [--out ranks.csv]
+        [--seed 2018] [--out ranks.csv] [--oe-x0 estimated]
 
 For each record: the second-order model's parameters (kA, C, K_veh, C_veh) are drawn from
 the prior the posterior uses (lognormal, medians 700 W/K, 1e7 J/K, 500 W/K, 1.5e7 J/K, log
@@ -15,7 +15,8 @@ read with white noise of sd 0.1 K.
 
 - output_error: the deterministic simulation plus the reading noise; the posterior of
   railtherm.estimation.sampling with the simulation error's likelihood (the noise variance
-  integrated out, iid residuals), the initial states estimated (flat).
+  integrated out, iid residuals), the initial states estimated (flat; ``--oe-x0 measured``:
+  the first reading taken as the exact initial state instead).
 - kalman: the stochastic model (diffusion 2e-3 K/sqrt(s) on both states) plus the reading
   noise; the posterior with the filter's likelihood, the noise parameters given (fixed at the
   generator's), the initial state from the first reading.
@@ -97,7 +98,7 @@ def record(i: int, seed: int, estimator: str):
 
 
 def one(job) -> dict:
-    i, seed, estimator = job
+    i, seed, estimator, oe_x0 = job
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from railtherm.estimation import models, pem, sampling
     from railtherm.estimation.priors import Prior
@@ -110,7 +111,7 @@ def one(job) -> dict:
         noise = {"sigma_T": SIGMA, "sigma_T_veh": SIGMA, "s_T": READ_SD**2, "s_T_veh": READ_SD**2}
         options.update(fixed=noise, x0="measured")
     else:  # the first reading is no exact initial state of a simulation: estimated
-        options.update(covariance="iid", x0="estimated")
+        options.update(covariance="iid", x0=oe_x0)
     row = {"record": i, "estimator": estimator}
     try:
         post = sampling.sample(
@@ -137,9 +138,15 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=2018)
     parser.add_argument("--estimators", default="output_error,kalman")
     parser.add_argument("--out", help="write the ranks (CSV)")
+    parser.add_argument(
+        "--oe-x0",
+        default="estimated",
+        choices=("estimated", "measured"),
+        help="output error's initial states: estimated, or the first reading taken as exact",
+    )
     args = parser.parse_args()
     jobs = [
-        (i, args.seed, estimator)
+        (i, args.seed, estimator, args.oe_x0)
         for estimator in args.estimators.split(",")
         for i in range(args.records)
     ]

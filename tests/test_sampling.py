@@ -225,3 +225,18 @@ def test_psis_loo_is_the_leave_one_out_density_by_quadrature(record, posterior):
     terms, log_w = np.array(terms), np.array(log_w)
     exact = float(np.sum(logsumexp(log_w) - logsumexp(log_w[:, None] - terms, axis=0)))
     assert loo["elpd_loo"] == pytest.approx(exact, abs=0.2)
+
+
+@pytest.mark.parametrize("unknowns", [["C_bar", "x0_T[sequence]"], ["C_bar"]])
+def test_a_first_order_posterior_with_kA_held_still_gets_its_figure(unknowns, tmp_path):
+    """One structural parameter (C_bar; kA held by the static test): the pair plot takes the
+    initial states with it, or draws the one marginal - never an error."""
+    from types import SimpleNamespace
+
+    from railtherm.study import posterior as study_posterior
+
+    rng = np.random.default_rng(0)
+    idata = az.from_dict(posterior={v: rng.lognormal(size=(2, 50)) for v in unknowns})
+    post = sampling.Posterior(idata, tuple(unknowns), SimpleNamespace(free=("C_bar",)), 0.0)
+    path = study_posterior.pair_plot(post, str(tmp_path / "pair.png"))
+    assert (tmp_path / "pair.png").stat().st_size > 5_000 and path.endswith("pair.png")

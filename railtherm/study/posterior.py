@@ -106,7 +106,9 @@ def write(posterior: sampling.Posterior, path: str) -> str:
 
 def pair_plot(posterior: sampling.Posterior, path: str) -> str:
     """ArviZ's pair plot of the structure's parameters (the draws of every pair, each one's
-    marginal on the diagonal, divergent draws marked) as PNG at ``path``; returns it."""
+    marginal on the diagonal, divergent draws marked) as PNG at ``path``; returns it. With
+    one structural parameter (a first-order model with kA held) the initial states join it;
+    a single unknown gets its marginal with the 95 % HDI."""
     import arviz as az
     import matplotlib
 
@@ -114,6 +116,14 @@ def pair_plot(posterior: sampling.Posterior, path: str) -> str:
     import matplotlib.pyplot as plt
 
     names = [n for n in posterior.estimate.free if n in posterior.idata.posterior]
+    if len(names) < 2:  # one structural parameter (C_bar, kA held): with the initial states
+        names = list(posterior.idata.posterior.data_vars)
+    if len(names) < 2:  # a single unknown: its marginal
+        ax = az.plot_posterior(posterior.idata, var_names=names, hdi_prob=0.95, figsize=(6, 4))
+        figure = np.asarray(ax).ravel()[0].figure
+        figure.savefig(path, dpi=110)
+        plt.close(figure)
+        return path
     axes = az.plot_pair(
         posterior.idata, var_names=names, kind="scatter", marginals=True, divergences=True,
         scatter_kwargs={"alpha": 0.4, "s": 5, "color": "C0"}, figsize=(8.0, 8.0),
