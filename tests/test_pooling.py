@@ -35,10 +35,12 @@ def test_a_vehicles_class_prior_is_built_without_it_and_falls_back_to_all_classe
     # c_veh's centre: the geometric mean of the others' (400, 500); no k term (kA held)
     assert prior.reference.generalised["c_veh"].centre == pytest.approx(math.sqrt(400 * 500))
     assert {t.name for t in prior.terms} == {"class:c_veh", "class:delta", "class:kappa_veh"}
+    assert set(prior.to_dict()["parameters"]) == {"C", "K_veh", "C_veh"}  # kA held
     # a class with one other vehicle: every rail class pooled, still without the vehicle
     prior = pooling.class_prior(members[:2] + members[3:], "M1", VEHICLE, kA_held=None)
     assert prior.basis == "all" and sorted(prior.reference.basis) == ["M2", "R1"]
     assert "class:k" in {t.name for t in prior.terms}
+    assert set(prior.to_dict()["parameters"]) == {"kA", "C", "K_veh", "C_veh"}
     # no surface: no class prior, and the reason
     prior = pooling.class_prior(members, "M1", {"class": "metro", "mass_kg": 4e4}, None)
     assert prior.reference is None and "surface_m2" in prior.reason

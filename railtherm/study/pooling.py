@@ -65,9 +65,10 @@ class ClassPrior:
             "class": ref.vehicle_class,
             "basis": self.basis,
             "vehicles": list(ref.basis),
-            "parameters": {
+            "parameters": {  # kA only where the class's k is a term (kA not held)
                 p: {"value": float(parameters[p]["value"]), "ci95": list(parameters[p]["ci95"])}
-                for p in ("C", "K_veh", "C_veh")
+                for p in ("kA", "C", "K_veh", "C_veh")
+                if p != "kA" or ref.k_given is None
             },
         }
 
@@ -256,6 +257,8 @@ def _prior_from(prior: Mapping[str, Any]) -> str:
 def _cell(x: float, lo: float, hi: float) -> str:
     if not math.isfinite(x):
         return ""
+    if not (math.isfinite(lo) and math.isfinite(hi)):  # a value without an interval
+        return f"{x:.4g}"
     return f"{x:.4g} [{lo:.4g}, {hi:.4g}]"
 
 
