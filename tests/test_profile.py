@@ -109,3 +109,21 @@ def test_a_determined_parameter_gets_its_two_sided_interval():
     assert abs(math.log(limit.upper / upper)) < 0.05 * half
     assert abs(math.log(limit.lower / lower)) < 0.05 * half
     assert half == pytest.approx(1.959964 * fit.sd_log["C_bar"], rel=0.05)
+
+
+def test_a_kalman_fits_profile_gives_the_same_upper_limit():
+    """The same fast body by the Kalman filter's likelihood with the diffusion held at 0:
+    its measurement variance re-estimated at each C_bar makes the profile (m / 2) log(e^T e)
+    up to a constant, so its upper limit is the independent reference's, within 5 %."""
+    from railtherm.estimation import kalman
+    from railtherm.estimation.profile import kalman_profile
+
+    e = record(3.0e4)
+    fit = kalman.fit(S1, [e], x0="measured", fixed={"sigma_T": 0.0})
+    limit = kalman_profile(S1, [e], "C_bar", fit, x0="measured", fixed={"sigma_T": 0.0})
+    assert limit.kind == "upper", limit
+    grid = np.geomspace(1e3, 3e6, 400)
+    ref = reference_profile(e, grid)
+    expected = crossing(grid, ref, ref.min() + CHI2_1_95 / 2.0)
+    assert limit.upper == pytest.approx(expected, rel=0.05)
+    assert limit.lower is None

@@ -31,7 +31,13 @@ from typing import Any
 
 from railtherm.estimation import models, pem
 
-__all__ = ["CHI2_1_95", "ProfileLimit", "output_error_profile", "profile_limit"]
+__all__ = [
+    "CHI2_1_95",
+    "ProfileLimit",
+    "kalman_profile",
+    "output_error_profile",
+    "profile_limit",
+]
 
 CHI2_1_95 = 3.841458820694124  # the 95 % quantile of chi-square with one degree of freedom
 
@@ -177,4 +183,51 @@ def output_error_profile(
     return profile_limit(
         parameter, estimate.theta[parameter], bounds[parameter], criterion,
         minimum=minimum, points=points,
+    )  # fmt: skip
+
+
+def kalman_profile(
+    structure: models.Structure,
+    experiments: Sequence[pem.Experiment],
+    parameter: str,
+    estimate,
+    *,
+    points: int = 16,
+    **options: Any,
+) -> ProfileLimit:
+    """The profile-likelihood limits of ``parameter`` (:func:`profile_limit`) around
+    ``estimate``, the fit of :func:`railtherm.estimation.kalman.fit` with ``options`` (fixed,
+    bounds, outputs, x0, offsets, input_noise, ...): at each value the parameter is fixed and
+    every other unknown - the structure's parameters and the noise parameters - re-fitted
+    from the previous value's (warm start). The criterion is the filter's negative
+    log-likelihood (the estimate's ``cost``). Within the parameter's search bounds."""
+    from railtherm.estimation import kalman  # the filter's fit, on first use
+
+    bounds = dict(structure.bounds)
+    bounds.update({p: (float(b[0]), float(b[1])) for p, b in (options.get("bounds") or {}).items()})
+    fixed = dict(options.get("fixed") or {})
+    held = {  # a noise parameter the fit holds at its bound stays held
+        name: (estimate.sigma if name.startswith("sigma_") else estimate.meas_var)[
+            name.split("_", 1)[1]
+        ]
+        for name in getattr(estimate, "noise_at_bound", ())
+    }
+
+    def start_of(r) -> dict[str, float]:
+        out = {p: r.theta[p] for p in r.free if p != parameter}
+        out.update({f"sigma_{k}": v for k, v in r.sigma.items() if v > 0})
+        out.update({f"s_{k}": v for k, v in r.meas_var.items() if v > 0})
+        return {k: v for k, v in out.items() if k not in fixed and k not in held}
+
+    def criterion(value: float, warm):
+        r = kalman.fit(
+            structure, experiments, **{**options, "start": "initial",
+            "fixed": {**fixed, **held, parameter: value},
+            "initial": {**(options.get("initial") or {}), **(warm or start_of(estimate))}},
+        )  # fmt: skip
+        return float(r.cost), start_of(r)
+
+    return profile_limit(
+        parameter, estimate.theta[parameter], bounds[parameter], criterion,
+        minimum=float(estimate.cost), points=points,
     )  # fmt: skip

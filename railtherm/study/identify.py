@@ -22,7 +22,7 @@ from railtherm.data import plausibility as units_plausibility
 from railtherm.errors import ConfigError
 from railtherm.estimation import common, metrics, models, pem
 from railtherm.estimation.priors import LinearT
-from railtherm.estimation.profile import output_error_profile
+from railtherm.estimation.profile import kalman_profile, output_error_profile
 from railtherm.records import EstimateRecord, JudgedEstimate, ParameterEstimate
 from railtherm.study import identifiability
 from railtherm.study.budget import combine_uncertainty, systematic_budget
@@ -541,20 +541,23 @@ def _sd_log_total(entry: ParameterEstimate) -> float:
 
 def profile_limits(structure, exps, options, result, fitted: JudgedEstimate) -> JudgedEstimate:
     """``fitted`` with each estimated parameter it judges not identified given the limits
-    of its profile likelihood (:func:`railtherm.estimation.profile.output_error_profile`: the other
-    parameters re-fitted at each value), for the output-error estimator: a one-sided limit
+    of its profile likelihood (:func:`railtherm.estimation.profile.output_error_profile`: the
+    other parameters re-fitted at each value; for the Kalman filter's fit
+    :func:`railtherm.estimation.profile.kalman_profile`, by its likelihood): a one-sided limit
     the data give ("lower": at least, "upper": at most) replaces ``limit: none``; the profile
     is kept under ``profile`` and said in the reason. A parameter the profile bounds on both
     sides stays not identified (its interval at the optimum said otherwise), with the
-    profile's interval in the reason. Other estimators: ``fitted`` as it is."""
-    if options.get("estimator", "output_error") != "output_error":
-        return fitted
+    profile's interval in the reason."""
+    kalman = options.get("estimator", "output_error") == "kalman"
     content = fitted.to_dict()
     fit_options = {k: v for k, v in options.items() if k != "estimator"}
+    if kalman:
+        fit_options.pop("covariance", None)  # the filter's observed information gives it
     for p, entry in content["parameters"].items():
         if not entry.get("estimated") or entry.get("identified", True) or p not in result.free:
             continue
-        limit = output_error_profile(structure, exps, p, result, **fit_options)
+        profiler = kalman_profile if kalman else output_error_profile
+        limit = profiler(structure, exps, p, result, **fit_options)
         entry["profile"] = limit.to_dict()
         entry["reason"] = f"{entry.get('reason', 'not identified')}; {limit.phrase()}"
         if limit.kind in ("lower", "upper"):
