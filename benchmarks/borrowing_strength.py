@@ -56,6 +56,15 @@ def cut(tables: dict[str, pd.DataFrame], names: list[str], fraction: float):
 
 
 def one_vehicle(args) -> dict:
+    """A vehicle's row, or {"vehicle", "skipped": why} where its cut record cannot be fitted
+    (too few rows left, say): reported, not a crash after every other vehicle's fits."""
+    try:
+        return _one_vehicle(args)
+    except Exception as err:  # noqa: BLE001 - the benchmark reports it and goes on
+        return {"vehicle": args[1], "skipped": f"{type(err).__name__}: {err}"}
+
+
+def _one_vehicle(args) -> dict:
     study, vid, fraction = args
     os.chdir(study)
     from railtherm.config import load_study
@@ -130,6 +139,10 @@ def main() -> None:
     jobs = [(str(study), vid, args.fraction) for vid in truth.index]
     with ProcessPoolExecutor(args.jobs) as pool:
         rows = list(pool.map(one_vehicle, jobs))
+    skipped = [r for r in rows if "skipped" in r]
+    rows = [r for r in rows if "skipped" not in r]
+    for r in skipped:
+        print(f"{r['vehicle']}: skipped ({r['skipped']})")
     table = pd.DataFrame(rows).set_index("vehicle")
     print(
         f"Record cut to its first {args.fraction:.4g}; second-order model by output error; "
