@@ -205,3 +205,46 @@ def test_railtherm_fit_class_prior_fits_with_the_class_of_the_other_vehicles(
     assert main(args) != 0
     err = capsys.readouterr().err
     assert "config/vehicles/Regio1.yaml" in err and "surface_m2" in err
+
+
+def test_a_study_posterior_is_sampled_with_the_class_of_the_others(fit_files, campaign_study):
+    """railtherm.study.pooling.vehicle_posterior, what rule posterior runs: Regio1's fit
+    files as the rules write them, the class members from the committed Table 2; the prior
+    is the regional class without Regio1, the file carries diagnostics, LOO and per
+    parameter the ML and posterior intervals, and its summary line says whether to trust it;
+    without members the vehicle keeps its own priors."""
+    from pathlib import Path
+
+    from railtherm.study import classmodel
+    from railtherm.study.fit import read_fit
+    from railtherm.study.run import read_stage_inputs
+
+    _, _, study = campaign_study
+    fit_path, _ = fit_files("Regio1", "order2")
+    base = Path(fit_path).parent
+    names = [w["name"] for w in study.vehicles["Regio1"].windows["identification"]]
+    tables, kvalue, k_window = read_stage_inputs(
+        names, [base / "clean" / f"{n}.csv" for n in names], base / "kvalue.yaml",
+        base / "clean" / "kvalue.csv",
+    )  # fmt: skip
+    repo = Path(__file__).resolve().parents[1]
+    members = classmodel.members_from_table2(
+        repo / "results" / "tables" / "table2.csv", {k: v.data for k, v in study.vehicles.items()}
+    )
+    settings = {"chains": 2, "draws": 60, "tune": 60, "seed": 1, "loo": True}
+    fit = read_fit(fit_path)
+    data = study.vehicles["Regio1"].data
+    post, record, prior = pooling.vehicle_posterior(
+        "Regio1", "order2", data, tables, kvalue, k_window, fit, settings, members
+    )
+    assert prior.basis == "class" and "Regio1" not in prior.reference.basis
+    assert record["prior"]["vehicles"] == prior.reference.basis
+    assert record["loo"]["draws"] == 120 and record["loo"]["observations"] > 100
+    for p in ("C", "K_veh", "C_veh"):
+        lo, hi = record["parameters"][p]["ci95"]
+        assert lo < record["parameters"][p]["median"] < hi
+    assert pooling.summary_line(record).startswith("Regio1 order2: R-hat <= ")
+    _, own, none = pooling.vehicle_posterior(
+        "Regio1", "order2", data, tables, kvalue, k_window, fit, {**settings, "loo": False}
+    )
+    assert none is None and own["prior"] == {"kind": "vehicle"} and "loo" not in own

@@ -33,6 +33,8 @@ __all__ = [
     "pooling_markdown",
     "pooling_rows",
     "posterior_record",
+    "summary_line",
+    "vehicle_posterior",
     "TRUST",
 ]
 
@@ -100,6 +102,50 @@ def class_prior(
             continue
         return ClassPrior(reference, basis)
     return ClassPrior(None, "none", "; ".join(reasons))
+
+
+def vehicle_posterior(
+    vehicle_id: str,
+    model: str,
+    vehicle: Mapping[str, Any],
+    tables,
+    kvalue: Mapping[str, Any] | None,
+    k_window,
+    fit,
+    settings: Mapping[str, Any],
+    members: Sequence[classmodel.ClassMember] | None = None,
+    min_vehicles: int = 2,
+) -> tuple[sampling.Posterior, dict[str, Any], ClassPrior | None]:
+    """One posterior of the study (rule posterior): ``model`` of ``vehicle`` sampled as its
+    fit ``fit`` is set up (its identification ``tables``, static k result and k window),
+    with the class prior of ``members`` less the vehicle where given (a second-order model
+    with ``posterior.prior: class``), the systematic budget mixed in; ``settings``: the
+    study config's ``posterior`` section. Returns the posterior, its file's content
+    (:func:`posterior_record`, PSIS-LOO where ``settings["loo"]``) and the prior given."""
+    from railtherm.study import posterior  # nutpie and ArviZ on first use
+
+    prior = None
+    if members is not None:
+        kA = fit.section("parameters").get("kA", {})
+        kA_held = None if kA.get("estimated", True) else float(kA["value"])
+        prior = class_prior(members, vehicle_id, vehicle, kA_held, min_vehicles)
+    post = posterior.sample_model(
+        tables, vehicle, kvalue, k_window, model, fit=fit,
+        prior_terms=prior.terms if prior is not None else (), chains=settings["chains"],
+        draws=settings["draws"], tune=settings["tune"], seed=settings["seed"],
+    )  # fmt: skip
+    loo = post.loo() if settings.get("loo", True) else None
+    return post, posterior_record(vehicle_id, model, post, fit, prior, loo), prior
+
+
+def summary_line(record: Mapping[str, Any]) -> str:
+    """A posterior file's diagnostics in one line (the rule's log)."""
+    d = record["diagnostics"]
+    verdict = "trusted" if d["trusted"] else "NOT trusted"
+    return (
+        f"{record['vehicle']} {record['model']}: R-hat <= {d['r_hat_max']:.4f}, bulk ESS >= "
+        f"{d['ess_bulk_min']:.0f}, {d['divergences']} divergences, {verdict}"
+    )
 
 
 def _interval(values, prob: float = 0.95) -> list[float]:

@@ -40,6 +40,22 @@ class VehicleResult:
     fits: dict[str, Fit] = field(default_factory=dict)
 
 
+def read_stage_inputs(
+    names: Sequence[str],
+    windows: Sequence[str],
+    kvalue_file: str | None = None,
+    k_window_file: str | None = None,
+) -> tuple[dict[str, pd.DataFrame], dict[str, Any] | None, pd.DataFrame | None]:
+    """What a vehicle's fit stage reads from the rules' files (rules identify and
+    posterior): its identification windows ``{name: tidy table}`` (``names`` and their
+    files ``windows``, in order), its static k result and its k window (None where the
+    vehicle has no k window)."""
+    tables = {name: ingest.read_tidy(path) for name, path in zip(names, windows, strict=True)}
+    if not kvalue_file:
+        return tables, None, None
+    return tables, rt_io.read_result(kvalue_file), ingest.read_tidy(k_window_file)
+
+
 def tidy_tables(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> dict[str, pd.DataFrame]:
     """Every window of ``vehicle`` cleaned (rule ``clean``): the k window and the
     identification windows, each raw file read once."""

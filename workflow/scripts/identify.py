@@ -4,17 +4,16 @@ from railtherm import io as rt_io
 from railtherm import logs
 from railtherm.data import ingest
 from railtherm.study import identify
+from railtherm.study.run import read_stage_inputs
 from railtherm.study.storage import storage_corrected_k
 
 log = logs.to_file(snakemake.log[0])
-tables = {
-    name: ingest.read_tidy(path)
-    for name, path in zip(snakemake.params.windows, snakemake.input.windows, strict=True)
-}
-kvalue = k_window = None
-if snakemake.input.kvalue:
-    kvalue = rt_io.read_result(snakemake.input.kvalue)
-    k_window = ingest.read_tidy(snakemake.input.k_window)
+tables, kvalue, k_window = read_stage_inputs(
+    snakemake.params.windows,
+    snakemake.input.windows,
+    snakemake.input.kvalue or None,
+    snakemake.input.k_window or None,
+)
 # the storage-corrected kA (eqs. 7-8 over the k window), once for every model of the vehicle
 storage = storage_corrected_k(tables, k_window, snakemake.params.vehicle, kvalue)
 if storage and storage["applied"]:
