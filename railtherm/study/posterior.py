@@ -147,12 +147,17 @@ def read_draws(path, fit) -> tuple[dict[str, np.ndarray], bool]:
     try:
         _, _, az = sampling._nutpie()
         idata = az.from_netcdf(str(path))
-    except (OSError, ValueError) as err:
-        reason = f"not a posterior: {err}"
-        raise ConfigError(str(path), "(file)", type(err).__name__, reason) from None
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        reason = (
+            f"not a posterior InferenceData ({type(err).__name__}: {err or 'unreadable'}); "
+            "write it again with `railtherm fit --posterior --out`, or remove it"
+        )
+        raise ConfigError(str(path), "(file)", str(path), reason) from None
     groups = idata.groups()
     if "posterior" not in groups:
-        raise ConfigError(str(path), "posterior", groups, "no posterior group")
+        raise ConfigError(
+            str(path), "posterior", list(groups), "no posterior group: not a sampler's output"
+        )
     mixed = idata.posterior_systematic if "posterior_systematic" in groups else None
     own = idata.posterior
     params = fit.section("parameters")
