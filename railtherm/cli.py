@@ -240,7 +240,7 @@ def _posterior(args: argparse.Namespace, vehicle, result, out: str | None, prior
     """``railtherm fit --posterior``: each fitted model's posterior by NUTS, its summary
     printed and its InferenceData written beside the fit file (under --out), else in the
     working directory."""
-    from railtherm.study import posterior
+    from railtherm.study import fitsettings, posterior
 
     for key, value in (("chains", args.chains), ("draws", args.draws)):
         if value < 1:
@@ -248,7 +248,7 @@ def _posterior(args: argparse.Namespace, vehicle, result, out: str | None, prior
     if args.tune < 0:
         raise ConfigError("--tune", "tune", args.tune, "expected 0 or more")
     for model in result.fits:
-        second = model.startswith("order2")
+        second = fitsettings.split_key(model)[0] == "order2"  # the class model's structure
         post = posterior.vehicle_posterior(
             vehicle, model, result, chains=args.chains, draws=args.draws, tune=args.tune,
             seed=args.seed, prior_terms=prior_terms if second else (),

@@ -131,7 +131,7 @@ def test_energy_table_without_an_acceptable_fit_says_so(tmp_path, monkeypatch):
     from railtherm.study import fit as fit_module
 
     doubtful = SimpleNamespace(verdict="fit assumptions in doubt")
-    monkeypatch.setattr(fit_module, "read_fit", lambda path: doubtful)
+    monkeypatch.setattr(fit_module, "read_fit", lambda path, **_: doubtful)
     weather_file = tmp_path / "year.csv"
     shutil.copy(TMY3, weather_file)
     parts = []

@@ -211,7 +211,7 @@ def test_railtherm_fit_class_prior_fits_with_the_class_of_the_other_vehicles(
 
 
 def test_a_study_posterior_is_sampled_with_the_class_of_the_others(fit_files, campaign_study):
-    """railtherm.study.pooling.vehicle_posterior, what rule posterior runs: Regio1's fit
+    """railtherm.study.pooling.study_posterior, what rule posterior runs: Regio1's fit
     files as the rules write them, the class members from the committed Table 2; the prior
     is the regional class without Regio1, the file carries diagnostics, LOO and per
     parameter the ML and posterior intervals, and its summary line says whether to trust it;
@@ -237,7 +237,7 @@ def test_a_study_posterior_is_sampled_with_the_class_of_the_others(fit_files, ca
     settings = {"chains": 2, "draws": 60, "tune": 60, "seed": 1, "loo": True}
     fit = read_fit(fit_path)
     data = study.vehicles["Regio1"].data
-    post, record, prior = pooling.vehicle_posterior(
+    post, record, prior = pooling.study_posterior(
         "Regio1", "order2", data, tables, kvalue, k_window, fit, settings, members
     )
     assert prior.basis == "class" and "Regio1" not in prior.reference.basis
@@ -247,7 +247,7 @@ def test_a_study_posterior_is_sampled_with_the_class_of_the_others(fit_files, ca
         lo, hi = record["parameters"][p]["ci95"]
         assert lo < record["parameters"][p]["median"] < hi
     assert pooling.summary_line(record).startswith("Regio1 order2: R-hat <= ")
-    _, own, none = pooling.vehicle_posterior(
+    _, own, none = pooling.study_posterior(
         "Regio1", "order2", data, tables, kvalue, k_window, fit, {**settings, "loo": False}
     )
     assert none is None and own["prior"] == {"kind": "vehicle"} and "loo" not in own

@@ -109,24 +109,10 @@ class Posterior:
         chains, draws = post.sizes["chain"], post.sizes["draw"]
         keep = max(1, min(draws, max_draws // chains))
         at = np.unique(np.linspace(0, draws - 1, keep).round().astype(int))
-        n_log = self.density.n_log
         values = {name: post[name].values[:, at] for name in self.names}
-        ll = np.array(
-            [
-                [
-                    self.density.pointwise(
-                        np.array(
-                            [
-                                math.log(values[n][c, j]) if i < n_log else values[n][c, j]
-                                for i, n in enumerate(self.names)
-                            ]
-                        )
-                    )
-                    for j in range(len(at))
-                ]
-                for c in range(chains)
-            ]
-        )
+        v = np.stack([values[name] for name in self.names], axis=-1)  # (chains, draws, P)
+        v[..., : self.density.n_log] = np.log(v[..., : self.density.n_log])
+        ll = np.array([[self.density.pointwise(row) for row in chain] for chain in v])
         data = az.from_dict(posterior=values, log_likelihood={"y": ll})
         with warnings.catch_warnings():  # the Pareto k are reported, not warned about
             warnings.simplefilter("ignore")

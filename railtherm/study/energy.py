@@ -913,7 +913,7 @@ def _best_fits(
     fits: dict[str, Fit] = {}
     ncs = list(posteriors) or [None] * len(fit_files)
     for vid, path, nc in zip(owners, fit_files, ncs, strict=True):
-        fit = read_fit(path) if nc is None else read_fit(path, posterior=nc)
+        fit = read_fit(path, posterior=nc)
         if vid not in fits or (fits[vid].verdict != ACCEPTABLE and fit.verdict == ACCEPTABLE):
             fits[vid] = fit
     return fits

@@ -19,8 +19,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from railtherm.errors import ConfigError
@@ -34,7 +36,7 @@ __all__ = [
     "pooling_rows",
     "posterior_record",
     "summary_line",
-    "vehicle_posterior",
+    "study_posterior",
     "TRUST",
 ]
 
@@ -43,15 +45,15 @@ TRUST = {"r_hat_max": 1.01, "ess_bulk_min": 400.0, "divergences": 0}
 SHOWN = ("kA", "C_bar", "C", "K_veh", "C_veh")  # in the study table, in this order
 
 
+@dataclass
 class ClassPrior:
     """The prior a vehicle's fit is given: ``reference`` (the class reference model without
     the vehicle) with ``basis`` ("class": its own class; "all": every rail class pooled), or
     None with ``reason`` (the fit keeps the vehicle's own priors)."""
 
-    def __init__(self, reference: classmodel.ReferenceModel | None, basis: str, reason: str = ""):
-        self.reference = reference
-        self.basis = basis
-        self.reason = reason
+    reference: classmodel.ReferenceModel | None
+    basis: str
+    reason: str = ""
 
     @property
     def terms(self) -> list:
@@ -104,7 +106,7 @@ def class_prior(
     return ClassPrior(None, "none", "; ".join(reasons))
 
 
-def vehicle_posterior(
+def study_posterior(
     vehicle_id: str,
     model: str,
     vehicle: Mapping[str, Any],
@@ -149,8 +151,6 @@ def summary_line(record: Mapping[str, Any]) -> str:
 
 
 def _interval(values, prob: float = 0.95) -> list[float]:
-    import numpy as np
-
     lo, hi = np.quantile(values, [(1 - prob) / 2, (1 + prob) / 2])
     return [float(lo), float(hi)]
 
@@ -169,8 +169,6 @@ def posterior_record(
     and 95 % interval - the data's (statistical) and with the type-B budget mixed in - beside
     the maximum-likelihood fit's (``fit``); PSIS-LOO's figures where ``loo`` gives them
     (:meth:`railtherm.estimation.sampling.Posterior.loo`)."""
-    import numpy as np
-
     summary = post.summary()
     params = fit.section("parameters")
     structural = [p for p in summary.index if p in params]

@@ -1,5 +1,5 @@
 """Adapter for rule posterior: one of a vehicle's models sampled by NUTS, a second-order
-model with its class prior (railtherm.study.pooling.vehicle_posterior)."""
+model with its class prior (railtherm.study.pooling.study_posterior)."""
 
 from railtherm import io as rt_io
 from railtherm import logs
@@ -15,7 +15,7 @@ tables, kvalue, k_window = read_stage_inputs(
 members = None
 if inputs.table2:
     members = classmodel.members_from_table2(inputs.table2, snakemake.params.vehicles)
-post, record, prior = pooling.vehicle_posterior(
+post, record, prior = pooling.study_posterior(
     snakemake.wildcards.vehicle,
     snakemake.wildcards.model,
     snakemake.params.vehicle,
