@@ -178,6 +178,8 @@ def _campaign_files(study: Study, workdir: str) -> list[str]:
 def _fit(args: argparse.Namespace) -> int:
     from railtherm.study.run import fit_vehicle  # numpy, scipy and pandas only when fitting
 
+    if args.posterior:  # the sampler's settings before any work
+        _check_sampler_args(args)
     study = _study(args, [args.vehicle])
     for path in _campaign_files(study, args.directory):
         print(f"{path}: written by the virtual climatic wind tunnel (synthetic)")
@@ -207,6 +209,19 @@ def _fit(args: argparse.Namespace) -> int:
     if args.posterior:
         _posterior(args, vehicle, result, out, terms)
     return 0
+
+
+def _check_sampler_args(args: argparse.Namespace) -> None:
+    """``railtherm fit --posterior``'s sampler settings, refused with the option's name."""
+    for key, value in (("chains", args.chains), ("draws", args.draws)):
+        if value < 1:
+            raise ConfigError(f"--{key}", key, value, "expected 1 or more")
+    if args.tune < 0:
+        raise ConfigError("--tune", "tune", args.tune, "expected 0 or more")
+    if not 0.0 < args.target_accept < 1.0:
+        raise ConfigError(
+            "--target-accept", "target_accept", args.target_accept, "expected between 0 and 1"
+        )
 
 
 def _class_prior_terms(args: argparse.Namespace, vehicle) -> list:
@@ -242,22 +257,19 @@ def _posterior(args: argparse.Namespace, vehicle, result, out: str | None, prior
     working directory."""
     from railtherm.study import fitsettings, posterior
 
-    for key, value in (("chains", args.chains), ("draws", args.draws)):
-        if value < 1:
-            raise ConfigError(f"--{key}", key, value, "expected 1 or more")
-    if args.tune < 0:
-        raise ConfigError("--tune", "tune", args.tune, "expected 0 or more")
     for model in result.fits:
         second = fitsettings.split_key(model)[0] == "order2"  # the class model's structure
         post = posterior.vehicle_posterior(
             vehicle, model, result, chains=args.chains, draws=args.draws, tune=args.tune,
             seed=args.seed, prior_terms=prior_terms if second else (),
+            target_accept=args.target_accept,
         )  # fmt: skip
         table = post.summary()[["mean", "sd", "hdi_2.5%", "hdi_97.5%", "r_hat", "ess_bulk"]]
         print(
             f"{vehicle.id} {model}: posterior by NUTS ({post.settings['chains']} chains x "
             f"{post.settings['draws']} draws after {post.settings['tune']} tuning, seed "
-            f"{post.settings['seed']}; {post.divergences()} divergences; "
+            f"{post.settings['seed']}, target acceptance {post.settings['target_accept']}; "
+            f"{post.divergences()} divergences; "
             f"{post.seconds:.1f} s); trust it only with R-hat <= 1.01, bulk ESS >= 400 and no "
             "divergences (docs/bayes.md)"
         )
@@ -783,6 +795,12 @@ def _add_fit(commands: Any) -> None:
     fit.add_argument("--draws", type=int, default=1000, help="draws per chain (default: 1000)")
     fit.add_argument("--tune", type=int, default=1000, help="tuning steps (default: 1000)")
     fit.add_argument("--seed", type=int, default=0, help="the sampler's seed (default: 0)")
+    fit.add_argument(
+        "--target-accept",
+        type=float,
+        default=0.8,
+        help="the acceptance rate NUTS adapts its step to (default: 0.8); 0.9-0.95 for divergences",
+    )
     fit.add_argument(
         "--config",
         default="config/config.yaml",

@@ -81,6 +81,8 @@ def test_validate_bad_study_config(tmp_path, monkeypatch, capsys):
         ({"default": {}}, "default", "did you mean 'defaults'?"),
         ({"defaults": {"modle": {}}}, "defaults.modle", "did you mean 'model'?"),
         ({"study": {"figure5": True}}, "study.figure5", "unknown key"),
+        ({"posterior": {"target_accept": 1.0}}, "posterior.target_accept", "1.0"),
+        ({"posterior": {"chains": 0}}, "posterior.chains", "0"),
     ],
 )
 def test_validate_refuses_an_unknown_study_key_as_snakemake_would(

@@ -234,7 +234,7 @@ def test_a_study_posterior_is_sampled_with_the_class_of_the_others(fit_files, ca
     members = classmodel.members_from_table2(
         repo / "results" / "tables" / "table2.csv", {k: v.data for k, v in study.vehicles.items()}
     )
-    settings = {"chains": 2, "draws": 60, "tune": 60, "seed": 1, "loo": True}
+    settings = {"chains": 2, "draws": 60, "tune": 60, "seed": 1, "target_accept": 0.9, "loo": True}
     fit = read_fit(fit_path)
     data = study.vehicles["Regio1"].data
     post, record, prior = pooling.study_posterior(
@@ -242,6 +242,7 @@ def test_a_study_posterior_is_sampled_with_the_class_of_the_others(fit_files, ca
     )
     assert prior.basis == "class" and "Regio1" not in prior.reference.basis
     assert record["prior"]["vehicles"] == prior.reference.basis
+    assert record["sampler"]["target_accept"] == 0.9
     assert record["loo"]["draws"] == 120 and record["loo"]["observations"] > 100
     for p in ("C", "K_veh", "C_veh"):
         lo, hi = record["parameters"][p]["ci95"]

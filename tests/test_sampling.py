@@ -99,6 +99,7 @@ def test_the_posterior_is_written_as_netcdf_and_read_back(posterior, tmp_path):
     for p in ("kA", "C_bar"):
         np.testing.assert_array_equal(back.posterior[p].values, posterior.idata.posterior[p].values)
     assert back.attrs["structure"] == "first_order"
+    assert back.attrs["target"].startswith("railtherm's Kalman-filter likelihood")
 
 
 def test_output_error_draws_are_its_posterior_computed_on_a_grid():
@@ -117,6 +118,7 @@ def test_output_error_draws_are_its_posterior_computed_on_a_grid():
         seed=5,
     )  # fmt: skip
     assert (post.summary()["r_hat"] < 1.01).all() and post.divergences() == 0
+    assert post.idata.attrs["target"].startswith("railtherm's simulation-error likelihood")
     draws = {p: np.log(post.idata.posterior[p].values.ravel()) for p in ("kA", "C_bar")}
     y = e.y[:, 0]
     m = len(y) - 1
@@ -151,11 +153,11 @@ def test_railtherm_fit_posterior_prints_its_summary_and_writes_the_inference_dat
     code = main(
         ["fit", "config/vehicles/Armadillo.yaml", "--model", "interior_envelope_kalman",
          "--posterior", "--chains", "2", "--draws", "200", "--tune", "200", "--seed", "2",
-         "--loo", "--out", str(tmp_path)]
+         "--target-accept", "0.9", "--loo", "--out", str(tmp_path)]
     )  # fmt: skip
     assert code == 0
     out = capsys.readouterr().out
-    assert "posterior by NUTS (2 chains x 200 draws after 200 tuning, seed 2" in out
+    assert "(2 chains x 200 draws after 200 tuning, seed 2, target acceptance 0.9;" in out
     for name in ("C ", "K_i", "C_e", "K_o", "r_hat", "ess_bulk", "PSIS-LOO: elpd_loo"):
         assert name in out
     path = tmp_path / "vehicles" / "Armadillo" / "fit_interior_envelope_kalman.posterior.nc"
@@ -240,3 +242,33 @@ def test_a_first_order_posterior_with_kA_held_still_gets_its_figure(unknowns, tm
     post = sampling.Posterior(idata, tuple(unknowns), SimpleNamespace(free=("C_bar",)), 0.0)
     path = study_posterior.pair_plot(post, str(tmp_path / "pair.png"))
     assert (tmp_path / "pair.png").stat().st_size > 5_000 and path.endswith("pair.png")
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize(
+    ("option", "value", "message"),
+    [
+        ("--chains", "0", "--chains: key 'chains' = 0: expected 1 or more"),
+        ("--draws", "0", "--draws: key 'draws' = 0: expected 1 or more"),
+        ("--tune", "-1", "--tune: key 'tune' = -1: expected 0 or more"),
+        ("--target-accept", "1.0", "--target-accept: key 'target_accept' = 1.0: expected"),
+    ],
+)
+def test_railtherm_fit_refuses_a_bad_sampler_setting_before_fitting(
+    tmp_path, monkeypatch, capsys, option, value, message
+):
+    """A sampler setting out of its range stops `railtherm fit --posterior` at once, naming
+    the option and the value, with nothing fitted or written."""
+    from pathlib import Path
+
+    from railtherm.cli import main
+
+    monkeypatch.chdir(Path(__file__).resolve().parents[1] / "validation")
+    code = main(
+        ["fit", "config/vehicles/Armadillo.yaml", "--model", "order1", "--posterior",
+         option, value, "--out", str(tmp_path)]
+    )  # fmt: skip
+    assert code == 1
+    captured = capsys.readouterr()
+    assert captured.err.startswith(message) and captured.out == ""
+    assert not any(tmp_path.iterdir())

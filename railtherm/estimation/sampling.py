@@ -291,7 +291,12 @@ def sample(
     idata.attrs.update(
         {
             "sampler": f"nutpie {nutpie.__version__} (NUTS)",
-            "target": "railtherm's Kalman-filter likelihood with its exact gradient",
+            "target": (
+                "railtherm's Kalman-filter likelihood with its exact gradient"
+                if estimator == "kalman"
+                else "railtherm's simulation-error likelihood (eq. 17, its variance "
+                "integrated out) with its exact gradient"
+            ),
             "structure": structure.name,
         }
     )

@@ -34,6 +34,7 @@ def vehicle_posterior(
     tune: int,
     seed: int,
     prior_terms=(),
+    target_accept: float = 0.8,
 ) -> sampling.Posterior:
     """The posterior of ``model`` (a model key: order2, order2_kalman, ...) of ``vehicle``
     given its identification windows, from ``result`` (:func:`railtherm.study.run.
@@ -44,7 +45,7 @@ def vehicle_posterior(
     return sample_model(
         windows, vehicle.data, k_stage, result.tables.get("kvalue"), model,
         fit=result.fits.get(model), prior_terms=prior_terms, chains=chains, draws=draws,
-        tune=tune, seed=seed,
+        tune=tune, seed=seed, target_accept=target_accept,
     )  # fmt: skip
 
 
@@ -61,6 +62,7 @@ def sample_model(
     draws: int,
     tune: int,
     seed: int,
+    target_accept: float = 0.8,
 ) -> sampling.Posterior:
     """The posterior of ``model`` of a vehicle (its config ``vehicle_data``) given its
     identification ``windows``, its static k result ``k_stage`` and k window: kA held at the
@@ -76,7 +78,7 @@ def sample_model(
         options.pop("covariance", None)  # the filter's observed information gives it
     post = sampling.sample(
         setup.structure, setup.exps, chains=chains, draws=draws, tune=tune, seed=seed,
-        estimator=estimator, **options,
+        target_accept=target_accept, estimator=estimator, **options,
     )  # fmt: skip
     if fit is not None:
         add_systematic(post, fit, seed)
