@@ -126,8 +126,10 @@ def _posterior_file(path, draws):
 def test_predictions_take_the_posteriors_draws_where_a_posterior_is_given(fit_files, tmp_path):
     """simulate and design draw from a fit's posterior when it is read with one: a posterior
     whose every draw has C_veh 1.5 times the fit's collapses the band onto the prediction
-    of the fit with that C_veh; a file without the systematic group says its band is
-    statistical only; a posterior of other parameters is refused, naming the file."""
+    of the fit with that C_veh, and the central run takes the posterior's medians (it stays
+    inside its band however far the posterior lies from the estimate); a file without the
+    systematic group says its band is statistical only; a posterior of other parameters is
+    refused, naming the file."""
     import shutil
 
     import yaml
@@ -163,6 +165,10 @@ def test_predictions_take_the_posteriors_draws_where_a_posterior_is_given(fit_fi
         o = with_post.outcomes[name]
         assert o.lo == pytest.approx(point[name].value, rel=1e-9), name
         assert o.hi == pytest.approx(point[name].value, rel=1e-9), name
+        assert o.value == pytest.approx(point[name].value, rel=1e-9), name
+    prior = design.prior_from_fit(read_fit(local, posterior="auto"), 10, seed=2)
+    assert prior.theta["C_veh"] == pytest.approx(1.5 * theta["C_veh"], rel=1e-12)
+    assert "draws of its posterior" in prior.source
     draws = design.fit_draws(read_fit(local, posterior="auto"), 30, seed=2)
     np.testing.assert_allclose(draws["C_veh"], theta["C_veh"] * 1.5)
     np.testing.assert_allclose(draws["kA"], theta["kA"])  # held: its value

@@ -701,9 +701,11 @@ def prior_from_fit(fit, n: int = 0, seed: int = 0) -> Prior:
     free = tuple(p for p in structure.parameters if p in estimated)
     source = f"the fit {fit.model} of {fit.vehicle}"
     draws = fit_draws(fit, n, seed)
-    if draws is not None:
+    if draws is not None and getattr(fit, "posterior", None) is not None:
+        source += f", {n} draws of its posterior ({fit.posterior_file})"
+    elif draws is not None:
         source += f", {n} draws of its combined intervals"
-    return Prior(structure, dict(fit.theta), free, source, draws, noise, tau)
+    return Prior(structure, dict(fit.central), free, source, draws, noise, tau)
 
 
 def _read_with_series(path: str | Path):

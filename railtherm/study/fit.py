@@ -91,6 +91,17 @@ class Fit(FitRecord):
         at = rng.integers(0, size, n)
         return {p: np.asarray(v)[at] for p, v in self.posterior.items()}
 
+    @property
+    def central(self) -> dict[str, float]:
+        """The parameters a prediction's central run takes: the posterior's median of each
+        (the draws' centre, so that a band over the draws holds its central value) where a
+        posterior is attached, else the estimate (:attr:`theta`)."""
+        theta = self.theta
+        if self.posterior is None:
+            return theta
+        return {p: float(np.median(self.posterior[p])) if p in self.posterior else v
+                for p, v in theta.items()}  # fmt: skip
+
     @classmethod
     def from_dict(cls, content: Mapping[str, Any], series: pd.DataFrame | None = None) -> Fit:
         """The fit of a fit file's content (the rule check's output), with its series.

@@ -351,7 +351,7 @@ def parameter_set(params: Any) -> ParameterSet:
             label=f"{params.vehicle} {params.model}",
             source=f"identified ({params.estimator}; {params.verdict})",
             structure=s,
-            theta=params.theta,
+            theta=params.central,
             draw=draw,
             sigma=sigma,
             band_sources=what,
