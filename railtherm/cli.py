@@ -247,7 +247,8 @@ def loo_line(loo: dict) -> str:
     return (
         f"PSIS-LOO: elpd_loo {loo['elpd_loo']:.6g} ± {loo['se']:.3g}, p_loo "
         f"{loo['p_loo']:.3g} ({loo['observations']} observations, {loo['draws']} draws); "
-        f"Pareto k max {loo['pareto_k_max']:.2f}, {loo['pareto_k_above_0.7']} above 0.7"
+        f"Pareto k max {loo['pareto_k_max']:.2f}, {loo['pareto_k_above_0.7']} above 0.7; "
+        f"comparable with: {loo['compare']}"
     )
 
 

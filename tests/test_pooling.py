@@ -250,6 +250,10 @@ def test_a_study_posterior_is_sampled_with_the_class_of_the_others(fit_files, ca
     assert record["prior"]["vehicles"] == prior.reference.basis
     assert record["sampler"]["target_accept"] == 0.9
     assert record["loo"]["draws"] == 120 and record["loo"]["observations"] > 100
+    # the simulation error's residuals count as its weight (their colour) says: no scale
+    # shared with another model's elpd_loo, and the file says so
+    assert record["loo"]["effective_samples"] < record["loo"]["observations"]
+    assert record["loo"]["compare"].startswith("none: each residual counts as")
     for p in ("C", "K_veh", "C_veh"):
         lo, hi = record["parameters"][p]["ci95"]
         assert lo < record["parameters"][p]["median"] < hi

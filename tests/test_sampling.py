@@ -209,6 +209,8 @@ def test_psis_loo_is_the_leave_one_out_density_by_quadrature(record, posterior):
 
     loo = posterior.loo(max_draws=200)
     assert loo["observations"] == len(record.y) - 1 and loo["pareto_k_above_0.7"] == 0
+    assert loo["effective_samples"] == loo["observations"]  # a filter's rows count fully
+    assert loo["compare"] == sampling.LOO_COMPARE["kalman"]
     density = posterior.density
     nll = filtering.negative_log_likelihood(
         S1, [record], {"kA": 900.0, "C_bar": 2.4e7}, NOISE["sigma"], NOISE["meas_var"],

@@ -118,14 +118,18 @@ class Posterior:
             warnings.simplefilter("ignore")
             result = az.loo(data, pointwise=True)
         k = np.asarray(result.pareto_k).ravel()
+        m = int(ll.shape[2])
+        weight = getattr(self.density, "weight", None)  # the simulation error's w
         return {
             "elpd_loo": float(result.elpd_loo),
             "se": float(result.se),
             "p_loo": float(result.p_loo),
-            "observations": int(ll.shape[2]),
+            "observations": m,
             "draws": int(chains * len(at)),
             "pareto_k_max": float(np.max(k)) if k.size else math.nan,
             "pareto_k_above_0.7": int(np.sum(k > 0.7)),
+            "effective_samples": float(m if weight is None else weight),
+            "compare": LOO_COMPARE["kalman" if weight is None else "output_error"],
         }
 
     def add_systematic(
@@ -192,6 +196,17 @@ class Posterior:
                     {f"{label}_lo": lo, f"{label}_median": med, f"{label}_hi": hi}
                 )
         return pd.DataFrame.from_dict(rows, orient="index")
+
+
+# What a posterior's elpd_loo may be compared with (docs/bayes.md)
+LOO_COMPARE = {
+    "kalman": "Kalman-filter models of the same records and outputs",
+    "output_error": (
+        "none: each residual counts as effective_samples / observations of a sample, the "
+        "model's own weight (its residuals' colour), so two models' elpd_loo are on "
+        "different scales"
+    ),
+}
 
 
 def sample(
