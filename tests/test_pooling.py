@@ -175,6 +175,9 @@ def test_predictions_take_the_posteriors_draws_where_a_posterior_is_given(fit_fi
     _posterior_file(tmp_path / "fit_order2.posterior.nc", {"C_bar": np.ones(n)})
     with pytest.raises(ConfigError, match="fit_order2.posterior.nc"):
         read_fit(local, posterior="auto")
+    _posterior_file(tmp_path / "fit_order2.posterior.nc", {"C_veh": np.ones((2, 0))})
+    with pytest.raises(ConfigError, match="no draws to predict from.*remove it"):
+        read_fit(local, posterior="auto")  # a posterior without draws: no median, no band
     (tmp_path / "fit_order2.posterior.nc").write_text("")  # empty: no traceback, the fix
     with pytest.raises(ConfigError, match="not a posterior InferenceData.*remove it"):
         read_fit(local, posterior="auto")

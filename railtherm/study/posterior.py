@@ -34,7 +34,7 @@ def vehicle_posterior(
     tune: int,
     seed: int,
     prior_terms=(),
-    target_accept: float = 0.8,
+    target_accept: float = sampling.TARGET_ACCEPT,
 ) -> sampling.Posterior:
     """The posterior of ``model`` (a model key: order2, order2_kalman, ...) of ``vehicle``
     given its identification windows, from ``result`` (:func:`railtherm.study.run.
@@ -62,7 +62,7 @@ def sample_model(
     draws: int,
     tune: int,
     seed: int,
-    target_accept: float = 0.8,
+    target_accept: float = sampling.TARGET_ACCEPT,
 ) -> sampling.Posterior:
     """The posterior of ``model`` of a vehicle (its config ``vehicle_data``) given its
     identification ``windows``, its static k result ``k_stage`` and k window: kA held at the
@@ -168,6 +168,12 @@ def read_draws(path, fit) -> tuple[dict[str, np.ndarray], bool]:
             str(path), "posterior", sorted(own.data_vars), f"no parameter of {fit.model}"
         )
     size = own.sizes["chain"] * own.sizes["draw"]
+    if size == 0:
+        raise ConfigError(
+            str(path), "posterior", "0 draws",
+            "no draws to predict from: write it again with `railtherm fit --posterior --out`, "
+            "or remove it",
+        )  # fmt: skip
     out = {}
     for p, entry in params.items():
         if mixed is not None and p in mixed:
