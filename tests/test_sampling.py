@@ -274,3 +274,19 @@ def test_railtherm_fit_refuses_a_bad_sampler_setting_before_fitting(
     captured = capsys.readouterr()
     assert captured.err.startswith(message) and captured.out == ""
     assert not any(tmp_path.iterdir())
+
+
+def test_the_target_acceptance_defaults_agree_in_the_library_the_cli_and_the_study_schema():
+    """One default for NUTS's target acceptance wherever a user can leave it out."""
+    from pathlib import Path
+
+    import yaml
+
+    from railtherm.cli import build_parser
+
+    schema = yaml.safe_load(
+        (Path(sampling.__file__).parents[1] / "schemas" / "study.schema.yaml").read_text()
+    )
+    default = schema["properties"]["posterior"]["properties"]["target_accept"]["default"]
+    args = build_parser().parse_args(["fit", "vehicle.yaml", "--posterior"])
+    assert default == args.target_accept == sampling.TARGET_ACCEPT

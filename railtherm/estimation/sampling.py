@@ -40,6 +40,7 @@ __all__ = ["Posterior", "sample"]
 
 EXTRA = "railtherm[bayes]"  # what to install for sampling
 JITTER = 0.1  # chains start at the estimate moved by this many of its standard deviations
+TARGET_ACCEPT = 0.8  # NUTS's default mean acceptance rate (nutpie's, PyMC's, Stan's)
 LOO_DRAWS = 400  # the draws PSIS-LOO evaluates every observation's likelihood at
 
 
@@ -217,7 +218,7 @@ def sample(
     draws: int = 1000,
     tune: int = 1000,
     seed: int = 0,
-    target_accept: float = 0.8,
+    target_accept: float = TARGET_ACCEPT,
     estimator: str = "kalman",
     mass_matrix: str = "low_rank",
     **fit_options: Any,

@@ -701,10 +701,11 @@ def prior_from_fit(fit, n: int = 0, seed: int = 0) -> Prior:
     free = tuple(p for p in structure.parameters if p in estimated)
     source = f"the fit {fit.model} of {fit.vehicle}"
     draws = fit_draws(fit, n, seed)
-    if draws is not None and getattr(fit, "posterior", None) is not None:
-        source += f", {n} draws of its posterior ({fit.posterior_file})"
-    elif draws is not None:
-        source += f", {n} draws of its combined intervals"
+    if draws is not None:
+        drawn = (
+            "combined intervals" if fit.posterior is None else f"posterior ({fit.posterior_file})"
+        )
+        source += f", {n} draws of its {drawn}"
     return Prior(structure, dict(fit.central), free, source, draws, noise, tau)
 
 

@@ -549,6 +549,7 @@ def profile_limits(structure, exps, options, result, fitted: JudgedEstimate) -> 
     sides stays not identified (its interval at the optimum said otherwise), with the
     profile's interval in the reason."""
     kalman = options.get("estimator", "output_error") == "kalman"
+    profiler = kalman_profile if kalman else output_error_profile
     content = fitted.to_dict()
     fit_options = {k: v for k, v in options.items() if k != "estimator"}
     if kalman:
@@ -556,7 +557,6 @@ def profile_limits(structure, exps, options, result, fitted: JudgedEstimate) -> 
     for p, entry in content["parameters"].items():
         if not entry.get("estimated") or entry.get("identified", True) or p not in result.free:
             continue
-        profiler = kalman_profile if kalman else output_error_profile
         limit = profiler(structure, exps, p, result, **fit_options)
         entry["profile"] = limit.to_dict()
         entry["reason"] = f"{entry.get('reason', 'not identified')}; {limit.phrase()}"

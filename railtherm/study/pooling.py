@@ -135,7 +135,7 @@ def study_posterior(
         tables, vehicle, kvalue, k_window, model, fit=fit,
         prior_terms=prior.terms if prior is not None else (), chains=settings["chains"],
         draws=settings["draws"], tune=settings["tune"], seed=settings["seed"],
-        target_accept=settings.get("target_accept", 0.8),
+        target_accept=settings.get("target_accept", sampling.TARGET_ACCEPT),
     )  # fmt: skip
     loo = post.loo() if settings.get("loo", True) else None
     return post, posterior_record(vehicle_id, model, post, fit, prior, loo), prior
