@@ -462,6 +462,15 @@ def _design(args: argparse.Namespace) -> int:
     return 0
 
 
+def _band_draws(draws: int) -> None:
+    """``--draws`` 0 or enough for a 95 % band, else a :class:`ConfigError` naming it."""
+    from railtherm.study import simulate as sim
+
+    problem = sim.band_draws_problem(draws)
+    if problem:
+        raise ConfigError("--draws", "draws", draws, problem)
+
+
 def _nonnegative(args: argparse.Namespace, *names: str) -> None:
     """Each option ``--<name>`` 0 or more, else a :class:`ConfigError` naming it."""
     for name in names:
@@ -478,6 +487,7 @@ def _energy(args: argparse.Namespace) -> int:
     from railtherm.study.weather import read_weather
 
     _nonnegative(args, "draws", "seed")
+    _band_draws(args.draws)
     problem = energy.step_problem(args.step_s)
     if problem:
         raise ConfigError("--step-s", "step_s", args.step_s, problem)
@@ -570,6 +580,7 @@ def _simulate(args: argparse.Namespace) -> int:
     from railtherm.study.scenario import load_scenario
 
     _nonnegative(args, "draws", "seed")
+    _band_draws(args.draws)
     sim.air_capacity(args.volume_m3, "--volume-m3")
     workdir = args.directory
     local = os.path.join(workdir, args.params)

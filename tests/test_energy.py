@@ -4,6 +4,7 @@ answers known without the engine."""
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -133,7 +134,7 @@ def test_the_command_prints_the_year_its_months_and_a_paired_what_if(fit_files, 
         "--step-s",
         "1800",
         "--draws",
-        "10",
+        "40",
     ]
     assert main([*args, "--what-if", "k=-10%"]) == 0
     out = capsys.readouterr().out
@@ -155,7 +156,7 @@ def test_the_command_writes_its_table_text_and_figure_with_the_gains(fit_files, 
     out = tmp_path / "out"
     args = ["energy", str(fit), "--weather", str(SAND_POINT), "--profile"]
     args += [str(REPO / "config" / "profiles" / "metro_service.yaml"), "--step-s", "1800"]
-    assert main([*args, "--draws", "8", "--what-if", "k=-10%", "--out", str(out)]) == 0
+    assert main([*args, "--draws", "40", "--what-if", "k=-10%", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert sorted(p.name for p in out.iterdir()) == [
         "energy.csv", "energy.md", "energy.png", "energy.svg",
@@ -552,3 +553,62 @@ def test_a_vehicle_whose_first_order_fit_alone_is_acceptable_gets_its_row(fit_fi
     )
     assert list(table["vehicle"]) == ["Metro3"] and list(table["model"]) == ["order1"]
     assert table["energy_kWh"].iloc[0] > 0
+
+
+@pytest.mark.parametrize("command", ["energy", "simulate"])
+@pytest.mark.parametrize("draws", [1, 5, 39])
+@pytest.mark.bad_input
+def test_too_few_draws_for_a_95_percent_band_are_refused(fit_files, capsys, command, draws):
+    """The range of n draws holds a further draw with probability (n - 1)/(n + 1): under 40
+    draws a "95 % band" is none (before: 5 draws printed 50,690 [50,842, 52,015] kWh, the
+    central value outside its band). 0 (the central run alone) and 40 run."""
+    from railtherm.cli import main
+
+    fit, _ = fit_files("Metro2", "order2")
+    args = [command, str(fit), "--draws", str(draws)]
+    if command == "energy":
+        args += [
+            "--weather",
+            str(SAND_POINT),
+            "--profile",
+            str(REPO / "config/profiles/metro_service.yaml"),
+        ]
+    else:
+        args += ["--scenario", str(REPO / "config/scenarios/preheat_cold_soak.yaml")]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and f"'draws' = {draws}" in err and "at least 40" in err, err
+
+
+def test_the_monthly_figure_draws_a_band_wherever_its_central_bar_ends():
+    """A band that does not hold its central value (a posterior whose medians lie off its
+    draws' outcomes) is drawn as it is; before, matplotlib refused negative error bars and
+    `railtherm energy --out` stopped after writing the table."""
+    from railtherm.report import plots
+
+    row = dict.fromkeys(energy.study_columns(), 0.0)
+    row.update(vehicle="V", climate="C", variant="base", source="synthetic")
+    for m in energy.MONTHS:
+        row.update({f"{m}_kWh": 1000.0, f"{m}_lo": 1100.0, f"{m}_hi": 1300.0})
+    figure = plots.annual_energy_figure(pd.DataFrame([row]))
+    ax = figure.axes[0]
+    (lines,) = ax.collections
+    spans = np.array([seg[:, 1] for seg in lines.get_segments()])
+    np.testing.assert_allclose(spans, [[1.1, 1.3]] * 12)  # MWh, the band, not the bar
+
+
+def test_the_year_says_what_its_centre_rests_on_and_which_draws_it_replaced(fit_files):
+    """A volume whose air holds more than the fit's central C: the note says so, and the
+    share of draws replaced at the air's capacity is counted (before: bands silently all
+    above the centre); the first line names what the draws carry."""
+    fit, _ = fit_files("Metro2", "order2")
+    params = simulate.load_parameters(fit)
+    year = weather.read_weather(SAND_POINT)
+    profile = energy.load_profile(REPO / "config/profiles/metro_service.yaml")
+    C = params.theta["C"]
+    volume = 1.001 * C / simulate.air_capacity(1.0)  # the air alone just above the fit's C
+    result = energy.annual_energy(params, year, profile, dt_s=3600.0, draws=40, volume_m3=volume)
+    text = energy.markdown(result)
+    assert f"the central C = {C:.4g} J/K is below the capacity of the air" in text
+    assert re.search(r"of the parameter draws \(\d+ of \d+\) lay beyond the physical limits", text)
+    assert result.rejected > 0 and "parameter covariance (statistical)" in text.splitlines()[0]

@@ -18,7 +18,7 @@ COOL_DOWN = "config/scenarios/cool_down.yaml"
 
 
 def simulate(*argv: str) -> int:
-    return main(["simulate", "-d", str(REPO), "--draws", "20", *argv])
+    return main(["simulate", "-d", str(REPO), "--draws", "40", *argv])
 
 
 def unreachable_scenario(tmp_path: Path) -> Path:
@@ -50,7 +50,7 @@ def test_a_fit_through_two_scenarios(fit_files, tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "Metro1 order2 - scenario preheat_cold_soak" in printed
     assert "Metro1 order2 - scenario cool_down" in printed
-    assert "heat-up time:" in printed and "95 % bands from 20 draws" in printed
+    assert "heat-up time:" in printed and "95 % bands from 40 draws" in printed
     assert f"written to {out / 'preheat_cold_soak'}.csv" in printed
     assert sorted(p.name for p in out.iterdir()) == [
         "cool_down.csv",
@@ -64,7 +64,7 @@ def test_a_fit_through_two_scenarios(fit_files, tmp_path, capsys):
     assert series["T"].iloc[0] == pytest.approx(-20.0)  # soaked at T_o
     result = yaml.safe_load((out / "preheat_cold_soak.yaml").read_text(encoding="utf-8"))
     assert result["scenario"] == "preheat_cold_soak" and result["scenario_file"] == PREHEAT
-    assert result["draws"] == 20
+    assert result["draws"] == 40
     heat = result["outcomes"]["heat_up_time_s"]
     assert heat["status"] == "ok" and heat["ci95"][0] <= heat["value"] <= heat["ci95"][1]
     # the same seed gives the same numbers

@@ -813,16 +813,10 @@ def annual_energy_figure(table: pd.DataFrame, *, note: str | None = None) -> Fig
                 c = np.array([r[f"{m}_kWh"] for m in months], dtype=float) / 1000.0
                 lo = np.array([r[f"{m}_lo"] for m in months], dtype=float) / 1000.0
                 hi = np.array([r[f"{m}_hi"] for m in months], dtype=float) / 1000.0
-                err = None if np.isnan(lo).all() else [c - lo, hi - c]
-                ax.bar(
-                    x + (i - (len(vehicles) - 1) / 2) * width,
-                    c,
-                    width,
-                    yerr=err,
-                    color=colors[vid],
-                    error_kw={"lw": 0.6, "capsize": 0},
-                    label=vid,
-                )
+                at = x + (i - (len(vehicles) - 1) / 2) * width
+                ax.bar(at, c, width, color=colors[vid], label=vid)
+                if not np.isnan(lo).all():  # the band as drawn, wherever the central bar ends
+                    ax.vlines(at, lo, hi, colors="0.15", lw=0.6)
             ax.set_ylabel("heating (MWh)", fontsize=8)
             ax.set_title(climate, fontsize=9)
             ax.grid(True, axis="y", lw=0.3, alpha=0.5)

@@ -240,8 +240,8 @@ class WhatIf:
 def parse_what_if(text: str) -> WhatIf:
     """``k=-10%``, ``set_back=8``, ``set_back=off`` or ``preheat_h=3``; another text, a value
     that is no finite number, a change of k of -100 % or less (a loss conductance kA not
-    positive) or a negative pre-heating is a :class:`ConfigError` naming ``--what-if`` and
-    the fix."""
+    positive) or above +900 % (:data:`MAX_K_FACTOR`) or a negative pre-heating is a
+    :class:`ConfigError` naming ``--what-if`` and the fix."""
     m = re.fullmatch(
         r"\s*(k|set_back|preheat_h)\s*=\s*([-+]?[\w.]+(?:[eE][-+]\d+)?)(%?)\s*", str(text)
     )
@@ -271,7 +271,16 @@ def parse_what_if(text: str) -> WhatIf:
                         "times its identified value, not positive: give a change above "
                         "-100 %, e.g. k=-10%",
                     )
-                return WhatIf(f"k {number:+g} %", k_rel=number / 100.0)
+                if number > 100.0 * (MAX_K_FACTOR - 1.0):
+                    raise ConfigError(
+                        "--what-if",
+                        "what_if",
+                        text,
+                        f"k {number:+g} % makes kA {1 + number / 100:g} times its identified "
+                        f"value; a what-if stays within {MAX_K_FACTOR:g} times it: give at "
+                        f"most k=+{100 * (MAX_K_FACTOR - 1):g}%",
+                    )
+                return WhatIf(f"k {number:+.12g} %", k_rel=number / 100.0)
             if key == "set_back":
                 return WhatIf(f"set-back {number:g} °C", profile={"set_back_C": number})
             if number < 0:
@@ -284,6 +293,7 @@ def parse_what_if(text: str) -> WhatIf:
     )
 
 
+MAX_K_FACTOR = 10.0  # a what-if's kA at most this many times the identified one
 EXAMPLES = {"k": "k=-10%", "set_back": "set_back=8 (or set_back=off)", "preheat_h": "preheat_h=3"}
 
 
@@ -362,6 +372,8 @@ class AnnualResult:
     solar_kWh: np.ndarray | None = None  # (V, S): the sun through the apertures
     rejected: int = 0
     notes: list[str] = field(default_factory=list)
+    source: str = ""  # what the central run rests on
+    band_sources: tuple[str, ...] = ()  # what the draws carry
 
     def band(self, values: np.ndarray) -> tuple[float, float, float]:
         """(central, 2.5 %, 97.5 %) of a per-run array; NaN bounds without draws."""
@@ -447,7 +459,10 @@ def annual_energy(
     withheld = ps.band_withheld
     rng = np.random.default_rng(seed)
     thetas, rejected, unbounded = sim.parameter_draws(ps, 0 if withheld else draws, rng, floor)
-    notes = [n for n in (withheld, unbounded) if n]
+    notes = [n for n in (sim.central_below_air(ps, floor, volume_m3), withheld, unbounded) if n]
+    if rejected:
+        share = rejected / (rejected + draws)
+        notes.append(sim.rejected_note(share, f" ({rejected} of {rejected + draws})"))
     t, T_o, ghi_grid = on_grid(weather, dt_s, hold)
     notes += _irradiance_notes(structure, ghi_grid)
     variants = [WhatIf("base"), *what_ifs]
@@ -528,6 +543,8 @@ def annual_energy(
         solar_kWh=(solar_per_ghi * float(ghi.sum()) * scale).reshape(V, S),
         rejected=rejected,
         notes=notes,
+        source=ps.source,
+        band_sources=tuple(ps.band_sources) if S > 1 else (),
     )
 
 
@@ -668,11 +685,13 @@ def markdown(result: AnnualResult) -> str:
     """The annual result for readers: the year's heating energy, pre-heating, peak power and
     unmet hours with 95 % bands, the months, and each what-if's paired difference."""
     r = result
+    carry = f" ({', '.join(r.band_sources)})" if r.band_sources else ""
     bands = "95 % bands over " + (
-        f"{r.draws} parameter draws" if r.draws else "no draws (central only)"
+        f"{r.draws} parameter draws{carry}" if r.draws else "no draws (central only)"
     )
+    source = f" ({r.source})" if r.source else ""
     lines = [
-        f"Annual heating energy of {r.label}: weather {r.weather}, profile {r.profile}, "
+        f"Annual heating energy of {r.label}{source}: weather {r.weather}, profile {r.profile}, "
         f"{r.dt_s:g} s step; {bands}.",
         *(f"Note: {n}." for n in r.notes),
         "",
@@ -979,11 +998,11 @@ def write_result(result: AnnualResult, ids: Mapping[str, Any], out: str | Path) 
     from railtherm.report import plots, tables
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     table = pd.DataFrame(result_rows(result, ids), columns=study_columns())
+    figure = plots.annual_energy_figure(table, note=result.band_note())  # drawn before writing
+    out.mkdir(parents=True, exist_ok=True)
     tables.write_csv(table, out / "energy.csv", digits=4)
     (out / "energy.md").write_text(markdown(result) + "\n", encoding="utf-8")
-    figure = plots.annual_energy_figure(table, note=result.band_note())
     png, svg = plots.save_figure(figure, out / "energy")
     return [out / "energy.csv", out / "energy.md", png, svg]
 

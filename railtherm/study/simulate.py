@@ -76,6 +76,7 @@ __all__ = [
     "ParameterSet",
     "SimulationResult",
     "UnreachableSetpoint",
+    "band_draws_problem",
     "load_parameters",
     "parameter_draws",
     "parameter_set",
@@ -91,6 +92,21 @@ PI_TI_S = 1800.0  # default PI integral time (s)
 DRAW_FACTOR = 1e8  # a class model's draws are held within this factor of its centre
 MAX_DRAW_ROUNDS = 50  # rejection sampling: at most this many batches of draws per band
 LIMIT_DOMINATED = 0.025  # a rejected share from which a band's end rests on the limit
+# A 95 % band from fewer draws is not one: the range of n draws holds a further draw with
+# probability (n - 1) / (n + 1), below 0.95 for n < 39
+MIN_BAND_DRAWS = 40
+
+
+def band_draws_problem(draws: int) -> str | None:
+    """Why ``draws`` parameter draws cannot give a 95 % band (None when they can, or for 0:
+    the central run only)."""
+    if draws == 0 or draws >= MIN_BAND_DRAWS:
+        return None
+    return (
+        f"a 95 % band needs at least {MIN_BAND_DRAWS} parameter draws (the range of n draws "
+        "holds a further draw with probability (n - 1) / (n + 1)); give 0 for the central "
+        "run alone"
+    )
 
 
 def rejected_note(share: float, counts: str = "") -> str:
@@ -349,7 +365,8 @@ def parameter_set(params: Any) -> ParameterSet:
             what = (*what, "process noise (kalman estimator)")
         return ParameterSet(
             label=f"{params.vehicle} {params.model}",
-            source=f"identified ({params.estimator}; {params.verdict})",
+            source=f"identified ({params.estimator}; {params.verdict})"
+            + ("; central: the posterior's medians" if params.posterior is not None else ""),
             structure=s,
             theta=params.central,
             draw=draw,
@@ -384,6 +401,18 @@ def air_capacity(volume_m3: float | None, label: str = "volume_m3") -> float | N
     from railtherm.study.fitsettings import air_capacity as capacity
 
     return capacity(volume_m3, label)
+
+
+def central_below_air(ps: ParameterSet, floor: float | None, volume_m3: float | None) -> str:
+    """The note that the central parameters' air node holds less than the air of
+    ``volume_m3`` (``floor``: its rho c_p V), "" when it holds as much or no volume is given."""
+    air = ps.structure.air
+    if floor is None or ps.theta[air] >= floor:
+        return ""
+    return (
+        f"the central {air} = {ps.theta[air]:.4g} J/K is below the capacity of the air in "
+        f"{volume_m3:g} m³ ({floor:.4g} J/K)"
+    )
 
 
 def _limits(structure: models.Structure, floor: float | None) -> str:
@@ -857,12 +886,7 @@ def simulate(
     G_values, g_index = np.unique(scenario.air_exchange_W_K, return_inverse=True)
     floor = air_capacity(volume_m3, ps.label)
     limits = _limits(structure, floor)
-    notes: list[str] = []
-    if floor is not None and ps.theta[structure.air] < floor:
-        notes.append(
-            f"the central {structure.air} = {ps.theta[structure.air]:.4g} J/K is below the "
-            f"capacity of the air in {volume_m3:g} m³ ({floor:.4g} J/K)"
-        )
+    notes = [n for n in (central_below_air(ps, floor, volume_m3),) if n]
     withheld = ps.band_withheld
     if withheld:
         draws = 0
