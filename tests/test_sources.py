@@ -457,3 +457,67 @@ def test_a_refit_that_fails_at_a_shift_leaves_that_shift_out_of_the_clock_profil
     p = clocks.profile(fit, nominal, {"w": table}, ["outdoor_air"], data, 60.0)
     assert np.isinf([v for v in p["rise"].values()]).any()
     assert np.isfinite(p["shift_s"])
+
+
+def _two_source_data(power_also_logs_outdoor_air: bool = False) -> dict:
+    """The channel map of a cabin (indoor air, surface), a tunnel (outdoor air) and a power
+    meter, the meter optionally logging one outdoor-air sensor too."""
+    outdoor = [{"column": "T_Luft_1", "source": "tunnel"}]
+    if power_also_logs_outdoor_air:
+        outdoor.append({"column": "T_Luft_2", "source": "power"})
+    return {
+        "sources": {"cabin": {}, "power": {}, "tunnel": {}},
+        "channels": {
+            "indoor_air": [{"column": "TC01", "source": "cabin"}],
+            "surface": [{"column": "T_Wand_1", "source": "cabin"}],
+            "outdoor_air": outdoor,
+            "heater_power": [{"column": "P", "source": "power"}],
+        },
+        "model": {},
+    }
+
+
+def test_a_flat_profile_at_the_edge_of_its_reach_cannot_judge_the_clock():
+    """A tunnel held at one temperature: the fit hardly changes whichever way its column is
+    moved, and the best shift lies at the reach's end by chance. Before, the edge alone made
+    the offset "significant" (a reason: "looks 300 s ahead ... declare 340", the verdict in
+    doubt on correct clocks); now the clock "cannot be judged", a note."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from railtherm.study import clocks
+
+    t = np.arange(0.0, 3600.0 * 12, 60.0)
+    table = pd.DataFrame({"time": t, "T": 20.0, "T_veh": 19.0, "T_o": -10.0 + 1e-5 * t / 60})
+    table["Q_heater"] = table["Q_H"] = 1000.0
+    rng = np.random.default_rng(2)
+    nominal = SimpleNamespace(cost=1000.0, residuals=[rng.standard_normal(t.size)])
+
+    def fit(moved):  # the cost falls a little the further T_o moves (the fit hardly cares)
+        d = moved["w"]["T_o"].iloc[300] - table["T_o"].iloc[300]
+        return SimpleNamespace(cost=1000.0 - 10.0 * abs(d))
+
+    data = _two_source_data()
+    found = clocks.clock_offsets(fit, nominal, {"w": table}, data)
+    tunnel = found["tunnel"]
+    assert tunnel["at_edge"] and not tunnel["significant"], tunnel
+    assert clocks.reasons(found) == []
+    (note,) = [n for n in clocks.notes(found) if "sources.tunnel" in n]
+    assert "cannot be judged" in note and "below the 95 % threshold" in note, note
+
+
+def test_a_source_sharing_one_group_is_checked_on_the_groups_it_logs_alone():
+    """A power meter that also logs one of the outdoor-air sensors: before, its clock was not
+    checked at all (a 2-min offset passed as "fit acceptable", C 13 % low); now its heater
+    power is moved alone, the shared group's mean held, and the note says so."""
+    from railtherm.study import clocks
+
+    assert clocks.movable(_two_source_data(True))["power"] == ["heater_power"]
+    assert clocks.shared(_two_source_data(True), "power") == ["outdoor_air"]
+    data = _two_source_data(True)
+    data["channels"]["outdoor_air"] = [{"column": "T_Luft_2", "source": "power"}]
+    data["channels"]["heater_power"] = [{"column": "P", "source": "cabin"}]
+    data["channels"]["outdoor_air"].append({"column": "T_Luft_1", "source": "tunnel"})
+    reason = clocks.movable(data)["power"]
+    assert isinstance(reason, str) and "share channels.outdoor_air" in reason

@@ -23,7 +23,11 @@ shift), and the shift that fits best is the source's offset:
 
 An offset whose interval excludes 0 and that exceeds a tidy step is a reason of the verdict
 (:func:`reasons`): a fit on clocks that disagree is not acceptable until the offset is
-declared (``sources.<name>.clock_offset_s``). Output-error and Kalman fits alike.
+declared (``sources.<name>.clock_offset_s``). Output-error and Kalman fits alike. A profile
+whose best shift lies at the reach's end is a reason only where the clocks as declared fit
+significantly worse (a rise above 3.84 at 0); one that never rises that far cannot judge the
+clock (a source whose channels hardly move). A source that shares a channel group with
+another is moved by the groups it logs alone.
 """
 
 from __future__ import annotations
@@ -62,8 +66,9 @@ def reference_source(vehicle_data: Mapping[str, Any]) -> str:
 
 
 def movable(vehicle_data: Mapping[str, Any]) -> dict[str, list[str] | str]:
-    """Each source but the reference: the channel groups it alone logs (which a shift moves),
-    or the reason it cannot be moved on its own (a group shared with another source)."""
+    """Each source but the reference: the channel groups it alone logs (which a shift moves;
+    a group it shares with another source is averaged across clocks and stays), or the
+    reason it cannot be moved on its own (every group it logs is shared)."""
     groups = _group_sources(vehicle_data)
     ref = reference_source(vehicle_data)
     out: dict[str, list[str] | str] = {}
@@ -71,12 +76,17 @@ def movable(vehicle_data: Mapping[str, Any]) -> dict[str, list[str] | str]:
         if name == ref:
             continue
         mine = [g for g, s in groups.items() if name in s]
-        shared = [g for g in mine if len(groups[g]) > 1]
-        if shared:
-            out[name] = f"its channels share channels.{shared[0]} with another source"
+        alone = [g for g in mine if len(groups[g]) == 1]
+        if alone:
+            out[name] = alone
         else:
-            out[name] = mine
+            out[name] = f"its channels share channels.{mine[0]} with another source"
     return out
+
+
+def shared(vehicle_data: Mapping[str, Any], name: str) -> list[str]:
+    """The channel groups source ``name`` logs together with another source."""
+    return [g for g, s in _group_sources(vehicle_data).items() if name in s and len(s) > 1]
 
 
 def shifted(
@@ -235,7 +245,10 @@ def _entry(name, p, groups, ref, step, vehicle_data) -> dict[str, Any]:
     ci = None if p["ci95"] is None else sorted(-v for v in p["ci95"])
     significant = ci is not None and not ci[0] <= 0.0 <= ci[1]
     if p["at_edge"]:
-        significant = True  # beyond the reach: at least that far off
+        # beyond the reach: at least that far off where the clocks as declared fit
+        # significantly worse; a profile that hardly rises (a source whose signal stays flat
+        # over the record) cannot judge the clock at all
+        significant = p["rise"]["0"] > CHI2_95
     return {
         "reference": ref,
         "declared_s": float(vehicle_data["sources"][name].get("clock_offset_s", 0.0)),
@@ -246,6 +259,7 @@ def _entry(name, p, groups, ref, step, vehicle_data) -> dict[str, Any]:
         "at_edge": bool(p["at_edge"]),
         "step_s": step,
         "rise": p["rise"],
+        "shared": shared(vehicle_data, name),
     }
 
 
@@ -282,10 +296,32 @@ def notes(clocks: Mapping[str, Mapping[str, Any]]) -> list[str]:
             continue
         ci = c["ci95"]
         span = f"95 % {ci[0]:.0f} to {ci[1]:.0f} s" if ci else "the profile is flat"
-        if not c["significant"]:
+        held = c.get("shared") or []
+        if held:
             out.append(
-                f"The clock of sources.{name} agrees with that of sources.{c['reference']}: "
-                f"offset {c['offset_s']:+.0f} s ({span})."
+                f"The clock of sources.{name} is checked on channels."
+                f"{', channels.'.join(c['groups'])} alone: channels.{', channels.'.join(held)} "
+                "it shares with another source, and their mean stays as logged."
+            )
+        if not c["significant"] and ci is None:
+            rises = [r for r in c["rise"].values() if math.isfinite(r)]
+            top = max(rises, default=0.0)
+            how = (
+                f"rises by at most {top:.2g}, below the 95 % threshold {CHI2_95:.2f}: its "
+                "channels hardly move over the record"
+                if top < CHI2_95
+                else "has no clear minimum"
+            )
+            out.append(
+                f"The clock of sources.{name} cannot be judged against that of "
+                f"sources.{c['reference']}: over ±{STEPS} tidy steps "
+                f"({STEPS * c['step_s']:g} s) the fit's profile {how}."
+            )
+        elif not c["significant"]:
+            out.append(
+                f"The clock of sources.{name} agrees with that of sources.{c['reference']} as "
+                f"far as the fit resolves it at a tidy step of {c['step_s']:g} s: offset "
+                f"{c['offset_s']:+.0f} s ({span}; a finer cleaning.step_s narrows it)."
             )
         elif abs(c["offset_s"]) <= c["step_s"]:
             out.append(
