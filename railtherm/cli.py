@@ -311,6 +311,10 @@ def _reference_model(args: argparse.Namespace) -> int:
         min_vehicles=args.min_vehicles,
         exclude=args.exclude or (),
     )
+    quantities = {"m_veh": args.mass_kg, "surface": args.surface_m2}
+    notes = _class_range_notes(args.vehicle_class, quantities, args.directory)
+    for note in notes:
+        print(note, file=sys.stderr)
     if args.out is None:
         sys.stdout.write(model.to_yaml())
         print(model.summary(), file=sys.stderr)
@@ -319,6 +323,32 @@ def _reference_model(args: argparse.Namespace) -> int:
     print(model.summary())
     print(f"written to {args.out}")
     return 0
+
+
+def _class_range_notes(vehicle_class: str, quantities: dict[str, float], workdir: str) -> list[str]:
+    """A note per quantity (``m_veh``, ``surface``) outside its class's range in the audit's
+    ranges (config/audit.yaml, where the working directory has it): the class model then
+    extrapolates beyond the vehicles its ranges describe."""
+    from railtherm.report.auditbase import class_range, load_ranges
+
+    path = os.path.join(workdir, "config", "audit.yaml")
+    if not os.path.isfile(path):
+        return []
+    ranges = load_ranges(path, "config/audit.yaml")
+    notes = []
+    for quantity, value in quantities.items():
+        found = class_range(ranges, quantity, vehicle_class)
+        if found is None:
+            continue
+        interval, entry = found
+        lo, hi = interval.lo, interval.hi
+        if not lo <= value <= hi:
+            notes.append(
+                f"Note: {quantity} = {value:g} {entry['unit']} lies outside the {vehicle_class} "
+                f"range {lo:g}-{hi:g} {entry['unit']} (config/audit.yaml ranges.{quantity}): "
+                "the class model extrapolates beyond the vehicles it describes."
+            )
+    return notes
 
 
 def _design_prior(args: argparse.Namespace, workdir: str):
@@ -347,6 +377,10 @@ def _design_prior(args: argparse.Namespace, workdir: str):
             raise ConfigError(
                 missing[0], missing[0][2:], None, "--class needs --mass-kg and --surface-m2"
             )
+        for note in _class_range_notes(
+            args.vehicle_class, {"m_veh": args.mass_kg, "surface": args.surface_m2}, workdir
+        ):
+            print(note)
         prior = design.prior_for_class(
             args.vehicle_class,
             args.mass_kg,
@@ -417,7 +451,14 @@ def _design(args: argparse.Namespace) -> int:
     if args.replicates:
         _print_replicates(prior, programme, assessment, args)
     proposed = None
-    if best is not None:
+    if best is not None and best[1].central.loop_gain >= design.LOOP_GAIN_MAX:
+        print(
+            f"\nNo programme of {best[0].hours:g} h was found where the storage-corrected kA "
+            f"and the fit settle as the linear prediction assumes (g·S below "
+            f"{design.LOOP_GAIN_MAX:g} at the prior's central parameters): the programme as "
+            "given stays; lengthen the first phase, its steady state, to lower g·S."
+        )
+    elif best is not None:
         chosen, assessed = best
         proposed = chosen
         print(f"\nBest programme of {chosen.hours:g} h for {target[0]} (the first phase kept):")
@@ -427,10 +468,17 @@ def _design(args: argparse.Namespace) -> int:
         print(design.markdown(replace(design.assess(prior, chosen, target), notes=assessed.notes)))
         name = target[0]
         before, after = assessment.central.half_width[name], assessed.central.half_width[name]
-        print(
-            f"\nAgainst the programme as given, at the prior's central parameters: {name} "
-            f"±{100 * before:.3g} % -> ±{100 * after:.3g} %."
-        )
+        if assessment.central.loop_gain >= design.LOOP_GAIN_MAX:
+            print(
+                f"\nNo comparison of {name}'s width with the programme as given: there the "
+                "storage-corrected kA and the fit pull each other away (g·S at least "
+                f"{design.LOOP_GAIN_MAX:g}), where the linear prediction does not hold."
+            )
+        else:
+            print(
+                f"\nAgainst the programme as given, at the prior's central parameters: {name} "
+                f"±{100 * before:.3g} % -> ±{100 * after:.3g} %."
+            )
     if args.optimise:
         name, goal = target
         if found is None:

@@ -4,6 +4,7 @@ prediction."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -78,3 +79,16 @@ def test_one_replicate_is_refused(tmp_path, capsys):
     args = ["design", str(path), "--class", "metro", "--mass-kg", "4e4", "--surface-m2", "330"]
     assert main([*args, "--replicates", "1", "-d", str(REPO_ROOT)]) != 0
     assert "--replicates" in capsys.readouterr().err
+
+
+def test_the_replicates_table_prints_a_bias_a_positive_parameter_can_have_and_no_nan():
+    """A mean log ratio of -6.9 (estimates at a thousandth of the truth) reads as the
+    geometric mean's change, -99.9 %, not -690 %; with no run fitted, no realised spread and
+    no comparison (before: "nan" and "+nan %", then "differ by more than 25 %")."""
+    from railtherm.study.replicates import Replicates, markdown
+
+    runs = Replicates(8, {"C_veh": 0.08}, {"C_veh": 1e-9}, {"C_veh": -6.9})
+    assert "| C_veh | 17 % | 1.96e-07 % | 0.00 | -1e+02 % |" in markdown(runs)
+    none = markdown(Replicates(0, {"C": 0.01}, {"C": math.nan}, {"C": math.nan}, failed=8))
+    assert "nan" not in none and "0 runs fitted: no realised spread" in none
+    assert "differ by more than" not in none

@@ -93,6 +93,12 @@ COND_MAX = 1e12
 # a loop gain g . S of static kA and fit beyond this is flagged (a k window that is not
 # steady): the errors are amplified by 1 / (1 - g . S), 2 and more, with tails
 LOOP_GAIN_FLAG = 0.5
+# From g . S = 1 on, the alternation of balance and fit runs away (the fits settle them by the
+# secant method) and the linear fixed point's errors fall again as g . S grows (a factor
+# 1 / |1 - g . S|), a promise the replicates do not bear out (campaign fits from such
+# programmes collapsed); the independent generator's replicates check the prediction below
+# it. A search for a better programme keeps below it.
+LOOP_GAIN_MAX = 1.0
 
 
 @dataclass(frozen=True)
@@ -723,7 +729,23 @@ def _read_with_series(path: str | Path):
 def prior_from_fit_file(path: str | Path, n: int = 0, seed: int = 0) -> Prior:
     """:func:`prior_from_fit` of a fit file, with its series where the study wrote it, and
     ``n`` draws of its uncertainty (seed ``seed``)."""
-    return prior_from_fit(_read_with_series(path), n, seed)
+    from railtherm.study.quality import ACCEPTABLE
+
+    fit = _read_with_series(path)
+    undetermined = [p for p, q in fit.parameters.items() if not q.identified]
+    if undetermined:
+        raise ConfigError(
+            str(path),
+            "parameters",
+            undetermined,
+            "not identified by its record (an estimate at a bound of the search or with an "
+            "unbounded interval): no programme's prediction rests on it; plan with the class "
+            "reference model (--class, --mass-kg, --surface-m2) as the prior",
+        )
+    prior = prior_from_fit(fit, n, seed)
+    if fit.verdict != ACCEPTABLE:
+        prior = replace(prior, source=f"{prior.source} (its verdict: {fit.verdict})")
+    return prior
 
 
 def residuals_of(fits) -> tuple[dict[str, float], dict[str, float]]:
@@ -807,8 +829,12 @@ def parse_target(text: str) -> tuple[str, float]:
         fraction = float(number) / 100.0
     except ValueError:
         fraction = math.nan
-    if not sep or not name.strip() or not (math.isfinite(fraction) and fraction > 0):
+    if not sep or not name.strip() or not math.isfinite(fraction):
         raise ConfigError("--target", "target", text, "expected PARAMETER=PERCENT, e.g. C_veh=5%")
+    if not fraction > 0:
+        raise ConfigError(
+            "--target", "target", text, "a target half-width is above 0 %, e.g. C_veh=5%"
+        )
     return name.strip(), fraction
 
 
@@ -1009,7 +1035,10 @@ def best_of_length(
         return replace(programme, name=name, phases=(first, *later))
 
     def width(z: np.ndarray) -> float:
-        sd = prior.predict(build(z)).sd_log[target]
+        predicted = prior.predict(build(z))
+        if predicted.loop_gain >= LOOP_GAIN_MAX:  # the linear prediction does not hold there
+            return 1e6
+        sd = predicted.sd_log[target]
         return float(np.log(sd)) if math.isfinite(sd) and sd > 0 else 1e6
 
     scale = (total - first.hours) / max(sum(ph.hours for ph in rest), 1e-9)
@@ -1143,14 +1172,19 @@ def markdown(assessment: Assessment) -> str:
         lines += ["", f"Highest temperatures (at {band} of the prior): {highest}."]
     for v in a.violations:
         lines.append(f"Beyond a limit: {v}.")
-    if a.central.loop_gain > LOOP_GAIN_FLAG:
+    gS = a.central.loop_gain
+    if gS >= LOOP_GAIN_MAX:
+        lines.append(
+            f"The storage-corrected static kA and the fit pull each other away (g·S = "
+            f"{gS:.2f}, at least {LOOP_GAIN_MAX:g}): their alternation runs away, the widths "
+            "above are a linear prediction unchecked there, and a search for a better "
+            "programme keeps out of it (lengthen the first phase, its steady state)."
+        )
+    elif gS > LOOP_GAIN_FLAG:
         lines.append(
             f"The storage-corrected static kA and the fit amplify each other's errors "
-            f"(g·S = {a.central.loop_gain:.2f}, a factor {1 / (1 - a.central.loop_gain):.2g}"
-            "): the estimates' spread has tails beyond this prediction."
-            if a.central.loop_gain < 1
-            else f"The storage-corrected static kA and the fit do not settle (g·S = "
-            f"{a.central.loop_gain:.2f}): the k window does not determine kA with them."
+            f"(g·S = {gS:.2f}, a factor {1 / (1 - gS):.2g}): the estimates' spread has tails "
+            "beyond this prediction."
         )
     if a.k_storage_share > limits.NOT_STEADY_SHARE:
         lines.append(

@@ -202,6 +202,8 @@ def static_k(
             at = {**theta, p: float(theta[p]) * math.exp(sign * LOG_STEP)}
             balance = kvalue.balance_of(*columns, *(at[q] for q in STORAGE_PARAMETERS))
             kA_at = np.linalg.lstsq(balance.X, balance.y, rcond=None)[0][0]
+            if not kA_at > 0:  # the capacities moved a little leave no loss: undetermined
+                return StaticK(dT, math.inf)
             moved.append(math.log(kA_at))
         gradient[p] = (moved[0] - moved[1]) / (2.0 * LOG_STEP)
     method = "storage-corrected balance"

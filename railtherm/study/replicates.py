@@ -45,7 +45,9 @@ FAST = {"start": "initial", "covariance": "iid"}
 class Replicates:
     """``n`` virtual runs of a programme: per estimated parameter the predicted sd of log
     theta (``predicted``), the sd of log(estimate) over the runs (``realised``) and the
-    mean of log(estimate / truth) (``bias``); ``failed`` the runs whose fit failed."""
+    mean of log(estimate / truth) (``bias``; printed as the geometric mean's change,
+    exp(bias) - 1, above -100 % for a positive parameter); ``failed`` the runs whose fit
+    failed."""
 
     n: int
     predicted: dict[str, float]
@@ -226,10 +228,16 @@ def markdown(replicates: Replicates) -> str:
         "|---|---|---|---|---|",
     ]
     for p in r.predicted:
+        ratio = r.ratio(p)
+        # the bias as the geometric mean's change, exp(mean log(estimate / truth)) - 1
+        bias = f"{100 * math.expm1(r.bias[p]):+.2g} %" if math.isfinite(r.bias[p]) else "none"
         lines.append(
-            f"| {p} | {half(r.predicted[p])} | {half(r.realised[p])} | {r.ratio(p):.2f} | "
-            f"{100 * r.bias[p]:+.2g} % |"
+            f"| {p} | {half(r.predicted[p])} | {half(r.realised[p])} | "
+            f"{f'{ratio:.2f}' if math.isfinite(ratio) else 'none'} | {bias} |"
         )
+    if r.n < 2:
+        lines += ["", f"{r.n} run{'s' if r.n != 1 else ''} fitted: no realised spread to compare."]
+        return "\n".join(lines)
     differ = [p for p in r.predicted if r.differs(p)]
     if differ:
         lines += [
