@@ -612,3 +612,15 @@ def test_the_year_says_what_its_centre_rests_on_and_which_draws_it_replaced(fit_
     assert f"the central C = {C:.4g} J/K is below the capacity of the air" in text
     assert re.search(r"of the parameter draws \(\d+ of \d+\) lay beyond the physical limits", text)
     assert result.rejected > 0 and "parameter covariance (statistical)" in text.splitlines()[0]
+
+
+@pytest.mark.bad_input
+def test_an_epw_year_with_its_missing_marker_names_the_record(tmp_path):
+    """EPW writes 99.9 for a dry-bulb temperature it lacks: the year stops at that record as
+    missing, not as a year in degF (before: "read as degF they are mean -15.3 ... check the
+    unit")."""
+    with pytest.raises(ConfigError) as caught:
+        _write_year("epw", tmp_path / "gap.epw", lambda h: 99.9 if h == 100 else -5.0, lambda h: 0)
+    text = str(caught.value)
+    assert "gap.epw" in text and "= 99.9" in text and "EPW's marker 99.9" in text, text
+    assert "degF" not in text

@@ -261,10 +261,16 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
             file, "records", n, "a typical year spans 8760 (or 8784) hours of records"
         )
     missing = ~np.isfinite(T_o)
+    if kind == "epw":  # EPW writes 99.9 for a dry-bulb temperature it does not have
+        missing |= T_o >= EPW_MISSING_T
     if missing.any():
         i = int(np.flatnonzero(missing)[0])
+        marker = f" (EPW's marker {EPW_MISSING_T:g})" if np.isfinite(T_o[i]) else ""
         raise ConfigError(
-            file, f"{COLUMNS[kind]}[{i}]", float(T_o[i]), "missing: a typical year has none"
+            file,
+            f"{COLUMNS[kind]}[{i}]",
+            float(T_o[i]),
+            f"missing{marker}: a typical year has none",
         )
     _check_climate(file, kind, T_o)
     if ghi is not None:
@@ -277,6 +283,9 @@ def read_weather(path: str | Path, kind: str | None = None, time: dict | None = 
     return Weather(
         name, source, index[order], t_s[order], T_o[order], ghi, lat, lon, dict(meta), step, shift
     )
+
+
+EPW_MISSING_T = 99.9  # EnergyPlus weather format: a missing dry-bulb temperature
 
 
 # how each kind of file stamps its values (module docstring)
