@@ -556,6 +556,12 @@ def _energy(args: argparse.Namespace) -> int:
     # the weather, then the parameters
     profile = energy.load_profile(os.path.join(workdir, args.profile))
     energy.check_what_ifs(profile, what_ifs, texts, "--what-if", ["what_if"] * len(texts))
+    if args.surface_m2 is not None and profile.heating_limit_W_per_m2 is None:
+        print(
+            f"Note: --surface-m2 is not used: profile {profile.name} gives its heating limit "
+            f"in W ({profile.heating_limit_W:g} W), not per m².",
+            file=sys.stderr,
+        )
     year = read_weather(os.path.join(workdir, args.weather), kind=args.kind)
     params = sim.load_parameters(os.path.join(workdir, args.params))
     with _progress_bar(f"annual energy of {os.path.basename(args.params)}") as progress:

@@ -624,3 +624,16 @@ def test_an_epw_year_with_its_missing_marker_names_the_record(tmp_path):
     text = str(caught.value)
     assert "gap.epw" in text and "= 99.9" in text and "EPW's marker 99.9" in text, text
     assert "degF" not in text
+
+
+def test_a_surface_the_profile_does_not_use_is_said_to_be_unused(fit_files, capsys):
+    """metro_service gives its heater in W: --surface-m2 changes nothing, and the command
+    says so (before, it was silently ignored)."""
+    from railtherm.cli import main
+
+    fit, _ = fit_files("Metro2", "order2")
+    args = ["energy", str(fit), "--weather", str(SAND_POINT), "--draws", "0", "--step-s", "3600"]
+    args += ["--profile", str(REPO / "config/profiles/metro_service.yaml")]
+    assert main([*args, "--surface-m2", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "--surface-m2 is not used: profile metro_service gives its heating limit in W" in err
