@@ -222,6 +222,8 @@ def _check_sampler_args(args: argparse.Namespace) -> None:
         raise ConfigError(
             "--target-accept", "target_accept", args.target_accept, "expected between 0 and 1"
         )
+    if not 0 <= args.seed < 2**64:  # the sampler's seed is an unsigned 64-bit integer
+        raise ConfigError("--seed", "seed", args.seed, "expected 0 to 2^64 - 1")
 
 
 def _class_prior_terms(args: argparse.Namespace, vehicle) -> list:

@@ -730,10 +730,33 @@ def _check_model(
 
     for name, spec in (model.get("priors") or {}).items():
         try:
-            prior_from_config(spec, f"{prefix}.priors.{name}")
+            prior = prior_from_config(spec, f"{prefix}.priors.{name}")
         except PriorError as err:
             key, _, message = str(err).partition(": ")
-            raise ConfigError(file, key, spec, message + origin("priors", name)) from None
+            value = spec.get(key.rsplit(".", 1)[-1], spec) if isinstance(spec, dict) else spec
+            raise ConfigError(file, key, value, message + origin("priors", name)) from None
+        search = (model.get("bounds") or {}).get(name) or structures.search_bounds(name)
+        median = prior.median()
+        if search is not None and prior.kind != "uniform" and not search[0] < median < search[1]:
+            raise ConfigError(
+                file,
+                f"{prefix}.priors.{name}",
+                spec,
+                f"its median {median:.4g} lies outside the search bounds [{search[0]:g}, "
+                f"{search[1]:g}] of {name}: the estimate would rest on a bound (a unit "
+                "mistake? SI units: J/K, W/K)" + origin("priors", name),
+            )
+        if prior.kind == "uniform" and search is not None:
+            lo, hi = max(prior.args[0], search[0]), min(prior.args[1], search[1])
+            if not lo < hi:
+                raise ConfigError(
+                    file,
+                    f"{prefix}.priors.{name}",
+                    [prior.args[0], prior.args[1]],
+                    f"a uniform prior outside the search bounds [{search[0]:g}, {search[1]:g}] "
+                    f"of {name}: no value is left to estimate (its unit: SI, J/K or W/K)"
+                    + origin("priors", name),
+                )
     if solar is not None:
         for section in ("initial", "bounds", "priors"):
             for name in own.get(section) or {}:

@@ -45,6 +45,14 @@ def test_a_vehicles_class_prior_is_built_without_it_and_falls_back_to_all_classe
     prior = pooling.class_prior(members, "M1", {"class": "metro", "mass_kg": 4e4}, None)
     assert prior.reference is None and "surface_m2" in prior.reason
     assert prior.to_dict() == {"kind": "vehicle", "reason": prior.reason}
+    # the vehicle's own prior on C_veh: the class model would give it a second one (before:
+    # PriorError's traceback from the fit); its own prior on kA, held by the static test,
+    # takes nothing from the class model (no k term) and keeps the class prior
+    own = {**VEHICLE, "model": {"priors": {"C_veh": {"kind": "lognormal"}}}}
+    prior = pooling.class_prior(members, "M1", own, kA_held=625.0)
+    assert prior.reference is None and "own model.priors on C_veh" in prior.reason
+    held = {**VEHICLE, "model": {"priors": {"kA": {"kind": "lognormal"}}}}
+    assert pooling.class_prior(members, "M1", held, kA_held=625.0).reference is not None
 
 
 def test_nuts_with_a_class_term_samples_the_likelihood_times_scipys_student_t():

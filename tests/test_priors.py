@@ -14,7 +14,7 @@ from scipy import optimize, stats
 from test_kalman import sde_experiment
 
 from railtherm.estimation import filtering, kalman, models, pem
-from railtherm.estimation.priors import KINDS, LogPrior, PriorError, prior_from_config
+from railtherm.estimation.priors import KINDS, LogPrior, Prior, PriorError, prior_from_config
 
 S1 = models.STRUCTURES["first_order"]
 S2 = models.STRUCTURES["second_order"]
@@ -93,6 +93,28 @@ def test_a_wrong_prior_is_refused_naming_its_key_and_value(spec, message):
     with pytest.raises(PriorError, match=None) as err:
         prior_from_config(spec, "priors.C")
     assert message in str(err.value)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    spec=st.sampled_from(
+        [
+            ("gamma", (st.floats(0.05, 50.0), st.floats(1e-3, 1e6))),
+            ("normal", (st.floats(-1e3, 1e6), st.floats(1e-2, 1e5))),
+            ("half_normal", (st.floats(1e-3, 1e6),)),
+        ]
+    ).flatmap(lambda k: st.tuples(st.just(k[0]), st.tuples(*k[1])))
+)
+def test_a_priors_median_is_scipys(spec):
+    """The median the config check and the MAP's second start use, by scipy.special's
+    quantiles (no scipy.stats import), against scipy.stats."""
+    kind, args = spec
+    dist = {
+        "normal": lambda a: stats.truncnorm(-a[0] / a[1], np.inf, a[0], a[1]),
+        "gamma": lambda a: stats.gamma(a[0], scale=a[1]),
+        "half_normal": lambda a: stats.halfnorm(scale=a[0]),
+    }[kind](args)
+    assert Prior(kind, args).median() == pytest.approx(float(dist.median()), rel=1e-9)
 
 
 def test_every_kind_names_its_parameters():
@@ -231,6 +253,30 @@ def test_a_vehicle_files_priors_reach_its_fit_which_says_it_is_a_map_estimate(tm
         ({"C_veh": {"kind": "beta", "a": 1.0}}, "model.priors.C_veh", "kind"),
         ({"C": {"kind": "normal", "mean": 1e6, "sd": -2.0}}, "model.priors.C.sd", "> 0"),
         ({"C_vehicle": {"kind": "half_normal", "sd": 1e6}}, "model.priors", "C_vehicle"),
+        # before, each passed validate and then crashed or never ended in the fit: a uniform
+        # range below the search bounds (least_squares: lower bound not below upper), a gamma
+        # whose median underflows (math domain error), a normal and a half-normal whose mass
+        # lies far below the bounds (the profile-likelihood limits walked on for minutes)
+        (
+            {"C": {"kind": "uniform", "lower": 1.0e3, "upper": 2.0e3}},
+            "model.priors.C",
+            "outside the search bounds [10000, 1e+10]",
+        ),
+        (
+            {"K_veh": {"kind": "gamma", "shape": 1e-9, "scale": 1e-9}},
+            "model.priors.K_veh",
+            "median 0 is no positive number",
+        ),
+        (
+            {"C_veh": {"kind": "normal", "mean": -1.0e7, "sd": 1.0e3}},
+            "model.priors.C_veh",
+            "median 0.06931 lies outside the search bounds",
+        ),
+        (
+            {"C": {"kind": "half_normal", "sd": 1.0e-30}},
+            "model.priors.C",
+            "lies outside the search bounds",
+        ),
     ],
 )
 def test_a_wrong_prior_in_a_vehicle_file_is_refused_by_load_and_validate(

@@ -127,3 +127,24 @@ def test_a_kalman_fits_profile_gives_the_same_upper_limit():
     expected = crossing(grid, ref, ref.min() + CHI2_1_95 / 2.0)
     assert limit.upper == pytest.approx(expected, rel=0.05)
     assert limit.lower is None
+
+
+def test_a_profile_that_rises_right_beside_its_estimate_places_its_crossing_there():
+    """A prior that contradicts the record (a units mistake: kJ/K for J/K) leaves a criterion
+    beyond the threshold at every value but the estimate. Before, the bisection drew ever
+    closer to the estimate, a refit each time (a fit of a minute ran past 5 minutes); now a
+    crossing takes at most BISECTIONS refits and sits at the estimate."""
+    from railtherm.estimation import profile
+
+    calls = []
+
+    def criterion(value, warm):
+        calls.append(value)
+        return (0.0 if value == 2.0e6 else 10.0), warm
+
+    limit = profile.profile_limit("C", 2.0e6, (1.0e4, 1.0e9), criterion, minimum=0.0)
+    assert limit.kind == "two_sided"
+    assert limit.lower == pytest.approx(2.0e6, rel=1e-3) and limit.upper == pytest.approx(
+        2.0e6, rel=1e-3
+    )
+    assert len(calls) <= 2 * (1 + profile.BISECTIONS)

@@ -254,6 +254,9 @@ def test_a_first_order_posterior_with_kA_held_still_gets_its_figure(unknowns, tm
         ("--draws", "0", "--draws: key 'draws' = 0: expected 1 or more"),
         ("--tune", "-1", "--tune: key 'tune' = -1: expected 0 or more"),
         ("--target-accept", "1.0", "--target-accept: key 'target_accept' = 1.0: expected"),
+        # before: nutpie's OverflowError after the fit had run
+        ("--seed", "-1", "--seed: key 'seed' = -1: expected 0 to 2^64 - 1"),
+        ("--seed", str(2**64), f"--seed: key 'seed' = {2**64}: expected 0 to 2^64 - 1"),
     ],
 )
 def test_railtherm_fit_refuses_a_bad_sampler_setting_before_fitting(

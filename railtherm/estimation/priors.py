@@ -55,6 +55,9 @@ class PriorError(ValueError):
     out of its range; the message names the key and the value."""
 
 
+HALF_NORMAL_MEDIAN = 0.6744897501960817  # the standard half-normal's median, ndtri(0.75)
+
+
 @dataclass(frozen=True)
 class Prior:
     """One parameter's prior: ``kind`` (a key of :data:`KINDS`) and its ``args`` in the
@@ -67,6 +70,24 @@ class Prior:
         """{kind, <its parameters>} as written in a vehicle file's ``model.priors``."""
         values = map(float, self.args)
         return {"kind": self.kind, **dict(zip(KINDS[self.kind], values, strict=True))}
+
+    def median(self) -> float:
+        """The prior's median in the parameter's unit (a normal one truncated at 0)."""
+        a = self.args
+        if self.kind == "lognormal":
+            return float(a[0])
+        if self.kind == "uniform":
+            return 0.5 * (a[0] + a[1])
+        if self.kind == "half_normal":
+            return float(a[0]) * HALF_NORMAL_MEDIAN
+        from scipy import special  # the quantile functions, without scipy.stats's import
+
+        if self.kind == "gamma":
+            return float(special.gammaincinv(a[0], 0.5)) * a[1]
+        mean, sd = a  # normal on theta > 0: Phi((m - mean) / sd) = (1 + Phi(-mean / sd)) / 2
+        if mean / sd < -30.0:  # far below 0: the tail is exponential, rate |mean| / sd^2
+            return math.log(2.0) * sd * sd / abs(mean)
+        return mean + sd * float(special.ndtri(0.5 * (1.0 + special.ndtr(-mean / sd))))
 
     def support(self) -> tuple[float, float]:
         """The interval of theta outside which the density is zero."""
@@ -167,7 +188,14 @@ def prior_from_config(spec: Mapping[str, object], where: str = "priors") -> Prio
         args.append(value)
     if kind == "uniform" and not args[0] < args[1]:
         raise PriorError(f"{where}: lower {args[0]:g} must be < upper {args[1]:g}")
-    return Prior(kind, tuple(args))
+    prior = Prior(kind, tuple(args))
+    median = prior.median()
+    if not (math.isfinite(median) and median > 0):
+        raise PriorError(
+            f"{where}: its median {median:g} is no positive number (the mass of the prior "
+            "lies below any value a parameter takes): widen it"
+        )
+    return prior
 
 
 @dataclass(frozen=True)
@@ -294,19 +322,10 @@ class LogPrior:
         parameter at a bound or on a ridge."""
         w = np.array(v, dtype=float)
         for i, prior in self.index:
-            if prior.kind == "lognormal":
-                w[i] = math.log(prior.args[0])
-            elif prior.kind == "uniform":
+            if prior.kind == "uniform":
                 w[i] = 0.5 * (math.log(max(prior.args[0], 1e-300)) + math.log(prior.args[1]))
-            else:  # the median of the kind, by scipy (on first use)
-                from scipy import stats
-
-                dist = {
-                    "normal": lambda a: stats.truncnorm(-a[0] / a[1], np.inf, a[0], a[1]),
-                    "gamma": lambda a: stats.gamma(a[0], scale=a[1]),
-                    "half_normal": lambda a: stats.halfnorm(scale=a[0]),
-                }[prior.kind](prior.args)
-                w[i] = math.log(float(dist.median()))
+            else:
+                w[i] = math.log(prior.median())
         for i, _, prior in self.raw:
             if prior.kind == "normal":
                 w[i] = prior.args[0]

@@ -76,6 +76,9 @@ class ProfileLimit:
         return "profile likelihood: no limit within the search bounds"
 
 
+BISECTIONS = 40  # at most this many refits to place one crossing
+
+
 def profile_limit(
     parameter: str,
     estimate: float,
@@ -126,7 +129,14 @@ def profile_limit(
             inside, warm = v, warm_v
         outside = v
         # bisection between inside and outside, to ``tol`` of the distance from the estimate
-        while abs(outside - inside) > tol * max(abs(inside - v_hat), abs(outside - v_hat) / 2):
+        # (and no finer than a thousandth of a step: a profile that rises beyond the
+        # threshold right beside the estimate, as a prior that contradicts the record makes
+        # it, has its crossing there, not ever closer to it)
+        for _ in range(BISECTIONS):
+            if abs(outside - inside) <= max(
+                tol * max(abs(inside - v_hat), abs(outside - v_hat) / 2), 1e-3 * step
+            ):
+                break
             mid = 0.5 * (inside + outside)
             value, warm_m = rise(mid, warm)
             if value - best[0] <= threshold:

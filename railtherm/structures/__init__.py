@@ -169,6 +169,15 @@ def parameters() -> list[str]:
     return of_kind("parameters")
 
 
+def search_bounds(parameter: str) -> tuple[float, float] | None:
+    """The widest search bounds a registered structure gives ``parameter`` (None for a
+    parameter no structure bounds)."""
+    found = [s.bounds[parameter] for s in STRUCTURES.values() if parameter in s.bounds]
+    if not found:
+        return None
+    return min(float(b[0]) for b in found), max(float(b[1]) for b in found)
+
+
 def with_envelope() -> list[str]:
     """The model keys of the structures with an envelope node (where a solar gain declared on
     the envelope can enter)."""

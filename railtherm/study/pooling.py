@@ -77,6 +77,10 @@ class ClassPrior:
         }
 
 
+# the parameters the class model's terms join (kA only where the fit does not hold it)
+CLASS_TERMS = ("kA", "C", "K_veh", "C_veh")
+
+
 def class_prior(
     members: Sequence[classmodel.ClassMember],
     vehicle_id: str,
@@ -90,6 +94,15 @@ def class_prior(
     missing = [k for k in ("class", "mass_kg", "surface_m2") if vehicle.get(k) is None]
     if missing:
         return ClassPrior(None, "none", f"the vehicle declares no {', '.join(missing)}")
+    joined = set(CLASS_TERMS) - ({"kA"} if kA_held is not None else set())
+    own = sorted(set((vehicle.get("model") or {}).get("priors") or {}) & joined)
+    if own:  # one parameter, one prior: the vehicle's own stands, the class's would add to it
+        return ClassPrior(
+            None,
+            "none",
+            f"the vehicle's own model.priors on {', '.join(own)}: a parameter takes one "
+            "prior, its own or the class model's",
+        )
     mass, surface = float(vehicle["mass_kg"]), float(vehicle["surface_m2"])
     k = None if kA_held is None else kA_held / surface
     exclude = [vehicle_id] if any(m.vehicle == vehicle_id for m in members) else []
