@@ -277,6 +277,13 @@ def _posterior(args: argparse.Namespace, vehicle, result, out: str | None, prior
             "divergences (docs/bayes.md)"
         )
         print(table.to_string(float_format=lambda x: f"{x:.5g}"))
+        undetermined = [p for p, q in result.fits[model].parameters.items() if not q.identified]
+        if undetermined:
+            print(
+                f"Not identified by the record (its fit): {', '.join(undetermined)}: their "
+                "posterior is what the prior and the search bounds allow, not an estimate "
+                "from the data."
+            )
         intervals = post.intervals()
         if "with_systematic_lo" in intervals:
             print(

@@ -401,3 +401,21 @@ def test_a_class_prior_helps_where_a_record_says_little_and_leaves_a_clear_recor
     mp = pem.fit(S2, [e], fixed=fixed, outputs=("T",), prior_terms=terms)
     for p in ("C", "K_veh", "C_veh"):
         assert abs(math.log(mp.theta[p] / ml.theta[p])) < ml.sd_log[p], p
+
+
+def test_a_map_fit_says_so_where_it_is_printed(fit_files):
+    """`railtherm fit` prints each fit's summary: a MAP estimate names itself and the
+    parameters its priors are on (before, only the fit file said so)."""
+    from dataclasses import replace
+
+    from railtherm.study.fit import read_fit
+
+    fit = read_fit(fit_files("Metro2", "order2")[0])
+    assert "MAP" not in fit.summary().splitlines()[0]
+    priors = {"inference": "MAP", "priors": {"C_veh": {}, "K_veh": {}}}
+    first = replace(fit, content={**fit.content, **priors}).summary().splitlines()[0]
+    assert "MAP with priors on C_veh, K_veh" in first, first
+    kalman = read_fit(fit_files("Metro2", "order2_kalman")[0])  # its keys in section fit
+    section = {**kalman.section("fit"), **priors}
+    first = replace(kalman, content={**kalman.content, "fit": section}).summary().splitlines()[0]
+    assert "MAP with priors on C_veh, K_veh" in first, first

@@ -238,8 +238,15 @@ class Fit(FitRecord):
         -------
         str
         """
+        # a prior moved the estimate: say which (an output-error fit file holds the keys at
+        # its top, a Kalman one in its section fit)
+        held = self.content if self.content.get("inference") else self.section("fit")
+        inference = ""
+        if held.get("inference") == "MAP":
+            inference = f", MAP with priors on {', '.join(held.get('priors') or {}) or 'none'}"
         lines = [
-            f"{self.vehicle} {self.model} ({self.k_source}): {self.verdict}, R2 = {self.R2:.4f}"
+            f"{self.vehicle} {self.model} ({self.k_source}{inference}): {self.verdict}, "
+            f"R2 = {self.R2:.4f}"
         ]
         lines += [f"  {p}" for p in self.parameters.values()]
         lines += [f"  - {r}" for r in self.reasons]
