@@ -761,7 +761,27 @@ def _check_model(
         for section in ("initial", "bounds", "priors"):
             for name in own.get(section) or {}:
                 if section == "priors" and name.startswith(("sigma_", "s_")):
-                    continue  # the Kalman estimator's noise parameters
+                    # the Kalman estimator's noise parameters: a state's diffusion, an
+                    # output's measurement variance
+                    prefix_, _, state = name.partition("_")
+                    states = (
+                        list(
+                            dict.fromkeys(
+                                x for s in structures.STRUCTURES.values() for x in s.states
+                            )
+                        )
+                        if prefix_ == "sigma"
+                        else structures.measurable_states()
+                    )
+                    if state not in states:
+                        raise ConfigError(
+                            file,
+                            f"{prefix}.priors.{name}",
+                            (own.get(section) or {})[name],
+                            f"no such noise parameter: {prefix_}_<state> with a state of "
+                            f"{', '.join(states)}",
+                        )
+                    continue
                 if name not in PARAMETERS and name not in solar:
                     accepted = ", ".join(PARAMETERS + solar)
                     raise ConfigError(

@@ -253,6 +253,11 @@ def test_a_vehicle_files_priors_reach_its_fit_which_says_it_is_a_map_estimate(tm
         ({"C_veh": {"kind": "beta", "a": 1.0}}, "model.priors.C_veh", "kind"),
         ({"C": {"kind": "normal", "mean": 1e6, "sd": -2.0}}, "model.priors.C.sd", "> 0"),
         ({"C_vehicle": {"kind": "half_normal", "sd": 1e6}}, "model.priors", "C_vehicle"),
+        (  # a misspelt noise parameter was accepted, and its prior never used
+            {"sigma_Foo": {"kind": "half_normal", "sd": 0.01}},
+            "model.priors.sigma_Foo",
+            "no such noise parameter: sigma_<state> with a state of T, T_veh",
+        ),
         # before, each passed validate and then crashed or never ended in the fit: a uniform
         # range below the search bounds (least_squares: lower bound not below upper), a gamma
         # whose median underflows (math domain error), a normal and a half-normal whose mass
