@@ -15,6 +15,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 import yaml
 
@@ -521,3 +522,30 @@ def test_a_source_sharing_one_group_is_checked_on_the_groups_it_logs_alone():
     data["channels"]["outdoor_air"].append({"column": "T_Luft_1", "source": "tunnel"})
     reason = clocks.movable(data)["power"]
     assert isinstance(reason, str) and "share channels.outdoor_air" in reason
+
+
+def test_new_vehicle_leaves_the_window_to_a_local_clock_whose_zone_it_cannot_tell(tmp_path, capsys):
+    """A cabin logger on local time through the end of summer time (its 02:00 hour twice, no
+    zone in its name) beside the tunnel's UTC file: its zone is a TODO, and so is the window,
+    until that zone places the clock on UTC. Before, the starter read the local times as UTC
+    for the window (2 h of data dropped) and then refused its own window."""
+    from railtherm.cli import main
+
+    folder = tmp_path / "dst"
+    folder.mkdir()
+    local = pd.date_range("2025-10-26 00:00", "2025-10-26 02:59", freq="min").append(
+        pd.date_range("2025-10-26 02:00", "2025-10-26 06:00", freq="min")
+    )  # the clock steps back from 02:59 to 02:00
+    rows = ["time,TC01,T_Wand_1"] + [f"{t:%Y-%m-%d %H:%M:%S},15.0,14.0" for t in local]
+    (folder / "cabin.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    utc = pd.date_range("2025-10-25 22:00", "2025-10-26 05:00", freq="min", tz="UTC")
+    rows = ["time,T_Luft_1,P_heater_kW"] + [f"{t.isoformat()},-10.0,20.0" for t in utc]
+    (folder / "tunnel.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    out = folder / "NV.yaml"
+    raws = [str(folder / "cabin.csv"), str(folder / "tunnel.csv")]
+    assert main(["new-vehicle", *raws, "--id", "NV", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "sources.cabin.format.time.timezone" in printed, printed
+    assert "windows.identification: " in printed and "once sources.cabin" in printed, printed
+    data = yaml.safe_load(out.read_text(encoding="utf-8"))
+    assert data["windows"]["identification"][0]["start"] == "TODO"

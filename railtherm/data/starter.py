@@ -935,7 +935,19 @@ def starter_sources(
         ]
     lines.append("")
     lines += _channels(found, todos)
+    # a local clock whose zone is left a TODO places no instant: the window waits for it
+    unplaced = [
+        name
+        for name, f in found.items()
+        if f.layout is not None
+        and f.layout.absolute
+        and getattr(f.layout.t_first, "tzinfo", None) is None
+        and f.repeated_hour is not None
+        and not f.zone
+    ]
     spans = [span for span in map(_utc_span, found.values()) if span is not None]
+    if unplaced:
+        spans = []
     lines += [
         "windows:                        # instants, ISO 8601 (without an offset: UTC)",
         "  # kvalue:                    # TODO (optional): the steady part of the test for",
@@ -952,7 +964,11 @@ def starter_sources(
             f"      end: {_scalar(last)}",
         ]
     else:
-        meaning = "the window's start and end, as ISO 8601 instants"
+        meaning = "the window's start and end, as ISO 8601 instants" + (
+            f", once sources.{unplaced[0]}.format.time.timezone places its clock on UTC"
+            if unplaced
+            else ""
+        )
         lines += [
             "  identification:",
             "    - name: whole",
