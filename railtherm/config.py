@@ -339,7 +339,7 @@ def load_vehicle(
                     "under sources, each with its files and format)",
                 )
         fmt = data["format"]
-        check_format(file, fmt, "format")
+        check_format(file, fmt, "format", list(data["raw_files"].values()))
         locals_: dict[str, str] = {}  # the raw files as this process finds them
         found = {}
         for name, raw in data["raw_files"].items():

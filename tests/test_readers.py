@@ -91,6 +91,15 @@ def write_xlsx(folder: Path) -> Path:
     return path
 
 
+def write_xlsx_text(folder: Path) -> Path:
+    """The data as text cells with decimal commas, as a German workbook export holds them."""
+    path = folder / "logger_text.xlsx"
+    text = original().apply(lambda c: c.map(lambda v: repr(float(v)).replace(".", ",")))
+    with pd.ExcelWriter(path, engine="xlsxwriter") as book:
+        text.to_excel(book, sheet_name="Messdaten", index=False)
+    return path
+
+
 def write_mat(folder: Path) -> Path:
     raw = original()
     path = folder / "logger.mat"
@@ -116,6 +125,9 @@ FORMS = {
     "gzip": (lambda f: write_cp1252(f, "logger.csv.gz"), CP1252, {"outdoor": OUTSIDE}),
     "xlsx": (write_xlsx, {"sheet": "Messdaten", "header_row": 2}, {}),
     "xlsx-index": (write_xlsx, {"sheet": 1, "header_row": 2}, {}),
+    # decimal "," alone: a workbook has no separator to clash with (it was refused as the
+    # default separator's twin)
+    "xlsx-text-comma": (write_xlsx_text, {"sheet": "Messdaten", "decimal": ","}, {}),
     "mat-struct": (write_mat, {"variable": "messung"}, {}),
     "mat-matrix": (write_mat, {"variable": "M", "columns": list(original().columns)}, {}),
     "rda": (write_rda, {}, {}),

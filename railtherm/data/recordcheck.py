@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import difflib
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -25,7 +25,7 @@ from railtherm.data.rawfile import (
     read_layout,
     separator_hint,
 )
-from railtherm.data.readers import elsewhere_hint
+from railtherm.data.readers import elsewhere_hint, reader_kind
 from railtherm.errors import ConfigError, DataError
 from railtherm.yamlio import words
 
@@ -153,10 +153,13 @@ def _check_stated_unit(file: str, key: str, group: str, channel: Mapping[str, An
     )
 
 
-def check_format(file: str, fmt: dict[str, Any], prefix: str) -> None:
-    """A ``format`` section (``prefix``: its key, e.g. ``sources.power.format``): separator and
-    decimal mark differ; the time column's notation, zone, dst rule and start are valid."""
-    if fmt["separator"] == fmt["decimal"]:
+def check_format(file: str, fmt: dict[str, Any], prefix: str, paths: Sequence[str] = ()) -> None:
+    """A ``format`` section (``prefix``: its key, e.g. ``sources.power.format``) of the raw
+    files ``paths``: separator and decimal mark differ where a text reader splits the lines
+    (a workbook has cells, no separator: a decimal comma in its text cells is its own); the
+    time column's notation, zone, dst rule and start are valid."""
+    workbook = bool(paths) and all(reader_kind(p, fmt) == "excel" for p in paths)
+    if fmt["separator"] == fmt["decimal"] and not workbook:
         raise ConfigError(
             file, f"{prefix}.decimal", fmt["decimal"], f"must differ from {prefix}.separator"
         )
@@ -208,7 +211,7 @@ def check_sources(
     for name, source in declared_sources.items():
         prefix = f"{sources.SOURCES}.{name}"
         fmt = source["format"]
-        check_format(file, fmt, f"{prefix}.format")
+        check_format(file, fmt, f"{prefix}.format", list((source.get("files") or {}).values()))
         tf = timeaxis.time_format(fmt["time"])
         if not tf.absolute:
             try:
