@@ -55,7 +55,7 @@ from railtherm.data.recordcheck import (
     source_layout,
 )
 from railtherm.errors import ConfigError
-from railtherm.estimation.priors import PriorError, prior_from_config
+from railtherm.estimation.priors import PriorError, outside_bounds, prior_from_config
 from railtherm.yamlio import (
     TYPE_WORDS,
     check_finite,
@@ -736,50 +736,23 @@ def _check_model(
             value = spec.get(key.rsplit(".", 1)[-1], spec) if isinstance(spec, dict) else spec
             raise ConfigError(file, key, value, message + origin("priors", name)) from None
         search = (model.get("bounds") or {}).get(name) or structures.search_bounds(name)
-        median = prior.median()
-        if search is not None and prior.kind != "uniform" and not search[0] < median < search[1]:
-            raise ConfigError(
-                file,
-                f"{prefix}.priors.{name}",
-                spec,
-                f"its median {median:.4g} lies outside the search bounds [{search[0]:g}, "
-                f"{search[1]:g}] of {name}: the estimate would rest on a bound (a unit "
-                "mistake? SI units: J/K, W/K)" + origin("priors", name),
-            )
-        if prior.kind == "uniform" and search is not None:
-            lo, hi = max(prior.args[0], search[0]), min(prior.args[1], search[1])
-            if not lo < hi:
-                raise ConfigError(
-                    file,
-                    f"{prefix}.priors.{name}",
-                    [prior.args[0], prior.args[1]],
-                    f"a uniform prior outside the search bounds [{search[0]:g}, {search[1]:g}] "
-                    f"of {name}: no value is left to estimate (its unit: SI, J/K or W/K)"
-                    + origin("priors", name),
-                )
+        problem = outside_bounds(prior, name, search)
+        if problem:
+            key = f"{prefix}.priors.{name}"
+            raise ConfigError(file, key, spec, problem + origin("priors", name))
     if solar is not None:
         for section in ("initial", "bounds", "priors"):
             for name in own.get(section) or {}:
                 if section == "priors" and name.startswith(("sigma_", "s_")):
-                    # the Kalman estimator's noise parameters: a state's diffusion, an
-                    # output's measurement variance
-                    prefix_, _, state = name.partition("_")
-                    states = (
-                        list(
-                            dict.fromkeys(
-                                x for s in structures.STRUCTURES.values() for x in s.states
-                            )
-                        )
-                        if prefix_ == "sigma"
-                        else structures.measurable_states()
-                    )
-                    if state not in states:
+                    # the Kalman estimator's noise parameters
+                    if name not in structures.noise_parameters():
                         raise ConfigError(
                             file,
                             f"{prefix}.priors.{name}",
                             (own.get(section) or {})[name],
-                            f"no such noise parameter: {prefix_}_<state> with a state of "
-                            f"{', '.join(states)}",
+                            "no such noise parameter: sigma_<state> (a state's diffusion) or "
+                            "s_<output> (an output's measurement variance), of "
+                            f"{', '.join(structures.noise_parameters())}",
                         )
                     continue
                 if name not in PARAMETERS and name not in solar:

@@ -256,7 +256,7 @@ def test_a_vehicle_files_priors_reach_its_fit_which_says_it_is_a_map_estimate(tm
         (  # a misspelt noise parameter was accepted, and its prior never used
             {"sigma_Foo": {"kind": "half_normal", "sd": 0.01}},
             "model.priors.sigma_Foo",
-            "no such noise parameter: sigma_<state> with a state of T, T_veh",
+            "no such noise parameter: sigma_<state> (a state's diffusion)",
         ),
         # before, each passed validate and then crashed or never ended in the fit: a uniform
         # range below the search bounds (least_squares: lower bound not below upper), a gamma
@@ -424,3 +424,19 @@ def test_a_map_fit_says_so_where_it_is_printed(fit_files):
     section = {**kalman.section("fit"), **priors}
     first = replace(kalman, content={**kalman.content, "fit": section}).summary().splitlines()[0]
     assert "MAP with priors on C_veh, K_veh" in first, first
+
+
+def test_a_map_estimate_at_the_end_of_its_uniform_prior_sits_at_a_bound(tmp_path):
+    """A uniform prior that excludes the maximum-likelihood value: the MAP estimate sits at
+    the prior's end, which is flagged as a bound (not identified: the optimum may lie
+    beyond it); before, it was an estimate with an interval reaching outside the prior."""
+    from test_model_settings import fit_of, vehicle_file
+
+    model = {"orders": [2], "structures": []}
+    ml = fit_of(tmp_path, vehicle_file(tmp_path, model), 2)
+    c_ml = ml["parameters"]["C_veh"]["value"]
+    spec = {"kind": "uniform", "lower": 2.0 * c_ml, "upper": 3.0 * c_ml}
+    mp = fit_of(tmp_path, vehicle_file(tmp_path, {**model, "priors": {"C_veh": spec}}), 2)
+    entry = mp["parameters"]["C_veh"]
+    assert entry["value"] == pytest.approx(2.0 * c_ml, rel=1e-3)
+    assert entry["identified"] is False and "lower" in entry["reason"], entry

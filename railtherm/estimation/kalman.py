@@ -41,7 +41,7 @@ from railtherm.estimation.filtering import (
     negative_log_likelihood,
 )
 from railtherm.estimation.models import Structure
-from railtherm.estimation.priors import LinearT, LogPrior, PosteriorDensity, Prior
+from railtherm.estimation.priors import LinearT, LogPrior, PosteriorDensity, Prior, bounded
 
 __all__ = [
     "KalmanResult",
@@ -362,6 +362,7 @@ def fit_with_density(
     target: Likelihood | _Posterior = lik
     if prior:
         lo, hi = prior.bounds(lo, hi)
+        bnds = bounded(bnds, priors)  # an estimate at its end sits at a bound
         target = _Posterior(lik, prior)
     span = hi - lo
     margin = np.where(np.isfinite(span), 1e-6 * span, 0.0)

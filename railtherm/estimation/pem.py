@@ -62,7 +62,7 @@ from railtherm.estimation.common import (
 )
 from railtherm.estimation.estimate import Estimate, Flag
 from railtherm.estimation.models import Structure
-from railtherm.estimation.priors import LinearT, LogPrior, Prior
+from railtherm.estimation.priors import LinearT, LogPrior, Prior, bounded
 
 __all__ = [
     "Experiment",
@@ -683,12 +683,11 @@ def fit_with_density(
     free = tuple(p for p in structure.parameters if p not in fixed)
     init = dict(structure.initial)
     init.update({p: float(v) for p, v in (initial or {}).items() if p in structure.parameters})
-    bnds = dict(structure.bounds)
-    bnds.update({p: (float(b[0]), float(b[1])) for p, b in (bounds or {}).items()})
+    given = {p: (float(b[0]), float(b[1])) for p, b in (bounds or {}).items()}
+    bnds = bounded({**structure.bounds, **given}, priors)  # a uniform prior is a bound
     lb = np.array([math.log(bnds[p][0]) if bnds[p][0] > 0 else -np.inf for p in free])
     ub = np.array([math.log(bnds[p][1]) if np.isfinite(bnds[p][1]) else np.inf for p in free])
     prior = LogPrior(free, priors or {}, prior_terms)
-    lb, ub = prior.bounds(lb, ub)  # a uniform prior is a bound
     outputs = compared_outputs(structure, experiments, outputs)
     out_idx = [structure.states.index(s) for s in outputs]
     prob = _Problem(structure, experiments, fixed, free, out_idx, x0, compiled)

@@ -239,6 +239,40 @@ class LinearT:
         )
 
 
+def outside_bounds(prior: Prior, name: str, search: Sequence[float] | None) -> str | None:
+    """Why ``prior`` leaves nothing to estimate within the search bounds ``search`` of the
+    parameter ``name`` (None where it does, or no bounds are known): a uniform range outside
+    them, or a median outside them (the estimate would rest on a bound: a unit mistake)."""
+    if search is None:
+        return None
+    lo, hi = float(search[0]), float(search[1])
+    if prior.kind == "uniform":
+        if max(prior.args[0], lo) < min(prior.args[1], hi):
+            return None
+        return (
+            f"a uniform prior outside the search bounds [{lo:g}, {hi:g}] of {name}: no value "
+            "is left to estimate (its unit: SI, J/K or W/K)"
+        )
+    median = prior.median()
+    if lo < median < hi:
+        return None
+    return (
+        f"its median {median:.4g} lies outside the search bounds [{lo:g}, {hi:g}] of {name}: "
+        "the estimate would rest on a bound (a unit mistake? SI units: J/K, W/K)"
+    )
+
+
+def bounded(bounds: Mapping[str, tuple[float, float]], priors: Mapping[str, Prior] | None):
+    """``bounds`` ({parameter: (lo, hi)}) narrowed by each uniform prior: the search's
+    bounds, so that an estimate at a uniform prior's end is flagged as at a bound."""
+    out = dict(bounds)
+    for name, prior in (priors or {}).items():
+        if prior.kind == "uniform" and name in out:
+            lo, hi = out[name]
+            out[name] = (max(float(lo), prior.args[0]), min(float(hi), prior.args[1]))
+    return out
+
+
 class LogPrior:
     """The log-prior of the unknowns ``free`` held as logarithms at the head of the
     estimator's unknowns (``v[:len(free)]``): a sum over those with a prior in ``priors``

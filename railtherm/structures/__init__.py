@@ -178,6 +178,14 @@ def search_bounds(parameter: str) -> tuple[float, float] | None:
     return min(float(b[0]) for b in found), max(float(b[1]) for b in found)
 
 
+def noise_parameters() -> list[str]:
+    """The names a Kalman estimator's noise priors take: ``sigma_<state>`` (a state's
+    diffusion) for every structure's states, ``s_<output>`` (an output's measurement
+    variance) for every state a sensor can measure."""
+    states = dict.fromkeys(x for s in STRUCTURES.values() for x in s.states)
+    return [f"sigma_{x}" for x in states] + [f"s_{x}" for x in measurable_states()]
+
+
 def with_envelope() -> list[str]:
     """The model keys of the structures with an envelope node (where a solar gain declared on
     the envelope can enter)."""

@@ -455,14 +455,7 @@ def annual_energy(
     ps = _predictable(params, profile, what_ifs)
     profile = profile.for_surface(surface_m2, ps.label)
     structure = ps.structure
-    floor = sim.air_capacity(volume_m3, ps.label)
-    withheld = ps.band_withheld
-    rng = np.random.default_rng(seed)
-    thetas, rejected, unbounded = sim.parameter_draws(ps, 0 if withheld else draws, rng, floor)
-    notes = [n for n in (sim.central_below_air(ps, floor, volume_m3), withheld, unbounded) if n]
-    if rejected:
-        share = rejected / (rejected + draws)
-        notes.append(sim.rejected_note(share, f" ({rejected} of {rejected + draws})"))
+    thetas, rejected, notes = _parameter_draws(ps, draws, seed, volume_m3)
     t, T_o, ghi_grid = on_grid(weather, dt_s, hold)
     notes += _irradiance_notes(structure, ghi_grid)
     variants = [WhatIf("base"), *what_ifs]
@@ -546,6 +539,21 @@ def annual_energy(
         source=ps.source,
         band_sources=tuple(ps.band_sources) if S > 1 else (),
     )
+
+
+def _parameter_draws(ps, draws: int, seed: int, volume_m3: float | None):
+    """The central parameters of ``ps`` and ``draws`` parameter sets within the physical
+    limits (none for a fit that carries no band), how many were replaced, and the notes on
+    them: a central air node below the air's capacity, the share replaced, no band and why."""
+    floor = sim.air_capacity(volume_m3, ps.label)
+    withheld = ps.band_withheld
+    rng = np.random.default_rng(seed)
+    thetas, rejected, unbounded = sim.parameter_draws(ps, 0 if withheld else draws, rng, floor)
+    notes = [n for n in (sim.central_below_air(ps, floor, volume_m3), withheld, unbounded) if n]
+    if rejected:
+        share = rejected / (rejected + draws)
+        notes.append(sim.rejected_note(share, f" ({rejected} of {rejected + draws})"))
+    return thetas, rejected, notes
 
 
 def _ready_inputs(variant_profiles, until, steps, variant, limit: float) -> tuple:

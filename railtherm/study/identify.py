@@ -598,6 +598,9 @@ def judge_identification(
         at_bound = None
         if p in pinned:
             lo_b, hi_b = (float(b) for b in bounds[p])
+            uniform = (content.get("priors") or {}).get(p) or {}
+            if uniform.get("kind") == "uniform":  # a uniform prior narrowed the search
+                lo_b, hi_b = max(lo_b, uniform["lower"]), min(hi_b, uniform["upper"])
             lower = abs(math.log(entry["value"] / lo_b)) <= abs(math.log(hi_b / entry["value"]))
             at_bound = ("lower", lo_b) if lower else ("upper", hi_b)
             if lower and p in physical:
