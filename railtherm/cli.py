@@ -245,11 +245,19 @@ def _class_prior_terms(args: argparse.Namespace, vehicle) -> list:
 
 
 def loo_line(loo: dict) -> str:
-    """PSIS-LOO's figures as one line (docs/bayes.md)."""
+    """PSIS-LOO's figures as one line (docs/bayes.md); where a Pareto k exceeds 0.7 the
+    estimate of that observation's term is unreliable, and the line says so first."""
+    bad = int(loo["pareto_k_above_0.7"])
+    trust = (
+        f"unreliable: {bad} of {loo['observations']} observations with Pareto k above 0.7 "
+        "(more draws, or exact leave-one-out for them); "
+        if bad
+        else ""
+    )
     return (
-        f"PSIS-LOO: elpd_loo {loo['elpd_loo']:.6g} ± {loo['se']:.3g}, p_loo "
+        f"PSIS-LOO: {trust}elpd_loo {loo['elpd_loo']:.6g} ± {loo['se']:.3g}, p_loo "
         f"{loo['p_loo']:.3g} ({loo['observations']} observations, {loo['draws']} draws); "
-        f"Pareto k max {loo['pareto_k_max']:.2f}, {loo['pareto_k_above_0.7']} above 0.7; "
+        f"Pareto k max {loo['pareto_k_max']:.2f}, {bad} above 0.7; "
         f"comparable with: {loo['compare']}"
     )
 

@@ -158,7 +158,7 @@ def test_railtherm_fit_posterior_prints_its_summary_and_writes_the_inference_dat
     assert code == 0
     out = capsys.readouterr().out
     assert "(2 chains x 200 draws after 200 tuning, seed 2, target acceptance 0.9;" in out
-    for name in ("C ", "K_i", "C_e", "K_o", "r_hat", "ess_bulk", "PSIS-LOO: elpd_loo"):
+    for name in ("C ", "K_i", "C_e", "K_o", "r_hat", "ess_bulk", "PSIS-LOO: ", "elpd_loo "):
         assert name in out
     path = tmp_path / "vehicles" / "Armadillo" / "fit_interior_envelope_kalman.posterior.nc"
     assert f"written to {path}" in out
@@ -293,3 +293,15 @@ def test_the_target_acceptance_defaults_agree_in_the_library_the_cli_and_the_stu
     default = schema["properties"]["posterior"]["properties"]["target_accept"]["default"]
     args = build_parser().parse_args(["fit", "vehicle.yaml", "--posterior"])
     assert default == args.target_accept == sampling.TARGET_ACCEPT
+
+
+def test_the_loo_line_says_first_when_its_estimate_is_unreliable():
+    """Every Pareto k above 0.7 (a Kalman model with 20 draws: 6,481 of them) printed the
+    elpd as if it held; the line now opens with what is unreliable."""
+    from railtherm.cli import loo_line
+
+    loo = {"elpd_loo": 23709.7, "se": 95.0, "p_loo": 12.0, "observations": 6481, "draws": 20}
+    loo |= {"pareto_k_max": math.inf, "pareto_k_above_0.7": 6481, "compare": "none"}
+    assert loo_line(loo).startswith("PSIS-LOO: unreliable: 6481 of 6481 observations")
+    loo |= {"pareto_k_max": 0.4, "pareto_k_above_0.7": 0}
+    assert loo_line(loo).startswith("PSIS-LOO: elpd_loo 23709.7 ± 95")
