@@ -246,12 +246,12 @@ def _schema_error(file: str, error: ValidationError, prefix: str = "") -> Config
     expected = error.validator_value
     value = error.instance
     if "propertyNames" in error.schema_path:
-        return ConfigError(
-            file,
-            _key([*path, value], prefix),
-            value,
-            "invalid name: must start with a letter and contain only letters, digits, _ or -",
+        reason = (
+            f"not one of {', '.join(map(str, expected))}"
+            if kind == "enum"
+            else "invalid name: must start with a letter and contain only letters, digits, _ or -"
         )
+        return ConfigError(file, _key([*path, value], prefix), value, reason)
     if kind == "required":
         missing = [name for name in expected if name not in error.instance]
         return ConfigError(file, _key([*path, missing[0]], prefix), None, "missing required key")

@@ -963,3 +963,68 @@ def test_cli_names_a_missing_file(tmp_path):
     assert run.returncode == 1
     assert "nope.yaml" in run.stderr and "not found" in run.stderr
     assert not (tmp_path / "findings.csv").exists()
+
+
+@pytest.mark.bad_input
+@pytest.mark.parametrize(
+    ("edit", "key", "says"),
+    [  # before: ZeroDivisionError, ValueError or IndexError tracebacks naming no file
+        (("parameters", "Tram1", "C", "0"), "parameters.rows.Tram1.C", "positive"),
+        (("parameters", "Tram1", "k", "-2.5"), "parameters.rows.Tram1.k", "positive"),
+        (("generalised", "Tram1", "c_veh", "-270"), "generalised.rows.Tram1.c_veh", "positive"),
+        (("parameters", "Tram1", "R2", "1.20"), "parameters.rows.Tram1.R2", "at most 1"),
+        # a misspelt column dropped its checks without a word
+        (("parameters", "Tram1", "Cveh", "1.7×10^7"), "parameters.rows.Tram1.Cveh", "not one of"),
+        (("generalised", "Tram1", "Delta", "0.60"), "generalised.rows.Tram1.Delta", "not one of"),
+    ],
+)
+def test_a_value_no_vehicle_has_is_refused_naming_its_key(tmp_path, edit, key, says):
+    section, vid, q, text = edit
+    data = yaml.safe_load(PAPER.read_text(encoding="utf-8"))
+    data[section]["rows"][vid][q] = text
+    path = tmp_path / "sheet.yaml"
+    path.write_text(yaml.safe_dump(data, allow_unicode=True), encoding="utf-8")
+    with pytest.raises(ConfigError) as err:
+        audit.load_published(path)
+    assert "sheet.yaml" in str(err.value) and key in str(err.value) and says in str(err.value)
+
+
+@pytest.mark.bad_input
+def test_a_statement_a_count_or_a_class_that_cannot_be_read_is_refused(tmp_path):
+    base = yaml.safe_load(PAPER.read_text(encoding="utf-8"))
+    row = next(iter(base["counts"]["rows"]))
+    cases = [
+        (lambda d: d["statements"][0].update(printed="372 J"), "statements[0].printed"),
+        (lambda d: d["statements"][0].update({"class": "metros"}), "statements[0].class"),
+        (lambda d: d["counts"]["rows"][row].__setitem__(0, "2.4"), f"counts.rows.{row}[0]"),
+        (lambda d: d["counts"]["rows"][row].pop(), f"counts.rows.{row}"),
+    ]
+    for change, key in cases:
+        data = yaml.safe_load(PAPER.read_text(encoding="utf-8"))
+        change(data)
+        path = tmp_path / "sheet.yaml"
+        path.write_text(yaml.safe_dump(data, allow_unicode=True), encoding="utf-8")
+        with pytest.raises(ConfigError) as err:
+            audit.load_published(path)
+        assert key in str(err.value), (key, str(err.value))
+
+
+def test_the_exit_code_and_summary_count_the_published_values_not_the_re_estimation(tmp_path):
+    """Re-estimates are never counted with the paper (docs/audit.md): the summary gives both
+    apart, and --fail-on judges the published values alone (before, 76 warnings about the
+    re-estimation failed a clean sheet). Bad estimate tables name their file."""
+    out = tmp_path / "out"
+    run = railtherm("audit", str(PAPER), "--estimates", "results/tables", "--out", str(out))
+    assert run.returncode == 0, run.stderr
+    findings = pd.read_csv(out / "findings.csv")
+    paper = findings[findings.family != "reproduction"]
+    n = paper.severity.value_counts()
+    said = f"the published values {n.get('error', 0)} error, {n.get('warning', 0)} warning"
+    assert said in run.stdout and "; the re-estimation: " in run.stdout, run.stdout
+    bad = tmp_path / "est"
+    bad.mkdir()
+    (bad / "table2.csv").write_text("name,C\nTram1,1e7\n", encoding="utf-8")
+    run = railtherm("audit", str(PAPER), "--estimates", str(bad), "--out", str(out))
+    assert run.returncode == 1 and "table2.csv" in run.stderr and "'vehicle'" in run.stderr
+    run = railtherm("audit", str(PAPER), "--out", str(PAPER))
+    assert run.returncode == 1 and "a file is there" in run.stderr

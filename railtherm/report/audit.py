@@ -50,6 +50,7 @@ from typing import Any
 
 import pandas as pd
 
+from railtherm.errors import ConfigError
 from railtherm.report.auditbase import (
     COLUMNS,
     FAMILIES,
@@ -314,12 +315,27 @@ def read_estimates(tables: str | Path) -> pd.DataFrame | None:
     t2, t3 = tables / "table2.csv", tables / "table3.csv"
     if not t2.is_file():
         return None
-    df = pd.read_csv(t2)
+    df = _estimate_table(t2)
     if t3.is_file():
-        extra = pd.read_csv(t3)
+        extra = _estimate_table(t3)
         keep = ["vehicle"] + [c for c in extra.columns if c not in df.columns]
         df = df.merge(extra[keep], on="vehicle", how="left")
     return df
+
+
+def _estimate_table(path: Path) -> pd.DataFrame:
+    """A table of re-estimates, one row per vehicle; a :class:`ConfigError` naming the file
+    for an empty one, one without a ``vehicle`` column or with a vehicle twice."""
+    try:
+        table = pd.read_csv(path)
+    except pd.errors.EmptyDataError:
+        raise ConfigError(str(path), "(file)", None, "empty: a table of re-estimates") from None
+    if "vehicle" not in table.columns:
+        raise ConfigError(str(path), "vehicle", None, "missing column: one row per vehicle")
+    twice = sorted(set(table.loc[table["vehicle"].duplicated(), "vehicle"].astype(str)))
+    if twice:
+        raise ConfigError(str(path), "vehicle", twice[0], "a vehicle in two rows")
+    return table
 
 
 # ---------------------------------------------------------------------------------------------

@@ -261,6 +261,14 @@ class Published:
         return self.section(name).get("location", name)
 
 
+def _printed(file: str, key: str, text: str) -> Printed:
+    """``text`` read as printed, else a :class:`ConfigError` naming ``file`` and ``key``."""
+    try:
+        return Printed.parse(text, "")
+    except ValueError:
+        raise ConfigError(file, key, text, "not a number as printed") from None
+
+
 def load_published(path: str | Path, display: str | None = None) -> Published:
     """Read and validate a published-values file; :class:`ConfigError` naming the file, key
     and value on any problem (including a number that is not a number as printed)."""
@@ -271,12 +279,28 @@ def load_published(path: str | Path, display: str | None = None) -> Published:
     for section in ("parameters", "generalised"):
         for vid, row in (pub.section(section).get("rows") or {}).items():
             for q, text in row.items():
-                try:
-                    Printed.parse(text, "")
-                except ValueError:
+                value = _printed(name, f"{section}.rows.{vid}.{q}", text).value
+                if q == "R2" and not value <= 1.0:  # eq. 21: 1 - SSE / SST
+                    raise ConfigError(name, f"{section}.rows.{vid}.{q}", text, "R² is at most 1")
+                if q != "R2" and not value > 0:  # capacities, conductances and their ratios
                     raise ConfigError(
-                        name, f"{section}.rows.{vid}.{q}", text, "not a number as printed"
-                    ) from None
+                        name, f"{section}.rows.{vid}.{q}", text, f"{q} is a positive quantity"
+                    )
+    for i, statement in enumerate(data.get("statements") or []):
+        printed = statement.get("printed")
+        for j, text in enumerate(printed if isinstance(printed, list) else [printed]):
+            if text is not None:
+                _printed(name, f"statements[{i}].printed" + (f"[{j}]" if j else ""), text)
+    counts = pub.section("counts")
+    for row, texts in (counts.get("rows") or {}).items():
+        if len(texts) != len(counts.get("columns") or []):
+            raise ConfigError(
+                name, f"counts.rows.{row}", texts, f"one count per column of {counts['columns']}"
+            )
+        for j, text in enumerate(texts):
+            count = _printed(name, f"counts.rows.{row}[{j}]", text).value
+            if not (count >= 0 and float(count).is_integer()):
+                raise ConfigError(name, f"counts.rows.{row}[{j}]", text, "a count: 0, 1, 2, ...")
     classes = pub.classes()
     for section in ("parameters", "generalised"):
         for vid in pub.section(section).get("rows") or {}:
