@@ -1028,3 +1028,24 @@ def test_the_exit_code_and_summary_count_the_published_values_not_the_re_estimat
     assert run.returncode == 1 and "table2.csv" in run.stderr and "'vehicle'" in run.stderr
     run = railtherm("audit", str(PAPER), "--out", str(PAPER))
     assert run.returncode == 1 and "a file is there" in run.stderr
+
+
+def test_a_column_printed_in_kJ_per_K_is_read_in_J_per_K(ranges):
+    """C printed in kJ/K with its values a thousandth: the same consistency findings as in
+    J/K (before, the unit only had its dimension checked, "kJ" was an unknown symbol, and 13
+    false delta errors followed from the numbers read as J/K)."""
+    pub = audit.load_published(PAPER)
+    data = yaml.safe_load(PAPER.read_text(encoding="utf-8"))
+    data["parameters"]["units"]["C"] = "kJ/K"
+    for row in data["parameters"]["rows"].values():  # "3.0×10^7" J/K -> "3.0×10^4" kJ/K
+        mantissa, _, exp = row["C"].partition("×10^")
+        row["C"] = f"{mantissa}×10^{int(exp) - 3}"
+    kj = Published("kJ.yaml", data)
+    same = [(f.subject, f.severity, f.recomputed) for f in audit.check_delta_ratio(pub, ranges)]
+    assert [
+        (f.subject, f.severity, f.recomputed) for f in audit.check_delta_ratio(kj, ranges)
+    ] == same
+    tram1 = next(f for f in audit.check_delta_ratio(kj, ranges) if f.subject == "Tram1")
+    assert "3.0×10^4 kJ/K (= 3e7 in SI)" in tram1.message, tram1.message
+    (unit,) = [f for f in audit.check_units(kj) if f.subject == "C column"]
+    assert unit.severity == "info" and "its values read as 1000 J/K each" in unit.message

@@ -122,6 +122,15 @@ class Printed:
         half = 0.5 * 10.0 ** (exp - decimals)
         return cls(text, value, Interval(value - half, value + half))
 
+    def scaled(self, factor: float, unit: str = "") -> Printed:
+        """The same printed number in ``unit``, read in SI: its value ``factor`` times the
+        printed one, its text saying both."""
+        if factor == 1.0:
+            return self
+        value = self.value * factor
+        text = f"{self.text} {unit} (= {fmt_g(value)} in SI)".replace("  ", " ")
+        return Printed(text, value, self.interval.scale(factor))
+
     @property
     def has_separator(self) -> bool:
         return "," in self.text
@@ -140,16 +149,24 @@ def fmt_g(x: float, digits: int = 4) -> str:
 # ---------------------------------------------------------------------------------------------
 # Units: dimensions over (kg, m, s, K)
 
+_MASS, _LENGTH, _TIME, _TEMPERATURE = (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1)
+_ENERGY, _POWER = (1, 2, -2, 0), (1, 2, -3, 0)
+# each symbol the audit reads: its factor to SI and its dimension as exponents of (kg, m, s, K)
 _BASE = {
-    "J": (1, 2, -2, 0),
-    "W": (1, 2, -3, 0),
-    "kg": (1, 0, 0, 0),
-    "t": (1, 0, 0, 0),
-    "g": (1, 0, 0, 0),
-    "m": (0, 1, 0, 0),
-    "s": (0, 0, 1, 0),
-    "h": (0, 0, 1, 0),
-    "K": (0, 0, 0, 1),
+    "J": (1.0, _ENERGY),
+    "kJ": (1e3, _ENERGY),
+    "MJ": (1e6, _ENERGY),
+    "W": (1.0, _POWER),
+    "kW": (1e3, _POWER),
+    "MW": (1e6, _POWER),
+    "kg": (1.0, _MASS),
+    "t": (1e3, _MASS),
+    "g": (1e-3, _MASS),
+    "m": (1.0, _LENGTH),
+    "s": (1.0, _TIME),
+    "min": (60.0, _TIME),
+    "h": (3600.0, _TIME),
+    "K": (1.0, _TEMPERATURE),
 }
 _SUPERSCRIPT = {"²": 2, "³": 3}
 EXPECTED_UNIT = {
@@ -175,29 +192,49 @@ QUANTITY_NAME = {
 }
 
 
-def _factor(token: str) -> tuple[int, ...]:
+def _factor(token: str) -> tuple[float, tuple[int, ...]]:
     m = re.fullmatch(r"([A-Za-z]+)(?:\^(-?\d+)|([²³]))?", token)
     if m is None or m.group(1) not in _BASE:
         raise ValueError(token)
     power = int(m.group(2)) if m.group(2) else _SUPERSCRIPT.get(m.group(3), 1)
-    return tuple(power * d for d in _BASE[m.group(1)])
+    scale, dims = _BASE[m.group(1)]
+    return scale**power, tuple(power * d for d in dims)
 
 
-def _product(text: str) -> tuple[int, ...]:
-    dims = (0, 0, 0, 0)
+def _product(text: str) -> tuple[float, tuple[int, ...]]:
+    scale, dims = 1.0, (0, 0, 0, 0)
     for token in text.strip().strip("()").replace("·", " ").replace("*", " ").split():
         if token != "1":
-            dims = tuple(a + b for a, b in zip(dims, _factor(token), strict=True))
-    return dims
+            f, d = _factor(token)
+            scale, dims = scale * f, tuple(a + b for a, b in zip(dims, d, strict=True))
+    return scale, dims
+
+
+def _unit(unit: str) -> tuple[float, tuple[int, ...]]:
+    num, _, den = unit.partition("/")
+    s_num, d_num = _product(num)
+    s_den, d_den = _product(den) if den else (1.0, (0, 0, 0, 0))
+    return s_num / s_den, tuple(a - b for a, b in zip(d_num, d_den, strict=True))
 
 
 def dimension(unit: str) -> tuple[int, ...]:
     """The dimension of a printed unit as exponents of (kg, m, s, K); ``"1"`` is
     dimensionless. :class:`ValueError` for a symbol it does not know."""
-    num, _, den = unit.partition("/")
-    d_num = _product(num)
-    d_den = _product(den) if den else (0, 0, 0, 0)
-    return tuple(a - b for a, b in zip(d_num, d_den, strict=True))
+    return _unit(unit)[1]
+
+
+def si_factor(unit: str | None, quantity: str) -> float:
+    """What a value printed in ``unit`` is multiplied by to be in the SI unit of ``quantity``
+    (:data:`EXPECTED_UNIT`): 1000 for C in kJ/K; 1 where the unit is missing, unknown or of
+    another dimension (a finding of check_units; the value is then read as SI)."""
+    expected = EXPECTED_UNIT.get(quantity)
+    if not unit or expected is None:
+        return 1.0
+    try:
+        scale, dims = _unit(unit)
+        return scale / _unit(expected)[0] if dims == dimension(expected) else 1.0
+    except ValueError:
+        return 1.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -248,10 +285,14 @@ class Published:
         return dict(self.section("classes").get("of", {}))
 
     def table(self, name: str) -> dict[str, dict[str, Printed]]:
-        """Rows of ``parameters`` or ``generalised``: vehicle -> quantity -> Printed."""
+        """Rows of ``parameters`` or ``generalised``: vehicle -> quantity -> Printed, each
+        value and its rounding in SI (a column printed in kJ/K read as J/K)."""
+        units = self.section(name).get("units") or {}
         return {
             vid: {
-                q: Printed.parse(text, f"{self.file}: {name}.rows.{vid}.{q}")
+                q: Printed.parse(text, f"{self.file}: {name}.rows.{vid}.{q}").scaled(
+                    si_factor(units.get(q), q), units.get(q, "")
+                )
                 for q, text in row.items()
             }
             for vid, row in (self.section(name).get("rows") or {}).items()

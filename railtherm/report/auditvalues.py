@@ -22,6 +22,7 @@ from railtherm.report.auditbase import (
     dimension,
     finding,
     fmt_g,
+    si_factor,
     source_kind,
     threshold,
 )
@@ -333,6 +334,10 @@ def _unit_finding(subject: str, quantity: str, unit: str, location: str) -> Find
         reason = f"is not a unit of the {name}, which is in {expected}"
     except ValueError as exc:
         ok, reason = False, f"has a symbol the audit does not know ({exc}); expected {expected}"
+    fits = f"printed unit '{unit}' fits the {name}"
+    factor = si_factor(unit, quantity) if ok else 1.0
+    if factor != 1.0:  # the tables' values are read in SI (Published.table)
+        fits += f"; its values read as {factor:g} {expected} each"
     return finding(
         "units",
         "unit",
@@ -341,7 +346,7 @@ def _unit_finding(subject: str, quantity: str, unit: str, location: str) -> Find
         location,
         unit,
         expected,
-        f"printed unit '{unit}' fits the {name}" if ok else f"printed unit '{unit}' {reason}",
+        fits if ok else f"printed unit '{unit}' {reason}",
     )
 
 
