@@ -327,16 +327,20 @@ def test_truth_comparison_splits_inside_the_interval_from_within_tolerance():
     truth = pd.DataFrame(
         {"vehicle": ["x"], "C": [1e7], "K_veh": [500.0], "C_veh": [2e7], "deviations": [""]}
     )
-    good = FitRecord.from_dict(
-        fit_content(1.08e7, 500, 2e7, sd=(0.1, 0.2, 0.01)) | {"nrmse_fit": 0.9, "flags": []}
-    )
+    content = fit_content(1.08e7, 500, 2e7, sd=(0.1, 0.2, 0.01)) | {"nrmse_fit": 0.9, "flags": []}
+    good = FitRecord.from_dict(content | {"synthetic": True})
+    # a measured vehicle whose id a campaign vehicle has too: never set beside that truth
+    # (before, a measured Metro3 was judged against the campaign's Metro3)
+    measured = aggregate.fit_table([FitRecord.from_dict(content)], truth)
+    assert not any(c.endswith(("_truth", "_recovered")) for c in measured.columns), measured
     row = aggregate.fit_table([good], truth).iloc[0]
     assert row["C_inside"] and not row["C_within_tolerance"]  # 8 % off, inside +-20 %
     assert row["C_veh_inside"] and row["C_veh_within_tolerance"]
     assert row["C_total_truth"] == 3e7 and row["C_total_inside"]
     assert row["C_recovered"] and row["K_veh_recovered"] and row["C_veh_recovered"]
     wide = FitRecord.from_dict(
-        fit_content(1e7, 5e4, 2e7, sd=(0.1, 5.0, 0.1)) | {"nrmse_fit": 0.9, "flags": []}
+        fit_content(1e7, 5e4, 2e7, sd=(0.1, 5.0, 0.1))
+        | {"nrmse_fit": 0.9, "flags": [], "synthetic": True}
     )
     row = aggregate.fit_table([wide], truth).iloc[0]
     # K_veh not identified, C and C_veh coupled to it: none compared with the truth

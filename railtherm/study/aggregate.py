@@ -223,7 +223,8 @@ def fit_table(fits: Sequence[FitRecord], truth: pd.DataFrame | None = None) -> p
             key = (fit.vehicle, fit.estimator)
             row[f"{TOTAL}_vs_C_bar"] = total_vs_C_bar(total, first_order.get(key))
         row["flags"] = ";".join(sorted({f["code"] for f in fit.flags}))
-        known = truth_by_id is not None and fit.vehicle in truth_by_id.index
+        # the campaign's truth is of its synthetic vehicles, never of a measured one
+        known = truth_by_id is not None and fit.synthetic and fit.vehicle in truth_by_id.index
         if known and fit.order == 2:
             t = truth_by_id.loc[fit.vehicle]
             row["deviations"] = "" if pd.isna(t["deviations"]) else t["deviations"]

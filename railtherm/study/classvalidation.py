@@ -435,7 +435,9 @@ def study_leave_one_out(
         series,
         scenario,
         volumes={vid: data.get("volume_m3") for vid, data in vehicles.items()},
-        truth=declared_truth(truth_file, vehicles),
+        # a campaign's truth is of its synthetic vehicles: a measured one is never set
+        # beside it, whatever its id
+        truth=declared_truth(truth_file, [v for v, d in vehicles.items() if d.get("synthetic")]),
         **options,
     )
 

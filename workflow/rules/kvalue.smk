@@ -30,6 +30,8 @@ rule kvalue_table:
         "results/tables/kvalue.csv",
     params:
         vehicles=kvalue_vehicles(),
+        # the campaign's truth is of its synthetic vehicles, never of a measured one
+        synthetic=[v for v in kvalue_vehicles() if STUDY.vehicles[v].data.get("synthetic")],
         code=script_code("kvalue_table.py"),
     log:
         "logs/kvalue_table.log",

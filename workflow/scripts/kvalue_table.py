@@ -13,5 +13,7 @@ results = {
     for vid, path in zip(snakemake.params.vehicles, snakemake.input.results, strict=True)
 }
 truth = pd.read_csv(snakemake.input.truth) if snakemake.input.truth else None
+if truth is not None:  # of the synthetic vehicles only
+    truth = truth[truth["vehicle"].isin(snakemake.params.synthetic)]
 tables.write_csv(aggregate.kvalue_table(results, truth), snakemake.output[0])
 log.info("k table of %d vehicles", len(results))
