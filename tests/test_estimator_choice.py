@@ -172,13 +172,13 @@ def test_model_selection_considers_only_acceptable_converged_fits():
         large.to_dict() | {"model": "order2_kalman", "order": 2, "loglik": 500.0, "n_params": 6}
     )
     assert tableformat.model_selection_markdown([small, large]) == ""
-    table = aggregate.model_table([small, large], "hand-built")
+    table = aggregate.model_table([small, large])
     assert table["best_aic"].tolist() == [True, False]
     assert table["best_bic"].tolist() == [True, False]
     unconverged = FitRecord.from_dict(
         {**small.to_dict(), "flags": [{"code": "not_converged", "message": "stopped"}]}
     )
-    table = aggregate.model_table([unconverged, large], "hand-built")
+    table = aggregate.model_table([unconverged, large])
     assert not table["best_aic"].any() and not table["converged"].iloc[0]
     text = tableformat.model_markdown(table, "hand-built")
     assert "(not converged)" in text and "RMSE ✗" in text
@@ -187,7 +187,7 @@ def test_model_selection_considers_only_acceptable_converged_fits():
 def test_models_table_names_the_estimator_and_marks_indicative_criteria(both):
     result, _ = both
     fits = list(result.fits.values())
-    table = aggregate.model_table(fits, "measured")
+    table = aggregate.model_table(fits)
     assert sorted(table["estimator"]) == ["kalman", "kalman", "output_error", "output_error"]
     # the information criteria are compared within an estimator, never across, and only
     # among acceptable, converged fits

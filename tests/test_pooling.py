@@ -122,6 +122,12 @@ def test_the_pooling_table_puts_ml_prior_and_posterior_side_by_side():
     untrusted["diagnostics"].update(r_hat_max=1.05, trusted=False)
     md = pooling.pooling_markdown(pooling.pooling_rows([untrusted]), "synthetic")
     assert "5e+06 [4e+06, 6e+06]" in md and "(not trusted)" in md
+    # one chain has no R-hat: said so, never "nan" (before: "| nan / 87 / 1 |")
+    one_chain = record_file(True)
+    one_chain["diagnostics"].update(r_hat_max=float("nan"), trusted=False)
+    md = pooling.pooling_markdown(pooling.pooling_rows([one_chain]), "synthetic")
+    assert "nan" not in md and "n/a (one chain) / 1500 / 0" in md
+    assert "R-hat <= n/a (one chain)" in pooling.summary_line(one_chain)
 
 
 def _posterior_file(path, draws):

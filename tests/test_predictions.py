@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from railtherm.estimation import models
-from railtherm.study import classvalidation, predictions
+from railtherm.study import aggregate, classvalidation, predictions
 from railtherm.study.classmodel import ClassMember
 from railtherm.study.fit import Fit
 from railtherm.study.scenario import Controller, Initial, Scenario
@@ -197,7 +197,7 @@ def test_declared_truth_reads_the_campaign_truth_of_the_listed_vehicles(tmp_path
     assert classvalidation.declared_truth(None, ["M2"]) == {}
 
 
-def test_write_validation_writes_the_table_its_markdown_and_figure(tmp_path):
+def test_write_validation_writes_the_table_its_markdown_and_figure(tmp_path, monkeypatch):
     theta = {"kA": 800.0, "C": 8e6, "K_veh": 400.0, "C_veh": 1.6e7}
     names = ["M1", "M2", "M3"]
     members = [_member(v, "metro", theta) for v in names]
@@ -206,15 +206,28 @@ def test_write_validation_writes_the_table_its_markdown_and_figure(tmp_path):
     table = classvalidation.leave_one_out(members, fits, series, scenario(), 2, draws=20, seed=0)
     out = tmp_path / "out"
     out.mkdir()
+    # M2 measured among synthetic vehicles: the figure's footer names it (before, a mixed
+    # study's figure carried no footer at all)
+    vehicles = {v: {"synthetic": v != "M2"} for v in names}
+    from railtherm.report import plots
+
+    drawn, figure = [], plots.reference_validation_figure
+    monkeypatch.setattr(
+        plots,
+        "reference_validation_figure",
+        lambda t, note: drawn.append(note) or figure(t, note=note),
+    )
     classvalidation.write_validation(
-        table, scenario(), "synthetic: test", out / "v.csv", out / "v.md", str(out / "v")
+        table, scenario(), vehicles, out / "v.csv", out / "v.md", str(out / "v")
     )
     written = pd.read_csv(out / "v.csv")
     assert list(written.columns) == list(classvalidation.COLUMNS)
     assert len(written) == len(table)
     md = (out / "v.md").read_text(encoding="utf-8")
-    assert md == classvalidation.validation_markdown(table, scenario(), "synthetic: test")
+    source = aggregate.data_source(vehicles)
+    assert md == classvalidation.validation_markdown(table, scenario(), source)
     assert (out / "v.png").stat().st_size > 0 and (out / "v.svg").stat().st_size > 0
+    assert drawn == ["synthetic data (virtual climatic wind tunnel), except measured: M2"]
 
 
 def test_study_predictions_write_the_table_its_markdown_and_the_chosen_scenario_s_figure(

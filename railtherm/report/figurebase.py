@@ -171,7 +171,7 @@ def provenance_note(table: pd.DataFrame) -> str | None:
         return SYNTHETIC_NOTE
     if not synthetic.any():
         return None
-    measured = ", ".join(table.loc[~synthetic, "vehicle"].astype(str))
+    measured = ", ".join(dict.fromkeys(table.loc[~synthetic, "vehicle"].astype(str)))
     return f"synthetic data (virtual climatic wind tunnel), except measured: {measured}"
 
 

@@ -419,7 +419,12 @@ _TERM_COLORS = ("#c0392b", "#e67e22", "#2471a3", "#4d4d4d", "#8e44ad", "#1e8449"
 _RATIO_LIMITS = (-0.5, 2.5)
 
 
-def sindy_figure(results: Mapping[str, Mapping[str, Any]], *, synthetic: bool = False) -> Figure:
+def sindy_figure(
+    results: Mapping[str, Mapping[str, Any]],
+    *,
+    synthetic: bool = False,
+    note: str | None = None,
+) -> Figure:
     """The SINDy cross-check of every vehicle (results: vehicle -> sindy.yaml contents).
 
     (a) Each term of eq. 14 as SINDy's least-squares coefficient divided by the PEM-implied
@@ -457,7 +462,7 @@ def sindy_figure(results: Mapping[str, Mapping[str, Any]], *, synthetic: bool = 
             rotation_mode="anchor",
         )
         legend_row(fig, grid[2], handles, ncols=2, handlelength=1.0)
-    return finish_figure(fig, synthetic)
+    return finish_figure(fig, synthetic, note)
 
 
 def _eq14_terms(ax: Any, results: Mapping[str, Mapping[str, Any]], names, x) -> list[Line2D]:

@@ -256,7 +256,7 @@ WHITENESS_ALPHA = packaged_schema("vehicle")["properties"]["check"]["properties"
 ]["default"]
 
 
-def model_table(fits: Sequence[FitRecord], source: str) -> pd.DataFrame:
+def model_table(fits: Sequence[FitRecord]) -> pd.DataFrame:
     """Every fitted model of every vehicle side by side (rule compare_models): the overall
     heat-loss coefficient kA with its 95 % interval and how it was obtained, and the measures of
     the simulated T (the one output every structure shares): R^2 (eq. 21), NRMSE fit, RMSE,
@@ -305,7 +305,7 @@ def model_table(fits: Sequence[FitRecord], source: str) -> pd.DataFrame:
                 "verdict": fit.verdict,
                 "judged_by": fit.judged_by,
                 "converged": converged(fit),
-                "source": source,
+                "source": vehicle_source({"synthetic": fit.synthetic}),
             }
         )
     df = pd.DataFrame(rows)
@@ -359,6 +359,11 @@ NOT_GIVEN = {
     "surface_m2": "not given: no surface_m2",
     "mass_kg": "not given: no mass_kg",
 }
+
+
+def vehicle_source(vehicle: Mapping[str, Any]) -> str:
+    """Where one vehicle's rows come from: the campaign's synthetic data, or measured."""
+    return SYNTHETIC_SOURCE if vehicle.get("synthetic", False) else MEASURED_SOURCE
 
 
 def data_source(vehicles: Mapping[str, Mapping[str, Any]]) -> str:
@@ -522,7 +527,7 @@ def table2(
         row |= {
             "R2": fit.R2,
             "verdict": fit.verdict,
-            "source": SYNTHETIC_SOURCE if vehicle.get("synthetic", False) else MEASURED_SOURCE,
+            "source": vehicle_source(vehicle),
         }
         rows.append(row)
     return pd.DataFrame(rows)

@@ -443,16 +443,24 @@ def study_leave_one_out(
 
 
 def write_validation(
-    table: pd.DataFrame, scenario: Scenario, source: str, csv: str, md: str, figure: str
+    table: pd.DataFrame,
+    scenario: Scenario,
+    vehicles: Mapping[str, Mapping[str, Any]],
+    csv: str,
+    md: str,
+    figure: str,
 ) -> None:
-    """The leave-one-out table as CSV (4 significant digits) and Markdown, and its figure
-    (``figure``: the path without suffix; PNG and SVG)."""
+    """The leave-one-out table of ``vehicles`` (id -> config) as CSV (4 significant digits)
+    and Markdown, and its figure (``figure``: the path without suffix; PNG and SVG), whose
+    footer names the measured vehicles of a mixed study."""
     from railtherm.report import plots, tables
+    from railtherm.study import aggregate
 
     tables.write_csv(table, csv, digits=4)
     with open(md, "w", encoding="utf-8") as stream:
-        stream.write(validation_markdown(table, scenario, source))
+        stream.write(validation_markdown(table, scenario, aggregate.data_source(vehicles)))
+    sources = [aggregate.vehicle_source(vehicles.get(v, {})) for v in table["vehicle"]]
     fig = plots.reference_validation_figure(
-        table, note=plots.provenance_note(table.assign(source=source))
+        table, note=plots.provenance_note(table.assign(source=sources))
     )
     plots.save_figure(fig, figure)

@@ -154,12 +154,18 @@ def study_posterior(
     return post, posterior_record(vehicle_id, model, post, fit, prior, loo), prior
 
 
+def _r_hat(value: float, digits: int) -> str:
+    """R-hat as printed: none from a single chain (it compares chains), which the verdict
+    then does not trust."""
+    return f"{value:.{digits}f}" if math.isfinite(value) else "n/a (one chain)"
+
+
 def summary_line(record: Mapping[str, Any]) -> str:
     """A posterior file's diagnostics in one line (the rule's log)."""
     d = record["diagnostics"]
     verdict = "trusted" if d["trusted"] else "NOT trusted"
     return (
-        f"{record['vehicle']} {record['model']}: R-hat <= {d['r_hat_max']:.4f}, bulk ESS >= "
+        f"{record['vehicle']} {record['model']}: R-hat <= {_r_hat(d['r_hat_max'], 4)}, bulk ESS >= "
         f"{d['ess_bulk_min']:.0f}, {d['divergences']} divergences, {verdict}"
     )
 
@@ -348,7 +354,7 @@ def pooling_markdown(table: pd.DataFrame, source: str) -> str:
         post = _cell(r["posterior"], r["posterior_lo"], r["posterior_hi"])
         if not r["trusted"]:
             post += " (not trusted)"
-        diag = f"{r['r_hat_max']:.3f} / {r['ess_bulk_min']:.0f} / {int(r['divergences'])}"
+        diag = f"{_r_hat(r['r_hat_max'], 3)} / {r['ess_bulk_min']:.0f} / {int(r['divergences'])}"
         lines.append(
             f"| {r['vehicle']} ({r['model']}) | {r['parameter']} | {ml} "
             f"| {_cell(r['prior'], r['prior_lo'], r['prior_hi'])} | {post} | {diag} "

@@ -373,10 +373,13 @@ def for_vehicle(
 _SHORT = {"dT/dt": "T", "dT_veh/dt": "T_veh"}
 
 
-def summary_table(results: Mapping[str, Mapping[str, Any]], source: str) -> pd.DataFrame:
+def summary_table(
+    results: Mapping[str, Mapping[str, Any]], source: str | Mapping[str, str]
+) -> pd.DataFrame:
     """One row per vehicle (from its sindy.yaml): verdict, the terms kept against eq. 14,
     SINDy's coefficient of each term (``<eq>:<term>``, 0 where dropped) and the PEM-implied
-    one (``pem_<eq>:<term>``), the reasons and the data source."""
+    one (``pem_<eq>:<term>``), the reasons and the data source (``source``: one for every
+    row, or each vehicle's)."""
     rows = []
     for vid, data in results.items():
         row: dict[str, Any] = {"vehicle": vid, "verdict": data["verdict"]}
@@ -397,7 +400,7 @@ def summary_table(results: Mapping[str, Mapping[str, Any]], source: str) -> pd.D
                 row[f"pem_{_SHORT[t['equation']]}:{t['term']}"] = t.get("grey_box", float("nan"))
         row["tau_fast_h"] = data.get("tau_fast_h")
         row["reasons"] = " | ".join(data["reasons"])
-        row["source"] = source
+        row["source"] = source if isinstance(source, str) else source[vid]
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -10,7 +10,7 @@ from railtherm.study import aggregate
 log = logs.to_file(snakemake.log[0])
 fits = [rt_io.read_fit(p) for p in snakemake.input.fits]
 source = aggregate.data_source(snakemake.params.data)
-table = aggregate.model_table(fits, source)
+table = aggregate.model_table(fits)  # each row its own source
 tables.write_csv(table, snakemake.output.csv)
 selection = tableformat.model_selection_markdown(fits)
 Path(snakemake.output.md).write_text(

@@ -1,7 +1,7 @@
 """Adapter for rule reference_validation: the class reference model, leave-one-out."""
 
 from railtherm import logs
-from railtherm.study import aggregate, classvalidation
+from railtherm.study import classvalidation
 from railtherm.study.scenario import load_scenario
 
 log = logs.to_file(snakemake.log[0])
@@ -21,7 +21,7 @@ table = classvalidation.study_leave_one_out(
 classvalidation.write_validation(
     table,
     scenario,
-    aggregate.data_source(vehicles),
+    vehicles,
     snakemake.output.csv,
     snakemake.output.md,
     snakemake.output.png.removesuffix(".png"),
