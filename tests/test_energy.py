@@ -517,6 +517,13 @@ def test_the_study_files_give_a_row_per_vehicle_climate_and_variant(
     table = energy.study_table(tables, fits, vids)
     assert set(table["profile"]) == {"metro_service"}
     assert list(table["vehicle"].unique()) == ["Metro2"]
+    # the vehicle left out is named with its verdict (before: absent without a word)
+    assert list(table.attrs["verdicts"]) == ["Metro3"]
+    csv, md = tmp_path / "energy.csv", tmp_path / "energy.md"
+    profile = energy.load_profile(profile_file)
+    energy.write_study_energy(table, [profile], 3600.0, "test", csv, md, str(tmp_path / "f"))
+    left = f"without an acceptable fit of any order: Metro3 ({table.attrs['verdicts']['Metro3']})"
+    assert left in md.read_text(encoding="utf-8")
     assert list(zip(table["climate"], table["variant"], strict=True)) == [
         ("Sand Point", "base"),
         ("Sand Point", "k -10 %"),

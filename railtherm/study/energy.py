@@ -925,6 +925,10 @@ def study_markdown(table, profiles: Sequence[Profile], dt_s: float, source: str)
     for _, r in table[table["variant"] == "base"].iterrows():
         cells = [band(r, key) for key in (*BALANCE, "energy_kWh")]
         lines.append(f"| {r['vehicle']} | {r['climate']} | " + " | ".join(cells) + " |")
+    left_out = table.attrs.get("verdicts") or {}
+    if left_out:
+        named = "; ".join(f"{vid} ({verdict})" for vid, verdict in left_out.items())
+        lines += ["", f"Not in the tables, without an acceptable fit of any order: {named}."]
     return "\n".join(lines) + "\n"
 
 
@@ -983,17 +987,20 @@ def vehicle_energy(
 
 def study_table(tables: Sequence[str], fit_files: Sequence[str], fit_vehicles: Sequence[str]):
     """The study's annual energy table (rule energy_table): the vehicles' tables (rule
-    energy, in study order) one after the other; an empty table carries each vehicle's fit
-    verdict (``fit_files`` of the vehicles ``fit_vehicles`` names) for its statement."""
+    energy, in study order) one after the other; it carries (``attrs["verdicts"]``) the fit
+    verdict of each vehicle without a row (``fit_files`` of the vehicles ``fit_vehicles``
+    names), which its Markdown names."""
     import pandas as pd
 
     parts = [pd.read_csv(path) for path in tables]
     parts = [part for part in parts if not part.empty]
     columns = study_columns()
     table = pd.concat(parts, ignore_index=True)[columns] if parts else pd.DataFrame(columns=columns)
-    if table.empty:
-        fits = _best_fits(fit_files, fit_vehicles)
-        table.attrs["verdicts"] = {vid: str(fit.verdict) for vid, fit in fits.items()}
+    # the vehicles without a row (no acceptable fit of any order), each with its verdict
+    shown = set(table["vehicle"].astype(str))
+    owners = [(v, f) for v, f in zip(fit_vehicles, fit_files, strict=True) if v not in shown]
+    fits = _best_fits([f for _, f in owners], [v for v, _ in owners])
+    table.attrs["verdicts"] = {vid: str(fit.verdict) for vid, fit in fits.items()}
     return table
 
 
