@@ -126,6 +126,10 @@ def _validate(args: argparse.Namespace) -> int:
             not_written += checked.not_written
             for warning in checked.warnings:
                 print(f"warning: {warning}", file=sys.stderr)
+        from railtherm.data.datacheck import shared_records
+
+        for warning in shared_records(study):
+            print(f"warning: {warning}", file=sys.stderr)
         summary += f", values of {windows} window{'' if windows == 1 else 's'} checked"
         years = 0 if args.vehicles else _weather_years(args)
         if years:

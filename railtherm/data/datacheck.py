@@ -39,6 +39,23 @@ class DataCheck:
 PLAUSIBLE_STEP_S = (1.0, 3 * 3600.0)
 
 
+def shared_records(study: Study) -> list[str]:
+    """A sentence per group of vehicles that read the same raw files over the same
+    identification windows: one record, which every class statistic would count as many
+    vehicles (copies of one test, a vehicle added twice under two ids)."""
+    groups: dict[tuple, list[str]] = {}
+    for vid, vehicle in study.vehicles.items():
+        windows = json.dumps(vehicle.windows.get("identification"), sort_keys=True, default=str)
+        groups.setdefault((tuple(sorted(vehicle.raw_files.values())), windows), []).append(vid)
+    return [
+        f"vehicles {', '.join(ids)} read the same raw files ({', '.join(files)}) over the same "
+        f"identification windows: one record under {len(ids)} ids (a statistic over vehicles "
+        f"would count it {len(ids)} times)"
+        for (files, _), ids in groups.items()
+        if len(ids) > 1
+    ]
+
+
 def step_warnings(vehicle: Vehicle) -> list[str]:
     """A sentence per raw file whose logger step is implausible for a thermal record, naming
     the declared time unit and the steps the same numbers would give in the other units (with

@@ -6,10 +6,11 @@ import re
 from pathlib import Path
 
 from snakemake.exceptions import WorkflowError
+from snakemake.logging import logger
 
 from railtherm import codedigest, synth
 from railtherm.config import energy_profile, load_study
-from railtherm.data.datacheck import check_study_values
+from railtherm.data.datacheck import check_study_values, shared_records
 from railtherm.data.rawfile import DigestCache
 from railtherm.errors import RailthermError
 from railtherm.study import fitsettings
@@ -84,6 +85,8 @@ try:
     )
 except RailthermError as err:
     raise WorkflowError(f"invalid raw data: {err}") from None
+for _warning in shared_records(STUDY):  # as railtherm validate warns
+    logger.warning(f"warning: {_warning}")
 
 
 @functools.cache
