@@ -549,11 +549,9 @@ def _parameter_draws(ps, draws: int, seed: int, volume_m3: float | None):
     withheld = ps.band_withheld
     rng = np.random.default_rng(seed)
     thetas, rejected, unbounded = sim.parameter_draws(ps, 0 if withheld else draws, rng, floor)
-    notes = [n for n in (sim.central_below_air(ps, floor, volume_m3), withheld, unbounded) if n]
-    if rejected:
-        share = rejected / (rejected + draws)
-        notes.append(sim.rejected_note(share, f" ({rejected} of {rejected + draws})"))
-    return thetas, rejected, notes
+    notes = [sim.central_below_air(ps, floor, volume_m3), withheld, unbounded]
+    notes.append(sim.replaced_note(rejected, draws))
+    return thetas, rejected, [n for n in notes if n]
 
 
 def _ready_inputs(variant_profiles, until, steps, variant, limit: float) -> tuple:

@@ -21,7 +21,7 @@ import pandas as pd
 from railtherm.data import plausibility as units_plausibility
 from railtherm.errors import ConfigError
 from railtherm.estimation import common, metrics, models, pem
-from railtherm.estimation.priors import LinearT
+from railtherm.estimation.priors import LinearT, bounded, prior_from_config
 from railtherm.estimation.profile import kalman_profile, output_error_profile
 from railtherm.records import EstimateRecord, JudgedEstimate, ParameterEstimate
 from railtherm.study import identifiability
@@ -591,16 +591,20 @@ def judge_identification(
     physical = dict(physical or {})
     content = fitted.to_dict()
     pinned = {p for f in content["flags"] if f["code"] == "at_bound" for p in f["parameters"]}
+    # the search's bounds: a uniform prior narrows them (a class prior's terms do not)
+    uniform = {
+        p: prior_from_config(spec, p)
+        for p, spec in (content.get("priors") or {}).items()
+        if spec.get("kind") == "uniform"
+    }
+    searched = bounded(bounds, uniform)
     flags = [f for f in content["flags"] if f["code"] != "wide_interval"]
     for p, entry in content["parameters"].items():
         if not entry.get("estimated"):
             continue
         at_bound = None
         if p in pinned:
-            lo_b, hi_b = (float(b) for b in bounds[p])
-            uniform = (content.get("priors") or {}).get(p) or {}
-            if uniform.get("kind") == "uniform":  # a uniform prior narrowed the search
-                lo_b, hi_b = max(lo_b, uniform["lower"]), min(hi_b, uniform["upper"])
+            lo_b, hi_b = (float(b) for b in searched[p])
             lower = abs(math.log(entry["value"] / lo_b)) <= abs(math.log(hi_b / entry["value"]))
             at_bound = ("lower", lo_b) if lower else ("upper", hi_b)
             if lower and p in physical:

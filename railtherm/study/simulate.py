@@ -109,6 +109,14 @@ def band_draws_problem(draws: int) -> str | None:
     )
 
 
+def replaced_note(rejected: int, kept: int) -> str:
+    """:func:`rejected_note` of ``rejected`` draws replaced for ``kept`` ones, with the
+    counts ("" when none was replaced)."""
+    if not rejected:
+        return ""
+    return rejected_note(rejected / (rejected + kept), f" ({rejected} of {rejected + kept})")
+
+
 def rejected_note(share: float, counts: str = "") -> str:
     """The sentence on a ``share`` of parameter draws rejected at the physical limits, with
     ``counts`` in words after "draws" where known; from :data:`LIMIT_DOMINATED` on it says
@@ -230,11 +238,7 @@ class SimulationResult:
 
     def limit_note(self) -> str:
         """A sentence on the draws rejected at the physical limits ("" when none was)."""
-        if not self.rejected:
-            return ""
-        return rejected_note(
-            self.rejected_share, f" ({self.rejected} of {self.draws + self.rejected})"
-        )
+        return replaced_note(self.rejected, self.draws)
 
     def to_dict(self) -> dict[str, Any]:
         out = {
