@@ -88,7 +88,7 @@ def test_the_replicates_table_prints_a_bias_a_positive_parameter_can_have_and_no
     from railtherm.study.replicates import Replicates, markdown
 
     runs = Replicates(8, {"C_veh": 0.08}, {"C_veh": 1e-9}, {"C_veh": -6.9})
-    assert "| C_veh | 17 % | 1.96e-07 % | 0.00 | -1e+02 % |" in markdown(runs)
+    assert "| C_veh | 17 % | 1.96e-07 % | 0.00 | -99.9 % |" in markdown(runs)
     none = markdown(Replicates(0, {"C": 0.01}, {"C": math.nan}, {"C": math.nan}, failed=8))
     assert "nan" not in none and "0 runs fitted: no realised spread" in none
     assert "differ by more than" not in none

@@ -96,8 +96,7 @@ LOOP_GAIN_FLAG = 0.5
 # From g . S = 1 on, the alternation of balance and fit runs away (the fits settle them by the
 # secant method) and the linear fixed point's errors fall again as g . S grows (a factor
 # 1 / |1 - g . S|), a promise the replicates do not bear out (campaign fits from such
-# programmes collapsed); the independent generator's replicates check the prediction below
-# it. A search for a better programme keeps below it.
+# programmes collapsed). A search for a better programme keeps below it.
 LOOP_GAIN_MAX = 1.0
 
 

@@ -230,7 +230,7 @@ def markdown(replicates: Replicates) -> str:
     for p in r.predicted:
         ratio = r.ratio(p)
         # the bias as the geometric mean's change, exp(mean log(estimate / truth)) - 1
-        bias = f"{100 * math.expm1(r.bias[p]):+.2g} %" if math.isfinite(r.bias[p]) else "none"
+        bias = f"{100 * math.expm1(r.bias[p]):+.3g} %" if math.isfinite(r.bias[p]) else "none"
         lines.append(
             f"| {p} | {half(r.predicted[p])} | {half(r.realised[p])} | "
             f"{f'{ratio:.2f}' if math.isfinite(ratio) else 'none'} | {bias} |"
