@@ -378,3 +378,18 @@ def test_an_implausible_prediction_says_what_to_check():
     assert any("beyond what a vehicle's interior reaches" in n and "in W" in n for n in out.notes)
     ordinary = sim.simulate(first_order_fit(), scenario(24 * 3600.0, 600.0, -10.0, 20_000.0))
     assert not any("beyond what" in n for n in ordinary.notes)
+
+
+def test_no_load_means_no_heating_not_rounding_noise(fit_files):
+    """Outdoor air at the set point from a steady start: nothing to heat. The PI law's
+    difference of near-equal terms left about 1e-12 W in some draws, printed as an energy of
+    0 [0, 3.65e-12] kWh; a power below the controller's resolution is none."""
+    fit = read_fit(fit_files("Metro1", "order2")[0])
+    ctl = Controller(kind="pi", setpoint_C=20.0, power_max_W=60_000.0)
+    sc = scenario(6 * 3600.0, 60.0, 20.0, controller=ctl, initial=Initial("steady"))
+    out = sim.simulate(fit, sc, draws=40, seed=1)
+    for name in ("energy_kWh", "peak_power_W"):
+        o = out.outcomes[name]
+        assert (o.value, o.lo, o.hi) == (0.0, 0.0, 0.0), o
+    assert out.outcomes["energy_kWh"].text() == "0 [0, 0] kWh"
+    assert (out.series["heating_W"] == 0.0).all()

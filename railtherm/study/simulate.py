@@ -89,6 +89,10 @@ Z95 = 1.959963984540054
 DEFAULT_DRAWS = 200
 PI_KP_PER_W = 0.5  # default PI gain: full power at a 2 K error (kp = power_max / 2 K)
 PI_TI_S = 1800.0  # default PI integral time (s)
+# a controller's power below this is rounding, not heating: where the load is nil (outdoor air
+# at the set point) the PI law's difference of near-equal terms leaves about 1e-12 W, which a
+# heater does not resolve and a printed energy must not show as 3.65e-12 kWh
+POWER_RESOLUTION_W = 1e-6
 DRAW_FACTOR = 1e8  # a class model's draws are held within this factor of its centre
 MAX_DRAW_ROUNDS = 50  # rejection sampling: at most this many batches of draws per band
 LIMIT_DOMINATED = 0.025  # a rejected share from which a band's end rests on the limit
@@ -741,6 +745,7 @@ def _run(
             e = ctl.setpoint_C - T
             raw = kp * e + integral
             p = np.clip(raw, ctl.power_min_W, ctl.power_max_W)
+            p = np.where(np.abs(p) < POWER_RESOLUTION_W, 0.0, p)
             saturated = ((raw >= ctl.power_max_W) & (e > 0)) | ((raw <= ctl.power_min_W) & (e < 0))
             integral = integral + np.where(saturated, 0.0, kp * e * dt / ti)
         P[:, k] = p
@@ -805,6 +810,7 @@ def _initial(
         scenario.controller.power_min_W,
         scenario.controller.power_max_W,
     )
+    power = np.where(np.abs(power) < POWER_RESOLUTION_W, 0.0, power)
     U0 = np.tile(u0, (S, 1))
     U0[:, 1] += power
     return -np.linalg.solve(A, np.einsum("sij,sj->si", B, U0)[..., None])[..., 0], power
