@@ -594,6 +594,7 @@ def _energy(args: argparse.Namespace) -> int:
         )
     year = read_weather(os.path.join(workdir, args.weather), kind=args.kind)
     params = sim.load_parameters(os.path.join(workdir, args.params))
+    surface = _reference_surface(params, args.surface_m2)
     with _progress_bar(f"annual energy of {os.path.basename(args.params)}") as progress:
         result = energy.annual_energy(
             params,
@@ -605,14 +606,14 @@ def _energy(args: argparse.Namespace) -> int:
             seed=args.seed,
             volume_m3=args.volume_m3,
             hold=args.hold,
-            surface_m2=args.surface_m2,
+            surface_m2=surface,
             progress=progress,
         )
     print(energy.markdown(result))
     if out is not None:
         ids = {
             "vehicle": result.label,
-            "class": "",
+            "class": params.vehicle_class,
             "model": params.structure.name,
             "profile": profile.name,
             "climate": year.name,
@@ -624,6 +625,25 @@ def _energy(args: argparse.Namespace) -> int:
         for path in written:
             print(f"wrote {path}", file=sys.stderr)
     return 0
+
+
+def _reference_surface(params: Any, given: float | None) -> float | None:
+    """The outer surface that sizes a per-m² heater: ``--surface-m2`` (``given``) or, for a
+    class reference model, the surface it was built for; both, when they differ, contradict
+    each other (the model's kA and capacities are those of its own surface)."""
+    own = params.surface_m2
+    if given is None or own is None:
+        return own if given is None else given
+    if not math.isclose(given, own, rel_tol=1e-9):
+        raise ConfigError(
+            "--surface-m2",
+            "surface_m2",
+            given,
+            f"the class reference model was built for {own:g} m² (its kA and capacities are "
+            "that surface's): leave --surface-m2 out, or build the model for this surface "
+            "(railtherm reference --surface-m2)",
+        )
+    return given
 
 
 @contextlib.contextmanager

@@ -644,3 +644,28 @@ def test_a_surface_the_profile_does_not_use_is_said_to_be_unused(fit_files, caps
     assert main([*args, "--surface-m2", "1"]) == 0
     err = capsys.readouterr().err
     assert "--surface-m2 is not used: profile metro_service gives its heating limit in W" in err
+
+
+def test_a_class_reference_models_table_names_its_class(tmp_path, capsys):
+    """``railtherm energy REF --out DIR`` on a class reference model: a profile's heater per m²
+    is sized by the surface the model was built for (it asked for --surface-m2 again), a
+    different --surface-m2 is refused, and the table's class column says the class (it was
+    left empty)."""
+    from railtherm.cli import main
+
+    ref = tmp_path / "regional.yaml"
+    argv = ["reference", "--class", "regional", "--mass-kg", "45000", "--surface-m2", "400"]
+    assert main([*argv, "-d", str(REPO), "--out", str(ref)]) == 0
+    out = tmp_path / "out"
+    args = ["energy", str(ref), "--weather", str(SAND_POINT), "--profile"]
+    args += [str(REPO / "config" / "profiles" / "classes" / "regional.yaml")]
+    args += ["--step-s", "3600", "--draws", "0"]
+    assert main([*args, "--surface-m2", "250"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("--surface-m2: key 'surface_m2' = 250") and "built for 400 m²" in err
+    assert main([*args, "--surface-m2", "400"]) == 0
+    explicit = capsys.readouterr().out
+    assert main([*args, "--out", str(out)]) == 0
+    assert capsys.readouterr().out == explicit
+    table = pd.read_csv(out / "energy.csv", keep_default_na=False)
+    assert list(table["class"]) == ["regional"]

@@ -165,6 +165,8 @@ class ParameterSet:
     band_sources: tuple[str, ...] = ()
     not_identified: tuple[str, ...] = ()
     band_withheld: str = ""
+    vehicle_class: str = ""  # a class reference model's class; a fit file does not name one
+    surface_m2: float | None = None  # the outer surface a class reference model was built for
 
 
 @dataclass(frozen=True)
@@ -400,6 +402,8 @@ def parameter_set(params: Any) -> ParameterSet:
             draw=lambda n, rng: _bounded(params.draws(n, seed=int(rng.integers(2**31))), theta),
             band_sources=("spread of the class's vehicles (95 % prediction)",),
             band_withheld=_class_band_withheld(judged, structure),
+            vehicle_class=params.vehicle_class,
+            surface_m2=params.surface_m2,
         )
     raise TypeError(f"cannot simulate a {type(params).__name__}: give a Fit or a ReferenceModel")
 
