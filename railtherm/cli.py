@@ -116,6 +116,12 @@ def _validate(args: argparse.Namespace) -> int:
     summary = f"ok: {count} vehicle{'' if count == 1 else 's'}"
     if references:
         summary += f", {references} reference file{'' if references == 1 else 's'}"
+    if not args.vehicles:
+        from railtherm.study.plan import figure_warnings
+
+        config = read_yaml(os.path.join(workdir, args.config), display=args.config) or {}
+        for warning in figure_warnings(study, config):
+            print(f"warning: {warning}", file=sys.stderr)
     if not args.headers_only:
         from railtherm.data.datacheck import check_values  # pandas only when reading values
 

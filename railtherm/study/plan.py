@@ -19,11 +19,55 @@ from railtherm.data import ingest
 from railtherm.errors import ConfigError
 from railtherm.study import fitsettings
 
-__all__ = ["STUDY_TABLES", "VEHICLE_ID", "StudyPlan"]
+__all__ = ["STUDY_TABLES", "VEHICLE_ID", "StudyPlan", "figure_warnings"]
 
 VEHICLE_ID = "[A-Za-z][A-Za-z0-9_-]*"  # a vehicle id, as the vehicle schema spells it
 STUDY_TABLES = ("table1", "table2", "table3", "class_summary", "class_test")
 FIGURE_FORMATS = ("png", "svg")
+
+
+def figure_warnings(study: Study, config: Mapping[str, Any]) -> list[str]:
+    """A sentence per study figure the config asks for but the study cannot draw: Figure 3's
+    vehicle without model orders 1 and 2, a Figure 4 vehicle without order 2, and a name of
+    no vehicle of the study where the config gives one other than the default (a misspelt
+    id; the default's vehicles are often left out of a study on purpose). ``config``: the
+    study config, defaults filled in or not (``railtherm validate`` and the workflow's parse
+    warn alike)."""
+    from railtherm.yamlio import packaged_schema
+
+    defaults = {
+        key: spec.get("default")
+        for key, spec in packaged_schema("study")["properties"]["study"]["properties"].items()
+    }
+    section = config.get("study") or {}
+    orders = {vid: set(v.model["orders"]) for vid, v in study.vehicles.items()}
+
+    def unknown(key: str, vid: str, consequence: str) -> str:
+        return (
+            f"study.{key} names {vid!r}, no vehicle of the study ({', '.join(orders) or 'none'}): "
+            f"{consequence}"
+        )
+
+    warnings = []
+    fig3 = section.get("figure3", defaults["figure3"])
+    if fig3 is not None and fig3 not in orders and fig3 != defaults["figure3"]:
+        warnings.append(unknown("figure3", fig3, "no Figure 3"))
+    elif fig3 in orders and not {1, 2} <= orders[fig3]:
+        warnings.append(
+            f"study.figure3 = {fig3!r}: its model.orders are {sorted(orders[fig3])}, and "
+            "Figure 3 compares orders 1 and 2: no Figure 3 (add order 1 and 2 to the "
+            "vehicle, or name another)"
+        )
+    fig4 = list(section.get("figure4", defaults["figure4"]) or [])
+    for vid in fig4:
+        if vid not in orders and fig4 != defaults["figure4"]:
+            warnings.append(unknown("figure4", vid, "Figure 4 leaves it out"))
+        elif vid in orders and 2 not in orders[vid]:
+            warnings.append(
+                f"study.figure4 names {vid!r}, whose model.orders {sorted(orders[vid])} have "
+                "no second order: Figure 4 leaves it out"
+            )
+    return warnings
 
 
 class StudyPlan:

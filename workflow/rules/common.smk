@@ -15,7 +15,7 @@ from railtherm.data.rawfile import DigestCache
 from railtherm.errors import RailthermError
 from railtherm.study import fitsettings
 from railtherm.study import reference as rt_reference
-from railtherm.study.plan import STUDY_TABLES, VEHICLE_ID, StudyPlan
+from railtherm.study.plan import STUDY_TABLES, VEHICLE_ID, StudyPlan, figure_warnings
 from railtherm.study.scenario import load_scenario
 
 # where a conda job's post-deploy script finds the repository to install railtherm from
@@ -85,7 +85,7 @@ try:
     )
 except RailthermError as err:
     raise WorkflowError(f"invalid raw data: {err}") from None
-for _warning in shared_records(STUDY):  # as railtherm validate warns
+for _warning in shared_records(STUDY) + figure_warnings(STUDY, config):  # as validate warns
     logger.warning(f"warning: {_warning}")
 
 
