@@ -51,6 +51,18 @@ def test_the_campaign_targets_are_the_committed_outputs(campaign_plan):
     assert len(campaign_plan.all_outputs()) == len(targets)  # no target twice
 
 
+def test_the_tables_name_the_vehicles_they_leave_out(campaign_plan, validation_plan):
+    """Tables 1-3 are of second-order fits: a vehicle without one is named in their notes
+    (rule aggregate's left_out), none in the shipped study; in the validation study the
+    Armadillo variants fitting order 1 alone are."""
+    assert campaign_plan.without_second_order() == {}
+    left_out = validation_plan.without_second_order()
+    assert left_out and all(2 not in orders for orders in left_out.values())
+    assert set(left_out) | set(validation_plan.second_order_vehicles()) == set(
+        validation_plan.vehicles
+    )
+
+
 def test_the_validation_study_plans_every_structure_and_estimator(validation_plan):
     """The Armadillo box fits order1 and interior_envelope by both estimators: six fits, a
     figure each, innovations for the Kalman ones; no paper tables (class other)."""

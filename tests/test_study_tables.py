@@ -397,6 +397,15 @@ def test_study_tables_are_written_with_their_source(tmp_path):
     tableformat.write_study_tables(tables, mixed, paths)
     md = (tmp_path / "table2.md").read_text(encoding="utf-8")
     assert "The synthetic rows' estimates come from" in md and "These re-estimates" not in md
+    assert "no second-order fit" not in md
+    # a vehicle with a first-order fit alone is named, not silently missing
+    tableformat.write_study_tables(tables, source, paths, left_out={"R1": [1], "Box": []})
+    for name in tables:
+        md = (tmp_path / f"{name}.md").read_text(encoding="utf-8")
+        assert (
+            "Not in Tables 1-3 nor the class statistics (no second-order fit): "
+            "R1 (model.orders [1]), Box (model.orders [])" in md
+        ), name
 
 
 def test_welch_with_fewer_than_three_vehicles_in_a_class_is_not_testable():

@@ -522,17 +522,28 @@ SYNTHETIC_NOTE = (
 
 
 def write_study_tables(
-    tables: Mapping[str, pd.DataFrame], source: str, paths: Mapping[str, str]
+    tables: Mapping[str, pd.DataFrame],
+    source: str,
+    paths: Mapping[str, str],
+    left_out: Mapping[str, Sequence[int]] | None = None,
 ) -> None:
     """Each table as CSV (at ``tables.SIGNIFICANT_DIGITS`` significant digits, a ``source``
     column), Markdown and LaTeX (formatted as the paper from the same rounded numbers, the
-    source in the caption); ``paths`` maps "<name>_<csv|md|tex>" to files."""
+    source in the caption); ``paths`` maps "<name>_<csv|md|tex>" to files. ``left_out``:
+    {vehicle: its model orders} of the study's vehicles without a second-order fit, which
+    the Markdown names (the tables are of second-order fits)."""
     for name, df in tables.items():
         df = round_significant(df)
         if "source" not in df.columns:
             df["source"] = source
         write_csv(df, paths[f"{name}_csv"])
         notes = NOTES[name] + not_given_notes(name, tables)
+        if left_out:
+            named = ", ".join(f"{vid} (model.orders {list(o)})" for vid, o in left_out.items())
+            notes += [
+                f"Not in Tables 1-3 nor the class statistics (no second-order fit): {named}; "
+                "their fits are in results/tables/models.md."
+            ]
         if source.startswith("mixed:"):  # the note is about the synthetic rows only
             notes += [SYNTHETIC_NOTE.replace("These re-estimates", "The synthetic rows' estimates")]
         elif "synthetic" in source:

@@ -195,6 +195,15 @@ class StudyPlan:
         """Vehicles with a second-order fit: the rows of Tables 2 and 3."""
         return tuple(vid for vid, n in self.fit_targets() if n == 2)
 
+    def without_second_order(self) -> dict[str, list[int]]:
+        """{vehicle: its model orders} of the vehicles the paper's tables leave out (no
+        second-order fit), in study order: the tables name them."""
+        second = set(self.second_order_vehicles())
+        vehicles = self.study.vehicles
+        return {
+            vid: sorted(vehicles[vid].model["orders"]) for vid in self.vehicles if vid not in second
+        }
+
     def energy_fits(self) -> tuple[tuple[str, int], ...]:
         """(vehicle, order) of the fits the annual energy chooses from, per vehicle the
         second order first: the study uses a vehicle's second-order fit where acceptable,

@@ -123,6 +123,7 @@ rule aggregate:
         vehicles={vid: STUDY.vehicles[vid].data for vid in second_order_vehicles()},
         with_kvalue=[vid for vid in second_order_vehicles() if has_kvalue(vid)],
         with_first_order=[vid for vid in second_order_vehicles() if has_fit(vid, 1)],
+        left_out=PLAN.without_second_order(),
         class_test=config["study"]["class_test"],
         code=script_code("aggregate.py"),
     log:

@@ -22,5 +22,7 @@ tables = aggregate.study_tables(fits, kvalues, vehicles, snakemake.params.class_
 source = aggregate.data_source(vehicles)
 if any(fit.estimator == "kalman" for fit in fits.values()):
     source += "; heat capacities by the Kalman-filter estimator (study.estimator: kalman)"
-tableformat.write_study_tables(tables, source, dict(snakemake.output))
+tableformat.write_study_tables(
+    tables, source, dict(snakemake.output), left_out=snakemake.params.left_out
+)
 log.info("tables of %d vehicles", len(vehicles))
