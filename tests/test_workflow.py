@@ -107,3 +107,24 @@ def test_the_workflow_reads_the_study_config_as_validate_does(tmp_path, text, re
     said = run.stdout + run.stderr
     assert "invalid configuration: config/config.yaml" in said
     assert reason in said
+
+
+def test_the_reports_introduction_says_synthetic_only_with_a_virtual_campaign():
+    """The report's introduction (workflow/report/workflow.rst, rendered by Snakemake with
+    Jinja2 and the study config) said the records were synthetic in a study of measured
+    vehicles alone (campaign: null) too."""
+    import jinja2
+
+    text = (REPO / "workflow" / "report" / "workflow.rst").read_text(encoding="utf-8")
+
+    def intro(campaign):
+        snakemake_ = type("Snakemake", (), {"config": {"campaign": campaign}})
+        return (
+            jinja2.Environment(undefined=jinja2.StrictUndefined)
+            .from_string(text)
+            .render(snakemake=snakemake_, categories={}, files={})
+        )
+
+    assert "the records are **synthetic**" in intro("config/campaign/virtual_cwt.yaml")
+    measured = intro(None)
+    assert "synthetic**" not in measured and "no virtual campaign in this study" in measured
