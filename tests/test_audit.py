@@ -466,6 +466,30 @@ def test_a_threshold_without_a_sourced_kind_is_a_config_error_naming_the_key(tmp
     assert "audit.yaml" in str(err.value) and key in str(err.value)
 
 
+@pytest.mark.parametrize(
+    ("key", "unit", "expected"),
+    [
+        ("ranges.m_veh.tram", "t", "kg"),
+        ("ranges.k.all", "W/(m2 K)", "W/(m² K)"),
+        ("limits.total_specific_heat_max", "kJ/(kg K)", "J/(kg K)"),
+        ("thresholds.alpha", "%", "1"),
+    ],
+)
+def test_a_range_in_another_unit_is_refused_not_read_as_the_audits(tmp_path, key, unit, expected):
+    """The audit compares each range in one unit; a mass range written in t was read as kg
+    (every published mass then 'outside the class range')."""
+
+    def edit(data):
+        entry = data
+        for part in key.split("."):
+            entry = entry[part]
+        entry["unit"] = unit
+
+    with pytest.raises(ConfigError) as err:
+        audit.load_ranges(ranges_file(tmp_path, edit))
+    assert str(err.value).endswith(f"key '{key}.unit' = '{unit}': '{expected}' was expected")
+
+
 def test_the_audit_module_does_not_import_scipy():
     code = "import sys, railtherm.report.audit; print('scipy' in sys.modules)"
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
