@@ -95,8 +95,9 @@ COND_MAX = 1e12
 LOOP_GAIN_FLAG = 0.5
 # From g . S = 1 on, the alternation of balance and fit runs away (the fits settle them by the
 # secant method) and the linear fixed point's errors fall again as g . S grows (a factor
-# 1 / |1 - g . S|), a promise the replicates do not bear out (campaign fits from such
-# programmes collapsed). A search for a better programme keeps below it.
+# 1 / |1 - g . S|), a promise the virtual tunnel runs do not bear out: Metro2's spread is
+# 1.25-1.34 times the prediction at g . S 1.25, C_veh's 1.66 times at 3.23 (docs/design.md).
+# A search for a better programme keeps below it.
 LOOP_GAIN_MAX = 1.0
 
 
@@ -1176,8 +1177,9 @@ def markdown(assessment: Assessment) -> str:
         lines.append(
             f"The storage-corrected static kA and the fit pull each other away (g·S = "
             f"{gS:.2f}, at least {LOOP_GAIN_MAX:g}): their alternation runs away, the widths "
-            "above are a linear prediction unchecked there, and a search for a better "
-            "programme keeps out of it (lengthen the first phase, its steady state)."
+            "above are a linear prediction that is too narrow there (--replicates runs the "
+            "virtual tunnel), and a search for a better programme keeps out of it (lengthen "
+            "the first phase, its steady state)."
         )
     elif gS > LOOP_GAIN_FLAG:
         lines.append(

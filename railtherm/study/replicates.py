@@ -8,9 +8,10 @@ or with the prior's residual autocorrelation time, as an AR(1) process of the sa
 time), each sensor group's offset and the tunnel air's, the power meters' scale, the logged
 inputs' white noise and an error of the static kA of its own (``systematic.kA_rel``). The
 record is then fitted as the study's two-stage fit fits it: kA from the static k window (eq.
-10, or the storage-corrected balance solved together with the fit by the secant method, as
-:mod:`railtherm.study.storage` does), the capacities by simulation-error PEM (eqs. 15-20) with
-each fit window's initial states estimated. The spread of log theta over the runs is the
+10, or the storage-corrected balance solved together with the fit by the study's own solver,
+:func:`railtherm.study.storage.solve_storage_kA`, eq. 10's where it finds none), the
+capacities by simulation-error PEM (eqs. 15-20) with each fit window's initial states
+estimated. The spread of log theta over the runs is the
 realised width; where it differs from the prediction by more than a quarter, the linear
 prediction does not describe this programme (a parameter barely determined, a loop of kA and
 capacities near 1).
@@ -24,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from railtherm.estimation import kvalue, models, pem
+from railtherm.estimation import models, pem
 from railtherm.study import kwindow
 from railtherm.study.programme import (
     Programme,
@@ -79,39 +80,38 @@ def _noise(rng: np.random.Generator, n: int, sd: float, tau: float) -> np.ndarra
     return out
 
 
-def _static_kA(structure, programme, logged, y, outputs, theta, records, free):
+def _static_kA(structure, programme, logged, y, outputs, theta, records, free) -> float:
     """The two-stage fit's kA from the record: eq. 10 over the k window, or the storage-
-    corrected balance solved with the fit (the kA at which the fit's capacities give the
-    balance kA back)."""
-    from scipy.optimize import root_scalar
-
+    corrected balance solved with the fit as the study solves it
+    (:func:`railtherm.study.storage.solve_storage_kA`), eq. 10's where that finds none (a
+    capacity at a search bound, a balance that does not settle), as the study falls back."""
     a, b = k_window_rows(programme)
     T = y[a:b, outputs.index("T")]
-    T_veh = y[a:b, outputs.index("T_veh")] if "T_veh" in outputs else np.full(b - a, math.nan)
     excess = T - logged[a:b, 0]
     eq10 = float(np.sum(logged[a:b, 1]) / np.sum(excess))
     if not (programme.storage_correction and kwindow.storage_parameters(structure)):
-        return eq10, None
-    t = np.arange(b - a) * programme.step_s
-    fits: dict[float, pem.FitResult] = {}
+        return eq10
+    import pandas as pd
 
-    def fitted(kA: float) -> pem.FitResult:
-        if kA not in fits:
-            start = {p: theta[p] for p in free}
-            fits[kA] = pem.fit(
-                structure, records, fixed={"kA": kA}, x0="estimated", initial=start, **FAST
-            )
-        return fits[kA]
+    from railtherm.study.storage import solve_storage_kA
 
-    def gap(kA: float) -> float:
-        th = fitted(kA).theta
-        balance = kvalue.balance_of(
-            t, T, logged[a:b, 0], logged[a:b, 1], T_veh, th["C"], th["K_veh"], th["C_veh"]
-        )
-        return float(np.linalg.lstsq(balance.X, balance.y, rcond=None)[0][0]) / kA - 1.0
-
-    root = root_scalar(gap, x0=eq10, x1=eq10 * 1.001, method="secant", xtol=1e-7 * eq10)
-    return float(root.root), fitted(float(root.root))
+    window = pd.DataFrame(
+        {"time": np.arange(b - a) * programme.step_s, "T": T}
+        | {"T_o": logged[a:b, 0], "Q_H": logged[a:b, 1]}
+        | ({"T_veh": y[a:b, outputs.index("T_veh")]} if "T_veh" in outputs else {})
+    )
+    options = {
+        "fixed": {"kA": eq10},
+        "initial": {p: theta[p] for p in free},
+        "bounds": {},
+        "x0": "estimated",
+        **FAST,
+    }
+    try:
+        step, _, _ = solve_storage_kA(structure, records, options, eq10, window)
+    except (ValueError, np.linalg.LinAlgError, FloatingPointError):
+        return eq10
+    return step.kA_balance
 
 
 def _one(structure, programme, theta, free, outputs, noise, tau, rng) -> dict[str, float]:
@@ -141,14 +141,11 @@ def _one(structure, programme, theta, free, outputs, noise, tau, rng) -> dict[st
     if "kA" in free:
         start = {p: theta[p] for p in free}
         fit = pem.fit(structure, records, x0="estimated", initial=start, **FAST)
-    else:
-        kA, fit = _static_kA(structure, programme, logged, y, list(outputs), theta, records, free)
+    else:  # stage two at the record's kA, as the study's identify fits it
+        kA = _static_kA(structure, programme, logged, y, list(outputs), theta, records, free)
         kA *= math.exp(rng.normal(0.0, sys_.get("kA_rel", 0.0)))
-        if fit is None or "kA_rel" in sys_:
-            start = {p: theta[p] for p in free}
-            fit = pem.fit(
-                structure, records, fixed={"kA": kA}, x0="estimated", initial=start, **FAST
-            )
+        start = {p: theta[p] for p in free}
+        fit = pem.fit(structure, records, fixed={"kA": kA}, x0="estimated", initial=start, **FAST)
     return {p: math.log(fit.theta[p] / theta[p]) for p in free}
 
 

@@ -115,20 +115,10 @@ def storage_corrected_k(
         return record
     exps = experiments(structure, tables, input_hold(vehicle_data))
     options["input_noise"] = input_noise(structure, vehicle_data, exps)
-    fit_options = {**options, "fixed": dict(options["fixed"])}
-
-    balance = partial(
-        _balance,
-        structure=structure,
-        exps=exps,
-        fit_options=fit_options,
-        k_window=k_window,
-        relative=relative,
-    )
-
-    history: list[float] = []
     try:
-        step, method = _solve(balance, structure, exps, options, kA_eq10, k_window, history)
+        step, method, history = solve_storage_kA(
+            structure, exps, options, kA_eq10, k_window, relative
+        )
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:
         record["reason"] = f"the correction failed ({err}); eq. 10's kA is fixed"
         return record
@@ -158,6 +148,36 @@ def storage_corrected_k(
         history_kA=[float(v) for v in history],
     )
     return record
+
+
+def solve_storage_kA(
+    structure: Any,
+    exps: Sequence[Any],
+    options: Mapping[str, Any],
+    kA_eq10: float,
+    k_window: pd.DataFrame,
+    relative: Mapping[str, float] | None = None,
+) -> tuple[_StorageStep, str, list[float]]:
+    """The storage-corrected kA of :func:`storage_corrected_k` from its parts: stage two's
+    ``structure``, experiments ``exps`` and fit ``options`` (``options["fixed"]["kA"]`` eq.
+    10's ``kA_eq10``), the k window (columns time, T, T_o, Q_H, T_veh where measured) and the
+    components of u(kA) that stay (``relative``, relative to kA). Returns the settled step,
+    the solver ("alternation" or "secant") and the balances' kA on the way; raises
+    ValueError (or LinAlgError, FloatingPointError) where they do not settle, a capacity
+    sits at a search bound or the balance gives no positive kA. One solver for the study
+    and the design's virtual tunnel runs."""
+    fit_options = {**options, "fixed": dict(options["fixed"])}
+    balance = partial(
+        _balance,
+        structure=structure,
+        exps=exps,
+        fit_options=fit_options,
+        k_window=k_window,
+        relative=relative or {},
+    )
+    history: list[float] = []
+    step, method = _solve(balance, structure, exps, options, kA_eq10, k_window, history)
+    return step, method, history
 
 
 def _balance(
