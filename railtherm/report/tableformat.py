@@ -449,7 +449,9 @@ NOTES = {
         "acceptable' (results/vehicles/<id>/fit_order2.yaml gives the reasons for the others).",
     ],
     "table2": [
-        "k: the static test (eq. 10) with k ± 2 u(k), or kA / A estimated jointly when the "
+        "k: the static test (eq. 10) with k ± 2 u(k), corrected for the heat stored in the k "
+        "window where 'k from' says storage-corrected (the k whose kA the capacities were "
+        "fitted with; the k table keeps eq. 10's), or kA / A estimated jointly when the "
         "static k was not usable ('k from').",
         "C, K_veh, C_veh: simulation-error PEM (eqs. 15-20); intervals combine the statistical "
         "(HAC) and the systematic (GUM type B) uncertainty, each physical error source once "

@@ -473,7 +473,9 @@ def table2(
     ``fits``: vehicle -> its fit_order2.yaml; ``kvalues``: vehicle -> its kvalue.yaml (or None);
     ``vehicles``: vehicle -> its config; ``first_order``: vehicle -> its fit_order1.yaml, where
     fitted. k from the static test carries k +- 2 u(k) (expanded uncertainty, coverage factor
-    2, as the k table); k from joint estimation kA / A with kA's interval. C, K_veh, C_veh
+    2, as the k table), storage-corrected where the fit corrected it (the k whose kA the
+    capacities were fitted with; the k table keeps eq. 10's); k from joint estimation kA / A
+    with kA's interval. C, K_veh, C_veh
     intervals are the combined ones (statistical and systematic); a parameter the data do not
     determine, or coupled to one they do not determine (:func:`judged_parameters`), has no
     value, its status and any one-sided limit the data give (:func:`quantity`).
@@ -500,6 +502,10 @@ def table2(
                 judged_kA["limit_value"] = judged_kA["limit_value"] / A
             ci = [c / A for c in entry.ci95_combined or (math.nan, math.nan)]
             k = quantity(entry.value / A, ci, judged_kA)
+        elif fit.k_corrected is not None and fit.u_k_corrected is not None:
+            # the storage-corrected k the capacities were fitted with, not eq. 10's
+            U = COVERAGE_FACTOR * fit.u_k_corrected
+            k = quantity(fit.k_corrected, (fit.k_corrected - U, fit.k_corrected + U), {})
         else:
             U = COVERAGE_FACTOR * float(kv["u_k"])
             k = quantity(float(kv["k"]), (float(kv["k"]) - U, float(kv["k"]) + U), {})
