@@ -166,7 +166,10 @@ def test_campaign_vehicles_get_the_verdicts_their_declared_deviations_call_for(c
             assert any("dT_veh/dt needs a T_o term" in r for r in result.reasons)
         if result.verdict == sindy.TOO_POOR:
             assert result.reasons  # says why, judges nothing
+        if any("complex pair" in r for r in result.reasons):  # Metro3: no time constant
+            assert np.isnan(result.tau_fast_h), (vid, result.tau_fast_h)
     assert any("body_to_outdoor" in d for d in deviations.values())
+    assert any("complex pair" in r for res in verdicts.values() for r in res.reasons)
 
 
 def test_without_the_stage_pysindy_is_never_imported():
@@ -199,3 +202,17 @@ def test_no_coefficient_is_implied_from_a_parameter_the_data_do_not_determine():
     assert np.isnan(xi[0, 1]) and np.isnan(xi[1, 0])  # dT/dt: T_veh, dT_veh/dt: T
     assert lo[1, 0] == -np.inf and hi[1, 0] == np.inf
     assert np.isfinite(xi[0, 2]) and np.isfinite(xi[0, 3])  # kA/C and 1/C
+
+
+def test_an_oscillating_state_matrix_is_named_a_complex_pair():
+    """Metro3's unthresholded state matrix (as sindy.csv rounds it) has a complex pair of
+    eigenvalues, -0.214 ± 0.0666i 1/h: the reason printed "eigenvalues -0.214, -0.214" (two
+    equal real modes) and the yaml a fast time constant of 4.67 h from the real part (none
+    now: the campaign test)."""
+    A = np.array([[0.819, -0.975], [1.099, -1.247]])
+    xi = np.hstack([A, np.zeros((2, 2))])
+    ones = np.ones((2, 4))
+    (reason, *_) = sindy._physical(xi, ones, ones)
+    assert reason.endswith("(eigenvalues a complex pair -0.214 ± 0.0666i 1/h)"), reason
+    real = np.array([[-1.0, 0.5], [0.2, -0.3]])
+    assert sindy._eigenvalues_text(np.linalg.eigvals(real)) == "-1.12, -0.178"

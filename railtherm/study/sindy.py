@@ -229,15 +229,30 @@ def _block_bootstrap(
     return lo, hi
 
 
+def _oscillating(eig: np.ndarray) -> bool:
+    """Whether the eigenvalues are a complex pair: a mode that oscillates, which no network
+    of capacities and conductances has."""
+    return bool(np.any(np.abs(eig.imag) > 1e-9 * np.abs(eig).max()))
+
+
+def _eigenvalues_text(eig: np.ndarray) -> str:
+    """The eigenvalues for people: real ones in ascending order, a complex pair as
+    "a ± bi" (printing its real parts alone showed two equal, real, stable modes)."""
+    if _oscillating(eig):
+        e = eig[np.argmax(eig.imag)]
+        return f"a complex pair {e.real:.3g} ± {abs(e.imag):.3g}i"
+    return ", ".join(f"{v:.3g}" for v in np.sort(eig.real))
+
+
 def _physical(xi: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[str]:
     """Why the unthresholded fit is not a two-node thermal network (empty if it is)."""
     reasons = []
     A = xi[:, :2]
     eig = np.linalg.eigvals(A)
-    if np.any(eig.real >= 0) or np.any(np.abs(eig.imag) > 1e-9 * np.abs(eig).max()):
+    if np.any(eig.real >= 0) or _oscillating(eig):
         reasons.append(
             "the identified state matrix is not that of a cooling two-node network "
-            f"(eigenvalues {', '.join(f'{e.real:.3g}' for e in eig)} 1/h)"
+            f"(eigenvalues {_eigenvalues_text(eig)} 1/h)"
         )
     if lo[0, 1] <= 0 or lo[1, 0] <= 0:
         reasons.append(
@@ -262,7 +277,9 @@ def cross_check(
     lo, hi = _block_bootstrap(theta, dx, block, settings)
     xi = _stlsq(theta, dx, settings.threshold)
     eig = np.linalg.eigvals(full[:, :2])
-    tau_fast = float(1 / np.max(-eig.real)) if np.all(eig.real < 0) else float("nan")
+    # the fast time constant of two real, stable modes (none for a pair that oscillates)
+    stable = np.all(eig.real < 0) and not _oscillating(eig)
+    tau_fast = float(1 / np.max(-eig.real)) if stable else float("nan")
     reasons = _physical(full, lo, hi)
     if not reasons and tau_fast * HOUR < settings.min_fast_steps * step:
         reasons.append(
@@ -418,9 +435,9 @@ def summary_markdown(table: pd.DataFrame, source: str) -> str:
             "verdict": table["verdict"],
             "terms eq. 14 lacks, kept": table["extra_terms"].replace("", "–"),
             "dT_veh/dt: T_o (1/h)": [f"{x:.3g}" for x in table["T_veh:T_o"]],
-            "K_veh/C_veh (PEM) (1/h)": [pair(r, "T_veh:T") for _, r in table.iterrows()],
-            "kA/C (PEM) (1/h)": [pair(r, "T:T_o") for _, r in table.iterrows()],
-            "1/C (PEM) (K/(h kW))": [pair(r, "T:Q_H") for _, r in table.iterrows()],
+            "K_veh/C_veh: SINDy (PEM) (1/h)": [pair(r, "T_veh:T") for _, r in table.iterrows()],
+            "kA/C: SINDy (PEM) (1/h)": [pair(r, "T:T_o") for _, r in table.iterrows()],
+            "1/C: SINDy (PEM) (K/(h kW))": [pair(r, "T:Q_H") for _, r in table.iterrows()],
         }
     )
     lines = [
