@@ -390,3 +390,42 @@ def test_every_model_combination_that_validates_runs_to_the_end(tmp_path):
     }
     fits = pd.read_csv(study / "results" / "tables" / "identification.csv")
     assert sorted(fits["vehicle"]) == ["KalmanOnly", "NoOrders", "NoOrders", "Order2Envelope"]
+
+
+@pytest.mark.bad_input
+@pytest.mark.workflow
+def test_identification_windows_that_overlap_are_refused_by_validate_and_the_parse(
+    tmp_path, capsys
+):
+    """Two identification windows of one record sharing samples (a window added twice under
+    two names): the fit counted those samples twice and narrowed its intervals, without a
+    word. `railtherm validate` and the workflow's parse refuse it alike, naming both; windows
+    that meet at one instant are no overlap."""
+    from railtherm.cli import main
+
+    study = tmp_path / "validation"
+    shutil.copytree(VALIDATION / "config", study / "config")
+    shutil.copytree(REPO / "data", tmp_path / "data")
+    path = study / "config" / "vehicles" / "Armadillo.yaml"
+    data = yaml.safe_load(path.read_text())
+    (window,) = data["windows"]["identification"]
+    cfg_path = study / "config" / "config.yaml"
+    cfg = yaml.safe_load(cfg_path.read_text())
+    cfg["vehicles"], cfg["study"]["references"] = ["config/vehicles/Armadillo.yaml"], []
+    cfg_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    middle = (window["start"] + window["end"]) // 2
+    data["windows"]["identification"] = [
+        {**window, "name": "first", "end": middle},
+        {**window, "name": "second", "start": middle},
+    ]
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    assert main(["validate", "-d", str(study)]) == 0  # meeting at one instant
+    capsys.readouterr()
+    data["windows"]["identification"] = [window, {**window, "name": "again"}]
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    assert main(["validate", "-d", str(study)]) == 1
+    err = capsys.readouterr().err
+    assert "key 'windows.identification' = 'h2, again': the windows overlap on" in err, err
+    run = snakemake(study, "--dry-run")
+    assert run.returncode != 0
+    assert "key 'windows.identification' = 'h2, again'" in run.stdout + run.stderr

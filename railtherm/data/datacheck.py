@@ -13,13 +13,16 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+
+import pandas as pd
 
 from railtherm import codedigest
 from railtherm.config import Study, Vehicle
 from railtherm.data import ingest, timeaxis
 from railtherm.data.rawfile import DigestCache, RawLayout
+from railtherm.errors import ConfigError
 from railtherm.estimation import kvalue
 
 
@@ -126,6 +129,8 @@ def check_values(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> Dat
     value. Nothing is written."""
     out = DataCheck(warnings=step_warnings(vehicle))
     raws: dict[str, object] = {}
+    identification = {w["name"] for w in vehicle.windows.get("identification", [])}
+    spans: dict[str, list[tuple[str, object, object]]] = {}  # record: (window, first, last)
     for name in ingest.window_names(vehicle.data):
         raw_name, window, key = ingest.window_spec(vehicle.data, name)
         display = vehicle.raw_files[raw_name]
@@ -139,12 +144,41 @@ def check_values(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> Dat
         if display not in raws:
             raws[display] = ingest.read_record_part(record, vehicle.data, workdir)
         table = ingest.tidy(raws[display], vehicle.data, window, display, window_key=key)
+        if name in identification and len(table):
+            stamps = _instants(table["timestamp"])
+            spans.setdefault(display, []).append((name, stamps[0], stamps[-1]))
         if name == "kvalue":
             k = kvalue.for_vehicle(table, vehicle.data, source=f"{display} ({key})")
             if not k.steady:
                 out.warnings.append(k_window_warning(vehicle, display, k))
         out.windows.append(f"{vehicle.id}/{name}")
+    _refuse_overlaps(vehicle, spans)
     return out
+
+
+def _instants(stamps: pd.Series) -> list:
+    """A tidy table's ``timestamp`` column as comparable instants: seconds of an elapsed
+    time axis, or dates."""
+    numbers = pd.to_numeric(stamps, errors="coerce")
+    return list(numbers if numbers.notna().all() else pd.to_datetime(stamps))
+
+
+def _refuse_overlaps(vehicle: Vehicle, spans: Mapping[str, list[tuple[str, object, object]]]):
+    """A :class:`ConfigError` where two identification windows of one record share more than
+    an instant: the fit would count their common samples twice, as if the tunnel had
+    measured them twice, and its intervals would be too narrow."""
+    for display, windows in spans.items():
+        ordered = sorted(windows, key=lambda w: w[1])
+        for (a, _, a_end), (b, b_start, _) in zip(ordered, ordered[1:], strict=False):
+            if b_start < a_end:
+                raise ConfigError(
+                    vehicle.path,
+                    "windows.identification",
+                    f"{a}, {b}",
+                    f"the windows overlap on {display} from {b_start} to {a_end}: the fit "
+                    "would count those samples twice (its intervals too narrow); cut them "
+                    "apart or join them into one window",
+                )
 
 
 def _code_version() -> str:
