@@ -443,7 +443,7 @@ def _print_replicates(prior, programme, assessment, args: argparse.Namespace) ->
         args.seed,
         free=prior.free,
         noise_K=prior.noise_K,
-        tau_samples=prior.tau_samples,
+        tau_samples=prior.tau_at(programme.step_s),
     )
     print()
     print(replicates.markdown(runs))
@@ -473,6 +473,9 @@ def _design(args: argparse.Namespace) -> int:
         raise ConfigError(
             "--out", "out", args.out, "writes the programme of --optimise or --length-h: give one"
         )
+    _nonnegative(args, "seed")
+    if args.out:
+        _programme_out(args.out, os.path.join(workdir, args.out))
     prior = _design_prior(args, workdir)
     assessment = design.assess(prior, programme, target)
     found = None
@@ -541,9 +544,30 @@ def _design(args: argparse.Namespace) -> int:
     if args.out:
         if proposed is None:
             raise ConfigError("--out", "out", args.out, "no programme was found to write")
-        written = design.write_programme(proposed, os.path.join(workdir, args.out))
+        try:
+            written = design.write_programme(proposed, os.path.join(workdir, args.out))
+        except OSError as err:
+            raise ConfigError("--out", "out", args.out, f"cannot write there: {err}") from err
         print(f"\nWrote {written[0]} and its set-point schedule {written[1]}.")
     return 0
+
+
+def _programme_out(given: str, path: str) -> None:
+    """``--out`` of ``design``, checked before any search: a programme file (.yaml) in a
+    directory that exists, its set-point schedule (.csv) beside it; else a
+    :class:`ConfigError` naming it."""
+    from pathlib import Path
+
+    target = Path(path)
+    problem = None
+    if target.suffix.lower() not in (".yaml", ".yml"):
+        problem = "expected a programme file ending in .yaml (its schedule goes beside it, .csv)"
+    elif not target.parent.is_dir():
+        problem = f"no directory {target.parent} to write into"
+    elif target.is_dir() or target.with_suffix(".csv").is_dir():
+        problem = f"a directory is there ({target} or {target.with_suffix('.csv')})"
+    if problem:
+        raise ConfigError("--out", "out", given, problem)
 
 
 def _band_draws(draws: int) -> None:

@@ -621,3 +621,102 @@ def test_sensor_groups_give_the_noise_and_offsets_of_their_means(tmp_path):
     assert prog.systematic == pytest.approx({"T": 0.075, "T_o": 0.1 / np.sqrt(2)})
     with pytest.raises(ConfigError, match=r"'noise_K\.T'"):
         programme(tmp_path, {**data, "noise_K": {"T": 0.05}})
+
+
+def _short_programme(tmp_path: Path, step_s: float, name: str = "short") -> Path:
+    path = tmp_path / f"{name}.yaml"
+    data = {
+        "name": name,
+        "step_s": step_s,
+        "noise_K": {"T": 0.05, "T_veh": 0.05},
+        "kvalue": {"storage_correction": False},
+        "limits": {"max_power_W": 40000, "min_T_o_C": -30, "max_T_o_C": 40},
+        "phases": [
+            {"name": "steady", "hours": 24, "T_o_C": -10, "power_W": 20000, "identify": 1,
+             "window": "up"},
+            {"name": "up", "hours": 12, "T_o_C": -10, "power_W": 30000, "window": "up"},
+        ],
+    }  # fmt: skip
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def test_a_faster_logger_adds_correlated_samples_not_information(fit_files, tmp_path, capsys):
+    """Metro2's residuals (logged every 120 s) stay correlated over about 75 min: a programme
+    logged every 10 s gives as many independent samples as one at 120 s. The autocorrelation
+    time was taken in samples of the prior's record at any step, so a 10 s logger promised
+    intervals 3.5 times narrower (sqrt(120/10)); now they agree within 5 %."""
+    fit, _ = fit_files("Metro2", "order2")
+    prior = design.prior_from_fit_file(fit)
+    fast, slow = (
+        prior.predict(design.load_programme(_short_programme(tmp_path, s, f"s{s:g}")))
+        for s in (10.0, 120.0)
+    )
+    for p in ("C", "K_veh", "C_veh"):
+        assert fast.sd_log[p] == pytest.approx(slow.sd_log[p], rel=0.05), p
+    assert prior.tau_at(10.0)["T"] == pytest.approx(12 * prior.tau_at(120.0)["T"])
+
+
+@pytest.mark.bad_input
+def test_design_options_and_programme_keys_that_would_mislead_are_refused(
+    fit_files, tmp_path, capsys
+):
+    """Refused in one line naming the option or key, before any search, nothing written:
+    --max-power-w above the programme's limit (a programme of 1 GW was proposed and written,
+    "limits.max_power_W binds" printed beside it) or 0 (ZeroDivisionError), --min-phase-h
+    below ten logger steps (phases of 6e-49 h were written), --length-h nan, --seed -1, an
+    --out that is no .yaml, in no directory or onto a directory (tracebacks after the
+    search, a .csv written over the .yaml), a noise_K key that is no state of the model (a
+    typo `Tveh` silently dropped T_veh from the fit: C_veh ±72 % against ±10 %)."""
+    from railtherm.cli import main
+
+    fit, _ = fit_files("Metro2", "order2")
+    programme = _short_programme(tmp_path, 60.0)
+    base = ["design", str(programme), "--vehicle", str(fit), "--draws", "2"]
+    search = [*base, "--target", "C_veh=10%", "--length-h", "48"]
+    (tmp_path / "dir.yaml").mkdir()
+    cases = [
+        (["--max-power-w", "1e9"], "--max-power-w: key 'max_power_w' = 1000000000.0: above"),
+        (["--max-power-w", "0"], "--max-power-w: key 'max_power_w' = 0.0: expected a power"),
+        (["--min-phase-h", "0"], "--min-phase-h: key 'min_phase_h' = 0.0: expected at least"),
+        (["--length-h", "nan"], "--length-h: key 'length_h' = nan: expected a length"),
+        (["--seed", "-1"], "--seed: key 'seed' = -1"),
+        (["--out", str(tmp_path / "p.csv")], "expected a programme file ending in .yaml"),
+        (["--out", str(tmp_path / "no" / "p.yaml")], "no directory"),
+        (["--out", str(tmp_path / "dir.yaml")], "a directory is there"),
+    ]
+    for extra, message in cases:
+        assert main([*search, *extra]) == 1, extra
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err and len(err.splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.yaml", "short.yaml"]
+    typo = tmp_path / "typo.yaml"
+    typo.write_text(programme.read_text().replace("T_veh: 0.05", "Tveh: 0.05"))
+    assert main(["design", str(typo), "--vehicle", str(fit), "--draws", "2"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"{typo}: key 'noise_K.Tveh' = 0.05: no state of the model"), err
+
+
+def test_a_short_first_phase_takes_the_whole_of_it_as_its_k_window(tmp_path):
+    """kvalue.hours defaults to 6 h or the whole first phase where it is shorter, as the schema
+    says; the schema's own default of 6 refused a 3 h first phase without the key."""
+    path = _short_programme(tmp_path, 60.0)
+    data = yaml.safe_load(path.read_text())
+    data["phases"][0]["hours"] = 3
+    data.pop("kvalue")
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    assert design.load_programme(path).k_window_h == 3.0
+
+
+def test_a_heavy_tailed_class_prior_is_assessed_without_its_unresolvable_draws(capsys):
+    """The tram class rests on two vehicles: a t with one degree of freedom, whose draws reach
+    K_veh = 2e157 W/K. exp(A dt) of such a draw overflowed and stopped the command with a
+    FloatingPointError; such a draw now determines nothing (counted in 'identifiable')."""
+    from railtherm.cli import main
+
+    programme = str(REPO_ROOT / "config" / "programmes" / "paper.yaml")
+    args = ["design", programme, "--class", "tram", "--mass-kg", "30030", "--surface-m2", "306"]
+    assert main([*args, "--draws", "200", "-d", str(REPO_ROOT)]) == 0
+    out = capsys.readouterr().out
+    shares = [int(v) for v in re.findall(r"\| (\d+) % of draws \|", out)]
+    assert len(shares) == 3 and all(0 < v < 100 for v in shares), out

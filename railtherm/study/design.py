@@ -461,6 +461,15 @@ def predict(
     for white noise), one for all outputs or one per output; ``noise_K``: the residual
     standard deviation per output, in place of the programme's sensor noise (a prior fit's,
     :class:`Prior`). The static test that fixes kA is read at the first phase's end."""
+    unknown = sorted(set(programme.noise_K) - set(structure.states))
+    if unknown:
+        raise ConfigError(
+            programme.where,
+            f"noise_K.{unknown[0]}",
+            programme.noise_K[unknown[0]],
+            f"no state of the model {structure.name} (its states: {', '.join(structure.states)}); "
+            "the tunnel air's noise is input_noise.T_o or sensors.T_o",
+        )
     noise = {**programme.noise_K, **(noise_K or {})}
     if outputs is None:
         outputs = tuple(s for s in structure.states if s in programme.noise_K)
@@ -527,6 +536,16 @@ class Prior:
     draws: dict[str, np.ndarray] | None = None
     noise_K: dict[str, float] = field(default_factory=dict)
     tau_samples: dict[str, float] = field(default_factory=dict)
+    tau_step_s: float | None = None  # the logger step of the samples tau_samples counts
+
+    def tau_at(self, step_s: float) -> dict[str, float]:
+        """The residuals' autocorrelation time in samples of a programme logged every
+        ``step_s``: the same time, at least one sample (a faster logger adds correlated
+        samples, not independent ones; a slower one samples white noise). As measured where
+        the prior does not say at which step."""
+        if self.tau_step_s is None:
+            return dict(self.tau_samples)
+        return {s: max(1.0, t * self.tau_step_s / step_s) for s, t in self.tau_samples.items()}
 
     def thetas(self) -> list[dict[str, float]]:
         """The prior's draws as parameter sets ([] without draws)."""
@@ -542,15 +561,21 @@ class Prior:
         free: Sequence[str] | None = None,
     ) -> Prediction:
         """:func:`predict` of ``programme`` at ``theta`` (default the prior's centre) for
-        ``free`` (default the prior's), with the prior's residual level."""
-        return predict(
-            self.structure,
-            self.theta if theta is None else theta,
-            programme,
-            free=self.free if free is None else free,
-            tau_samples=self.tau_samples or 1.0,
-            noise_K=self.noise_K,
-        )
+        ``free`` (default the prior's), with the prior's residual level. A parameter set
+        whose model the logger step cannot discretise (a heavy-tailed class draw: K_veh of
+        1e157 W/K) determines nothing."""
+        free = self.free if free is None else free
+        try:
+            return predict(
+                self.structure,
+                self.theta if theta is None else theta,
+                programme,
+                free=free,
+                tau_samples=self.tau_at(programme.step_s) or 1.0,
+                noise_K=self.noise_K,
+            )
+        except FloatingPointError:
+            return _undetermined(self.structure, tuple(free))
 
     def predict_runs(
         self,
@@ -568,7 +593,7 @@ class Prior:
             runs,
             step_s,
             self.noise_K,
-            tau_samples=self.tau_samples,
+            tau_samples=self.tau_at(step_s),
             free=self.free,
             systematic=systematic,
             dT_k=dT_k,
@@ -607,9 +632,10 @@ def record_runs(fit) -> tuple[list[Run], float] | None:
     return runs, float(np.median(steps))
 
 
-def residual_noise(fit) -> tuple[dict[str, float], dict[str, float]] | None:
+def residual_noise(fit) -> tuple[dict[str, float], dict[str, float], float] | None:
     """The noise of a fit's records, per compared output its standard deviation and
-    integrated autocorrelation time (samples), after the slow shapes its own systematic
+    integrated autocorrelation time (samples of the record's logger step, the third item),
+    after the slow shapes its own systematic
     errors leave in the residual are taken out: an offset of each output's sensors, a T_o
     offset and a power scale error (the model's response to each), and an error of each
     parameter the fit held fixed (kA from the static test: its sensitivity). Those errors
@@ -652,7 +678,7 @@ def residual_noise(fit) -> tuple[dict[str, float], dict[str, float]] | None:
             for a, b in zip(bounds[:-1], bounds[1:], strict=True)
         ]
         tau[s] = float(sum(t * n for t, n in per) / sum(n for _, n in per))
-    return noise, tau
+    return noise, tau, float(step_s)
 
 
 def fit_draws(fit, n: int, seed: int = 0) -> dict[str, np.ndarray] | None:
@@ -699,9 +725,10 @@ def prior_from_fit(fit, n: int = 0, seed: int = 0) -> Prior:
     measures = fit.section("measures")
     noise = {s: float(m["overall"]["rmse"]) for s, m in measures.items()}
     tau = {s: float(m["overall"].get("autocorrelation_time", 1.0)) for s, m in measures.items()}
+    step = None  # the measures' autocorrelation times are of an unknown step
     separated = residual_noise(fit)
     if separated is not None:
-        noise, tau = separated
+        noise, tau, step = separated
     estimated = {p for p, q in fit.parameters.items() if q.estimated is True}
     structure = fit.structure
     free = tuple(p for p in structure.parameters if p in estimated)
@@ -712,7 +739,7 @@ def prior_from_fit(fit, n: int = 0, seed: int = 0) -> Prior:
             "combined intervals" if fit.posterior is None else f"posterior ({fit.posterior_file})"
         )
         source += f", {n} draws of its {drawn}"
-    return Prior(structure, dict(fit.central), free, source, draws, noise, tau)
+    return Prior(structure, dict(fit.central), free, source, draws, noise, tau, step)
 
 
 def _read_with_series(path: str | Path):
@@ -748,15 +775,17 @@ def prior_from_fit_file(path: str | Path, n: int = 0, seed: int = 0) -> Prior:
     return prior
 
 
-def residuals_of(fits) -> tuple[dict[str, float], dict[str, float]]:
+def residuals_of(fits) -> tuple[dict[str, float], dict[str, float], float | None]:
     """The residual level a class's fits show: per compared output the median noise and the
-    median autocorrelation time (samples) over ``fits`` (:class:`railtherm.study.fit.Fit`)
-    whose verdict is acceptable (each as :func:`residual_noise` separates it where the fit's
-    series is at hand, else its RMSE and autocorrelation time); ({}, {}) without one."""
+    median autocorrelation time over ``fits`` (:class:`railtherm.study.fit.Fit`) whose
+    verdict is acceptable (each as :func:`residual_noise` separates it where the fit's
+    series is at hand, else its RMSE and autocorrelation time), and the logger step that
+    time is in samples of: 1 s (the times in seconds) where every fit's record gives its
+    step, else None (the samples of each fit's own step); ({}, {}, None) without one."""
     from railtherm.study.quality import ACCEPTABLE
 
     rmse: dict[str, list[float]] = {}
-    tau: dict[str, list[float]] = {}
+    tau: dict[str, list[tuple[float, float | None]]] = {}
     for fit in fits:
         if fit.verdict != ACCEPTABLE:
             continue
@@ -764,13 +793,20 @@ def residuals_of(fits) -> tuple[dict[str, float], dict[str, float]]:
         levels = residual_noise(fit) or (
             {s: float(m["overall"]["rmse"]) for s, m in measures.items()},
             {s: float(m["overall"].get("autocorrelation_time", 1)) for s, m in measures.items()},
+            None,
         )
         for state in levels[0]:
             rmse.setdefault(state, []).append(levels[0][state])
-            tau.setdefault(state, []).append(levels[1][state])
+            tau.setdefault(state, []).append((levels[1][state], levels[2]))
+    seconds = all(step is not None for v in tau.values() for _, step in v)
+
+    def median_tau(v: list[tuple[float, float | None]]) -> float:
+        return float(np.median([t * (step if seconds else 1.0) for t, step in v]))
+
     return (
         {s: float(np.median(v)) for s, v in rmse.items()},
-        {s: float(np.median(v)) for s, v in tau.items()},
+        {s: median_tau(v) for s, v in tau.items()},
+        1.0 if seconds and tau else None,
     )
 
 
@@ -789,8 +825,8 @@ def prior_from_reference(model, n: int = 200, seed: int = 0, fits=()) -> Prior:
         f"the {model.vehicle_class} reference model ({model.mass_kg:g} kg, "
         f"{model.surface_m2:g} m², {len(model.basis)} vehicles)"
     )
-    noise, tau = residuals_of(fits)
-    return Prior(structure, dict(model.theta), free, source, draws, noise, tau)
+    noise, tau, step = residuals_of(fits)
+    return Prior(structure, dict(model.theta), free, source, draws, noise, tau, step)
 
 
 def prior_for_class(
@@ -1001,11 +1037,22 @@ def best_of_length(
     for i, ph in enumerate(rest, start=1):
         if len(ph.steps) != 1:
             raise ConfigError(
-                programme.name, f"phases[{i}].steps", ph.steps, "optimised phases hold power_W"
+                programme.where, f"phases[{i}].steps", ph.steps, "optimised phases hold power_W"
             )
     if target not in prior.free:
         raise ConfigError("--target", "target", target, f"not estimated: {prior.free}")
     total = programme.hours if hours is None else float(hours)
+    if not (math.isfinite(total) and total > 0):
+        raise ConfigError("--length-h", "length_h", total, "expected a length in hours above 0")
+    shortest_h = 10.0 * programme.step_s / 3600.0  # ten samples, as a programme file needs
+    if not (math.isfinite(min_phase_h) and min_phase_h >= shortest_h):
+        raise ConfigError(
+            "--min-phase-h",
+            "min_phase_h",
+            min_phase_h,
+            f"expected at least {shortest_h:.3g} h: ten samples of the logger step "
+            f"({programme.step_s:g} s), as a programme file needs in every phase",
+        )
     n = len(rest)
     spare = total - first.hours - n * min_phase_h
     if n == 0 or spare < 0:
@@ -1018,7 +1065,21 @@ def best_of_length(
         )
     power_max = max(s[1] for ph in programme.phases for s in ph.steps)
     power_max = programme.limits.get("max_power_W", power_max)
-    power_max = float(max_power_W) if max_power_W is not None else power_max
+    if max_power_W is not None:
+        limit = programme.limits.get("max_power_W")
+        if not (math.isfinite(max_power_W) and max_power_W > 0):
+            raise ConfigError(
+                "--max-power-w", "max_power_w", max_power_W, "expected a power in W above 0"
+            )
+        if limit is not None and max_power_W > limit:
+            raise ConfigError(
+                "--max-power-w",
+                "max_power_w",
+                max_power_W,
+                f"above the programme's limits.max_power_W ({limit:g} W), which a proposed "
+                "programme keeps to (raise the limit in the file where the heaters can)",
+            )
+        power_max = float(max_power_W)
 
     def build(z: np.ndarray) -> Programme:
         share = np.exp(z[:n] - z[:n].max())
@@ -1094,7 +1155,7 @@ def within_limits(prior: Prior, programme: Programme) -> tuple[Programme, tuple[
     key = limits.LIMIT_KEYS[state]
     if excess(0.0)[0] > 0:
         raise ConfigError(
-            programme.name,
+            programme.where,
             f"limits.{key}",
             caps[state],
             f"{limits.WHAT[state]} exceeds it without any heating after the first phase: "
@@ -1126,9 +1187,10 @@ def markdown(assessment: Assessment) -> str:
     draws that identify it; then the target's probability."""
     a = assessment
     if a.prior.noise_K:
+        tau = a.prior.tau_at(a.programme.step_s)
         level = ", ".join(
             f"{s} {a.prior.noise_K[s]:.3g} K (autocorrelation time "
-            f"{a.prior.tau_samples.get(s, 1.0):.3g} samples)"
+            f"{tau.get(s, 1.0):.3g} samples of {a.programme.step_s:g} s)"
             for s in a.prior.noise_K
         )
         residuals = f"residuals as the prior's fits show them: {level}"

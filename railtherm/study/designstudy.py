@@ -156,7 +156,11 @@ def vehicle_rows(
                 cls.source,
                 cls.draws,
                 cls.noise_K or prior.noise_K,
-                cls.tau_samples or prior.tau_samples,
+                *(
+                    (cls.tau_samples, cls.tau_step_s)
+                    if cls.tau_samples
+                    else (prior.tau_samples, prior.tau_step_s)
+                ),
             )
             preds = [
                 cls.predict_runs(runs, step_s, systematic_of(fit), dT_k, theta)

@@ -59,8 +59,11 @@ def peaks(
     whose simulation is not finite is left out."""
     found: dict[str, list[float]] = {s: [] for s in structure.states}
     for theta in thetas:
-        with np.errstate(all="ignore"):
-            _, x = _record(structure, theta, programme)
+        try:
+            with np.errstate(all="ignore"):
+                _, x = _record(structure, theta, programme)
+        except FloatingPointError:  # exp(A dt) overflows: no finite simulation either
+            continue
         if not np.all(np.isfinite(x)):
             continue
         for i, s in enumerate(structure.states):

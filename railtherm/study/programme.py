@@ -8,6 +8,7 @@ logger grid and the windows the fit compares. Read by :func:`load_programme`, wr
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -88,6 +89,12 @@ class Programme:
     input_noise: Mapping[str, float] = field(default_factory=dict)
     k_window_h: float = kwindow.K_WINDOW_H
     storage_correction: bool = True
+    file: str = field(default="", compare=False)  # the file it was read from ("": in code)
+
+    @property
+    def where(self) -> str:
+        """The file an error names: the programme file, else the programme's name."""
+        return self.file or self.name
 
     @property
     def hours(self) -> float:
@@ -137,6 +144,7 @@ def load_programme(path: str | Path) -> Programme:
         inputs,
         hours,
         bool(k.get("storage_correction", True)),
+        file,
     )
 
 
@@ -484,12 +492,24 @@ def write_programme(programme: Programme, path: str | Path) -> tuple[Path, Path]
     import yaml
 
     path = Path(path)
-    text = yaml.safe_dump(programme_dict(programme), sort_keys=False, allow_unicode=True)
-    path.write_text(text, encoding="utf-8")
     table = path.with_suffix(".csv")
+    for target in (path, table):
+        if target.is_dir():
+            raise IsADirectoryError(f"{target} is a directory")
+    text = yaml.safe_dump(programme_dict(programme), sort_keys=False, allow_unicode=True)
     rows = schedule(programme)
-    with open(table, "w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
-        writer.writeheader()
-        writer.writerows({k: "" if v is None else v for k, v in r.items()} for r in rows)
+    # both written beside their places first, then moved there: no file is left half written
+    # or alone where the second cannot be written
+    parts = [path.with_name(f".{path.name}.part"), table.with_name(f".{table.name}.part")]
+    try:
+        parts[0].write_text(text, encoding="utf-8")
+        with open(parts[1], "w", newline="", encoding="utf-8") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
+            writer.writeheader()
+            writer.writerows({k: "" if v is None else v for k, v in r.items()} for r in rows)
+        os.replace(parts[0], path)
+        os.replace(parts[1], table)
+    finally:
+        for part in parts:
+            part.unlink(missing_ok=True)
     return path, table
