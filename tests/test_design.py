@@ -384,6 +384,25 @@ def test_a_target_of_zero_or_less_is_refused_for_what_it_is(text):
 
 
 @pytest.mark.bad_input
+def test_a_target_without_its_percent_sign_is_refused():
+    """ "C_veh=0.05" was read as 0.05 %, where a fraction (5 %) is the likelier meaning."""
+    with pytest.raises(ConfigError, match=r"give the percent sign: C_veh=0.05%"):
+        design.parse_target("C_veh=0.05")
+    assert design.parse_target("C_veh=5%") == ("C_veh", pytest.approx(0.05))
+
+
+@pytest.mark.bad_input
+def test_a_programme_too_long_to_hold_is_refused_not_a_memory_error(tmp_path):
+    """A phase of 1e9 h at a 60 s step asked numpy for 447 GiB (a traceback)."""
+    path = _short_programme(tmp_path, 60.0)
+    data = yaml.safe_load(path.read_text())
+    data["phases"][1]["hours"] = 1.0e9
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    with pytest.raises(ConfigError, match=r"key 'step_s' = 60.0: 60,000,001,440 logger samples"):
+        design.load_programme(path)
+
+
+@pytest.mark.bad_input
 @pytest.mark.parametrize(
     ("extra", "named"),
     [

@@ -119,3 +119,18 @@ def test_runs_of_a_programme_whose_k_window_is_not_steady_are_fitted_as_the_stud
         assert row, (p, runs)
         ratio, bias = float(row.group(1)), float(row.group(2))
         assert 0.7 <= ratio <= 2.0 and abs(bias) < 15.0, (p, ratio, bias)
+
+
+def test_too_few_runs_to_tell_are_said_to_be_too_few():
+    """Two runs of a programme printed "differ by more than 25 %" for a ratio of 0.38, whose
+    90 % interval from two runs reaches beyond 6: a verdict of sampling noise."""
+    from railtherm.study.replicates import Replicates, markdown
+
+    two = Replicates(2, {"C_veh": 0.08}, {"C_veh": 0.0304}, {"C_veh": 0.0})
+    lo, hi = two.ratio_interval("C_veh")
+    assert lo < 1.0 < hi and hi > 6.0
+    text = markdown(two)
+    assert "differ by more than" not in text
+    assert "2 runs cannot tell a ratio of 1 from the one found for C_veh" in text
+    many = Replicates(30, {"C_veh": 0.08}, {"C_veh": 0.0304}, {"C_veh": 0.0})
+    assert "differ by more than 25 % for C_veh" in markdown(many)

@@ -860,13 +860,17 @@ def parse_target(text: str) -> tuple[str, float]:
     """``"C_veh=5%"`` -> ("C_veh", 0.05): a parameter and its target relative 95 % half-width.
     A text of another form is a :class:`ConfigError` naming ``--target``."""
     name, sep, value = str(text).partition("=")
-    number = value.strip().removesuffix("%")
+    number = value.strip()
     try:
-        fraction = float(number) / 100.0
+        fraction = float(number.removesuffix("%")) / 100.0
     except ValueError:
         fraction = math.nan
     if not sep or not name.strip() or not math.isfinite(fraction):
         raise ConfigError("--target", "target", text, "expected PARAMETER=PERCENT, e.g. C_veh=5%")
+    if not number.endswith("%"):  # 0.05 read as 0.05 % where 5 % was meant
+        raise ConfigError(
+            "--target", "target", text, f"give the percent sign: {name.strip()}={number}%"
+        )
     if not fraction > 0:
         raise ConfigError(
             "--target", "target", text, "a target half-width is above 0 %, e.g. C_veh=5%"
@@ -1253,7 +1257,7 @@ def markdown(assessment: Assessment) -> str:
         )
     if a.k_storage_share > limits.NOT_STEADY_SHARE:
         lines.append(
-            f"The static k window is not steady: {100 * a.k_storage_share:.2g} % of its heat "
+            f"The static k window is not steady: {100 * a.k_storage_share:.3g} % of its heat "
             "goes into storage, which eq. 10 books as loss (start the programme steady, or "
             "lengthen the first phase)."
         )

@@ -266,11 +266,25 @@ def _noise_and_offsets(
     return noise, systematic, inputs
 
 
+# a programme's record is simulated and differentiated whole: 10 million samples (a year at
+# 3 s) is far beyond a tunnel test and still within memory; 1e9 h at 60 s asked for 447 GiB
+MAX_SAMPLES = 10_000_000
+
+
 def _check_step(file: str, step_s: float, phases: Sequence[Phase]) -> None:
     """Every phase, and every compared part of one, holds at least one logger sample of
     ``step_s``: a step longer than a phase (a logger step of a day against phases of hours)
     leaves it no sample, and a fit without samples determines nothing."""
     samples = [int(round(ph.hours * 3600.0 / step_s)) for ph in phases]
+    if sum(samples) > MAX_SAMPLES:
+        raise ConfigError(
+            file,
+            "step_s",
+            step_s,
+            f"{sum(samples):,} logger samples over the programme's "
+            f"{sum(ph.hours for ph in phases):g} h, more than {MAX_SAMPLES:,} (a record a "
+            "prediction holds in memory): give a longer step_s or shorter phases",
+        )
     for i, (ph, n) in enumerate(zip(phases, samples, strict=True)):
         if n < 1:
             raise ConfigError(

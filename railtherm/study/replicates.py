@@ -60,10 +60,28 @@ class Replicates:
         """Realised / predicted sd of log theta."""
         return self.realised[p] / self.predicted[p] if self.predicted[p] > 0 else math.inf
 
-    def differs(self, p: str) -> bool:
-        """Whether realised and predicted differ by more than :data:`DIFFER`."""
+    def ratio_interval(self, p: str) -> tuple[float, float]:
+        """The 90 % interval of realised / predicted that ``n`` runs give (the realised sd's
+        chi-square law with n - 1 degrees of freedom)."""
+        from scipy.special import chdtri
+
+        dof = self.n - 1
+        if dof < 1:
+            return (0.0, math.inf)
+        r = self.ratio(p)
+        return (r * math.sqrt(dof / chdtri(dof, 0.05)), r * math.sqrt(dof / chdtri(dof, 0.95)))
+
+    def outside(self, p: str) -> bool:
+        """Whether realised / predicted lies more than :data:`DIFFER` from 1."""
         r = self.ratio(p)
         return not (1.0 / (1.0 + DIFFER) <= r <= 1.0 + DIFFER)
+
+    def differs(self, p: str) -> bool:
+        """Whether realised and predicted differ by more than :data:`DIFFER`, beyond what the
+        runs can tell: the ratio outside the band and its 90 % interval away from 1 (two
+        runs said "differ" on a ratio of 0.38 whose interval reaches 6)."""
+        lo, hi = self.ratio_interval(p)
+        return self.outside(p) and not lo <= 1.0 <= hi
 
 
 def _noise(rng: np.random.Generator, n: int, sd: float, tau: float) -> np.ndarray:
@@ -241,5 +259,15 @@ def markdown(replicates: Replicates) -> str:
             "",
             f"Realised and predicted differ by more than {100 * DIFFER:g} % for "
             f"{', '.join(differ)}: the linear prediction does not describe this programme there.",
+        ]
+    unsure = [p for p in r.predicted if r.outside(p) and not r.differs(p)]
+    if unsure:
+        spans = ", ".join(
+            f"{p} [{r.ratio_interval(p)[0]:.2g}, {r.ratio_interval(p)[1]:.2g}]" for p in unsure
+        )
+        lines += [
+            "",
+            f"{r.n} runs cannot tell a ratio of 1 from the one found for {', '.join(unsure)} "
+            f"(90 % intervals of realised / predicted: {spans}): run more.",
         ]
     return "\n".join(lines)
