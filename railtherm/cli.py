@@ -394,6 +394,19 @@ def _design_prior(args: argparse.Namespace, workdir: str):
     from railtherm.study import design
 
     if args.vehicle:
+        ignored = [
+            option
+            for option, value in (("--mass-kg", args.mass_kg), ("--surface-m2", args.surface_m2))
+            if value is not None
+        ]
+        if ignored:  # they were ignored beside a fit, overwritten by a vehicle config's
+            raise ConfigError(
+                ignored[0],
+                ignored[0][2:].replace("-", "_"),
+                getattr(args, ignored[0][2:].replace("-", "_")),
+                "--vehicle brings its own mass and surface: give --class, --mass-kg and "
+                "--surface-m2 without --vehicle for a vehicle described by them",
+            )
         path = os.path.join(workdir, args.vehicle)
         data = read_yaml(path, display=args.vehicle)
         if isinstance(data, dict) and "parameters" not in data:
@@ -541,6 +554,10 @@ def _design(args: argparse.Namespace) -> int:
                 print(f"  {ph.describe()}")
             print()
             print(design.markdown(best))
+    if args.replicates and proposed is not None:
+        print("\nThe proposed programme in the virtual tunnel:")
+        checked = design.assess(prior, proposed, target, with_peaks=False)
+        _print_replicates(prior, proposed, checked, args)
     if args.out:
         if proposed is None:
             raise ConfigError("--out", "out", args.out, "no programme was found to write")

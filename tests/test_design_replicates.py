@@ -134,3 +134,33 @@ def test_too_few_runs_to_tell_are_said_to_be_too_few():
     assert "2 runs cannot tell a ratio of 1 from the one found for C_veh" in text
     many = Replicates(30, {"C_veh": 0.08}, {"C_veh": 0.0304}, {"C_veh": 0.0})
     assert "differ by more than 25 % for C_veh" in markdown(many)
+
+
+def test_the_proposed_programme_is_run_in_the_virtual_tunnel_too(fit_files, tmp_path, capsys):
+    """With --length-h (or --optimise) --replicates ran only the programme as given, and the
+    programme proposed went unchecked without a word."""
+    from railtherm.cli import main
+
+    fit, _ = fit_files("Metro2", "order2")
+    paper = (REPO_ROOT / "config" / "programmes" / "paper.yaml").read_text(encoding="utf-8")
+    programme = tmp_path / "paper36.yaml"
+    programme.write_text(paper.replace("name: steady, hours: 24", "name: steady, hours: 36"))
+    args = ["design", str(programme), "--vehicle", str(fit), "--draws", "5"]
+    args += ["--target", "C_veh=10%", "--length-h", "60", "--replicates", "3"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    given, proposed = out.split("The proposed programme in the virtual tunnel:")
+    assert "Virtual tunnel runs: 3 runs" in given and "Virtual tunnel runs: 3 runs" in proposed
+    assert "Best programme of 60 h" in given
+
+
+@pytest.mark.bad_input
+def test_a_mass_or_surface_beside_a_vehicle_is_refused(fit_files, capsys):
+    """--vehicle FIT.yaml --mass-kg 1e9 predicted for the fit and ignored the mass silently."""
+    from railtherm.cli import main
+
+    fit, _ = fit_files("Metro2", "order2")
+    programme = str(REPO_ROOT / "config" / "programmes" / "paper.yaml")
+    assert main(["design", programme, "--vehicle", str(fit), "--mass-kg", "1e9"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("--mass-kg: key 'mass_kg' = 1000000000.0: --vehicle brings its own")
