@@ -443,31 +443,12 @@ def _design_prior(args: argparse.Namespace, workdir: str):
     return prior
 
 
-def _print_replicates(prior, programme, assessment, args: argparse.Namespace) -> None:
-    """``--replicates``: the virtual tunnel runs of the programme against its prediction."""
-    from railtherm.study import replicates
-
-    runs = replicates.run(
-        prior.structure,
-        prior.theta,
-        programme,
-        assessment.central.sd_log,
-        args.replicates,
-        args.seed,
-        free=prior.free,
-        noise_K=prior.noise_K,
-        tau_samples=prior.tau_at(programme.step_s),
-    )
-    print()
-    print(replicates.markdown(runs))
-
-
 def _design(args: argparse.Namespace) -> int:
     """``railtherm design``: the predicted 95 % intervals a planned programme gives a vehicle
     (:mod:`railtherm.study.design`), from a measured vehicle's fit or from the class
     reference model of an unmeasured one; with --optimise, the shortest programme of the same
     shape that reaches --target with the probability asked."""
-    from railtherm.study import design
+    from railtherm.study import design, designtext, replicates
 
     workdir = args.directory
     programme = design.load_programme(os.path.join(workdir, args.programme))
@@ -488,7 +469,7 @@ def _design(args: argparse.Namespace) -> int:
         )
     _nonnegative(args, "seed")
     if args.out:
-        _programme_out(args.out, os.path.join(workdir, args.out))
+        design.check_out_path(args.out, os.path.join(workdir, args.out))
     prior = _design_prior(args, workdir)
     assessment = design.assess(prior, programme, target)
     found = None
@@ -499,9 +480,9 @@ def _design(args: argparse.Namespace) -> int:
         best = design.best_of_length(
             prior, programme, target[0], args.length_h, args.max_power_w, args.min_phase_h
         )
-    print(design.markdown(assessment))
+    print(designtext.markdown(assessment))
     if args.replicates:
-        _print_replicates(prior, programme, assessment, args)
+        print("\n" + replicates.markdown(replicates.run_for(prior, programme, assessment, args)))
     proposed = None
     if best is not None and best[1].central.loop_gain >= design.LOOP_GAIN_MAX:
         print(
@@ -517,7 +498,8 @@ def _design(args: argparse.Namespace) -> int:
         for ph in chosen.phases:
             print(f"  {ph.describe()}")
         print()
-        print(design.markdown(replace(design.assess(prior, chosen, target), notes=assessed.notes)))
+        chosen_assessed = replace(design.assess(prior, chosen, target), notes=assessed.notes)
+        print(designtext.markdown(chosen_assessed))
         name = target[0]
         before, after = assessment.central.half_width[name], assessed.central.half_width[name]
         if assessment.central.loop_gain >= design.LOOP_GAIN_MAX:
@@ -553,11 +535,11 @@ def _design(args: argparse.Namespace) -> int:
             for ph in best.programme.phases:
                 print(f"  {ph.describe()}")
             print()
-            print(design.markdown(best))
+            print(designtext.markdown(best))
     if args.replicates and proposed is not None:
         print("\nThe proposed programme in the virtual tunnel:")
         checked = design.assess(prior, proposed, target, with_peaks=False)
-        _print_replicates(prior, proposed, checked, args)
+        print("\n" + replicates.markdown(replicates.run_for(prior, proposed, checked, args)))
     if args.out:
         if proposed is None:
             raise ConfigError("--out", "out", args.out, "no programme was found to write")
@@ -567,24 +549,6 @@ def _design(args: argparse.Namespace) -> int:
             raise ConfigError("--out", "out", args.out, f"cannot write there: {err}") from err
         print(f"\nWrote {written[0]} and its set-point schedule {written[1]}.")
     return 0
-
-
-def _programme_out(given: str, path: str) -> None:
-    """``--out`` of ``design``, checked before any search: a programme file (.yaml) in a
-    directory that exists, its set-point schedule (.csv) beside it; else a
-    :class:`ConfigError` naming it."""
-    from pathlib import Path
-
-    target = Path(path)
-    problem = None
-    if target.suffix.lower() not in (".yaml", ".yml"):
-        problem = "expected a programme file ending in .yaml (its schedule goes beside it, .csv)"
-    elif not target.parent.is_dir():
-        problem = f"no directory {target.parent} to write into"
-    elif target.is_dir() or target.with_suffix(".csv").is_dir():
-        problem = f"a directory is there ({target} or {target.with_suffix('.csv')})"
-    if problem:
-        raise ConfigError("--out", "out", given, problem)
 
 
 def _band_draws(draws: int) -> None:
@@ -641,7 +605,7 @@ def _energy(args: argparse.Namespace) -> int:
         )
     year = read_weather(os.path.join(workdir, args.weather), kind=args.kind)
     params = sim.load_parameters(os.path.join(workdir, args.params))
-    surface = _reference_surface(params, args.surface_m2)
+    surface = energy.heater_surface(params, args.surface_m2)
     with _progress_bar(f"annual energy of {os.path.basename(args.params)}") as progress:
         result = energy.annual_energy(
             params,
@@ -672,25 +636,6 @@ def _energy(args: argparse.Namespace) -> int:
         for path in written:
             print(f"wrote {path}", file=sys.stderr)
     return 0
-
-
-def _reference_surface(params: Any, given: float | None) -> float | None:
-    """The outer surface that sizes a per-m² heater: ``--surface-m2`` (``given``) or, for a
-    class reference model, the surface it was built for; both, when they differ, contradict
-    each other (the model's kA and capacities are those of its own surface)."""
-    own = params.surface_m2
-    if given is None or own is None:
-        return own if given is None else given
-    if not math.isclose(given, own, rel_tol=1e-9):
-        raise ConfigError(
-            "--surface-m2",
-            "surface_m2",
-            given,
-            f"the class reference model was built for {own:g} m² (its kA and capacities are "
-            "that surface's): leave --surface-m2 out, or build the model for this surface "
-            "(railtherm reference --surface-m2)",
-        )
-    return given
 
 
 @contextlib.contextmanager

@@ -326,7 +326,7 @@ def test_the_command_takes_a_measured_vehicle_and_optimises(fit_files, tmp_path,
     # the paper's 24 h steady phase leaves Metro2's k window 10 % in storage: the static kA
     # and the fit pull each other away (g·S 1.25), where the prediction is too narrow, and
     # the search keeps out of it (before: 0.7 h at 40 kW then 23 h, g·S 3.3, "C_veh ±15.3 %
-    # -> ±2.68 %", which the virtual tunnel runs realise 1.66 times as wide)
+    # -> ±2.68 %", which the virtual tunnel runs realise about twice as wide)
     assert main([*args[:-1], "--length-h", "48", "--max-power-w", "40000"]) == 0
     best = capsys.readouterr().out
     assert "g·S = 1.25, at least 1" in best and "No programme of 48 h was found" in best

@@ -57,16 +57,17 @@ __all__ = [
     "annual_energy",
     "check_what_ifs",
     "contradiction",
-    "markdown",
+    "heater_surface",
     "load_profile",
+    "markdown",
     "parse_what_if",
     "profile_on_grid",
-    "study_table",
-    "vehicle_energy",
     "result_rows",
-    "write_result",
     "study_markdown",
     "study_rows",
+    "study_table",
+    "vehicle_energy",
+    "write_result",
     "write_study_energy",
 ]
 
@@ -764,6 +765,26 @@ def step_problem(dt_s: float) -> str | None:
             "between the steps; give a step of at most 3600 s, e.g. 60 or 300"
         )
     return None
+
+
+def heater_surface(params: Any, given: float | None) -> float | None:
+    """The outer surface that sizes a per-m² heater: ``given`` (``--surface-m2``) or, for a
+    class reference model (``params``, a :class:`railtherm.study.simulate.ParameterSet`),
+    the surface it was built for; both, when they differ, contradict each other (the
+    model's kA and capacities are those of its own surface)."""
+    own = params.surface_m2
+    if given is None or own is None:
+        return own if given is None else given
+    if not math.isclose(given, own, rel_tol=1e-9):
+        raise ConfigError(
+            "--surface-m2",
+            "surface_m2",
+            given,
+            f"the class reference model was built for {own:g} m² (its kA and capacities are "
+            "that surface's): leave --surface-m2 out, or build the model for this surface "
+            "(railtherm reference --surface-m2)",
+        )
+    return given
 
 
 def study_columns() -> list[str]:

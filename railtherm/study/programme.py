@@ -24,6 +24,7 @@ from railtherm.yamlio import check_finite, packaged_schema, read_yaml, validate_
 __all__ = [
     "Phase",
     "Programme",
+    "check_out_path",
     "compared_rows",
     "fit_windows",
     "initial_state",
@@ -495,6 +496,22 @@ def schedule(programme: Programme) -> list[dict[str, Any]]:
             )
         t0 += ph.hours
     return rows
+
+
+def check_out_path(given: str, path: str | Path) -> None:
+    """Where :func:`write_programme` is to write (``railtherm design --out``), checked before
+    any search: a programme file (.yaml) in a directory that exists, its set-point schedule
+    (.csv) beside it; else a :class:`ConfigError` naming ``--out`` and ``given``."""
+    target = Path(path)
+    problem = None
+    if target.suffix.lower() not in (".yaml", ".yml"):
+        problem = "expected a programme file ending in .yaml (its schedule goes beside it, .csv)"
+    elif not target.parent.is_dir():
+        problem = f"no directory {target.parent} to write into"
+    elif target.is_dir() or target.with_suffix(".csv").is_dir():
+        problem = f"a directory is there ({target} or {target.with_suffix('.csv')})"
+    if problem:
+        raise ConfigError("--out", "out", given, problem)
 
 
 def write_programme(programme: Programme, path: str | Path) -> tuple[Path, Path]:

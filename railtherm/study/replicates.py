@@ -35,7 +35,7 @@ from railtherm.study.programme import (
     programme_inputs,
 )
 
-__all__ = ["DIFFER", "Replicates", "markdown", "run"]
+__all__ = ["DIFFER", "Replicates", "markdown", "run", "run_for"]
 
 DIFFER = 0.25  # realised and predicted widths differing by more than this share are flagged
 # the fits start at the parameters the runs are simulated with; only their estimates are used
@@ -222,6 +222,23 @@ def run(
     }
     bias = {p: float(np.mean([r[p] for r in logs])) if logs else math.nan for p in free}
     return Replicates(len(logs), {p: float(predicted[p]) for p in free}, realised, bias, failed)
+
+
+def run_for(prior, programme: Programme, assessment, options) -> Replicates:
+    """:func:`run` of ``programme`` for a design prior (:class:`railtherm.study.design.Prior`)
+    against its ``assessment``'s central prediction, ``options.replicates`` runs with seed
+    ``options.seed`` (``railtherm design --replicates``)."""
+    return run(
+        prior.structure,
+        prior.theta,
+        programme,
+        assessment.central.sd_log,
+        options.replicates,
+        options.seed,
+        free=prior.free,
+        noise_K=prior.noise_K,
+        tau_samples=prior.tau_at(programme.step_s),
+    )
 
 
 def markdown(replicates: Replicates) -> str:
