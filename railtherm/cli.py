@@ -346,6 +346,7 @@ def _reference_model(args: argparse.Namespace) -> int:
         k=args.k,
         min_vehicles=args.min_vehicles,
         exclude=args.exclude or (),
+        exclude_in_class=True,
     )
     quantities = {"m_veh": args.mass_kg, "surface": args.surface_m2}
     notes = _class_range_notes(args.vehicle_class, quantities, args.directory)

@@ -311,6 +311,17 @@ def test_refuses_a_class_with_too_few_usable_vehicles():
         build(members, "main-line", MASS, SURFACE)
 
 
+def test_an_excluded_vehicle_of_another_class_is_refused():
+    """`railtherm reference --class metro --exclude Tram1` was accepted and changed nothing:
+    a misplaced id looked like a model built without it."""
+    members = [member("M1"), member("M2", c_veh=500.0), member("M3", c_veh=450.0)]
+    members.append(member("T1", vehicle_class="tram"))
+    with pytest.raises(ConfigError, match=r"'T1': a vehicle of class tram, not of metro"):
+        build(members, "metro", MASS, SURFACE, exclude=["T1"], exclude_in_class=True)
+    # a study leaving a vehicle out of the class it is predicted by, whatever the basis
+    assert build(members, "metro", MASS, SURFACE, exclude=["T1"]).basis == ["M1", "M2", "M3"]
+
+
 @pytest.mark.parametrize(
     "kwargs, start",
     [

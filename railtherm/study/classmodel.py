@@ -844,10 +844,13 @@ def build(
     k: float | None = None,
     min_vehicles: int = 2,
     exclude: Iterable[str] = (),
+    exclude_in_class: bool = False,
 ) -> ReferenceModel:
     """The :class:`ReferenceModel` of a vehicle of ``vehicle_class`` (or ``"all"``: every rail
     class pooled, a comparator) with mass ``mass_kg`` and outer surface ``surface_m2``, from
     the class's usable ``members`` less ``exclude``. ``k`` (W/(m2 K)) replaces the class's k.
+    With ``exclude_in_class`` (``railtherm reference --exclude``) an excluded vehicle of
+    another class is refused: leaving it out would change nothing.
 
     Raises a one-line :class:`ConfigError` for an unknown class, a non-positive mass, surface
     or k, ``min_vehicles`` below 2, an excluded id that is no member, and a class with fewer
@@ -880,6 +883,15 @@ def build(
         or (vehicle_class == POOLED and m.vehicle_class in RAIL_CLASSES)
     ]
     excluded = [m.vehicle for m in in_class if m.vehicle in exclude]
+    outside = [vid for vid in exclude if vid not in excluded]
+    if outside and exclude_in_class:  # excluding it changes nothing: a misplaced id
+        cls = next(m.vehicle_class for m in members if m.vehicle == outside[0])
+        raise ConfigError(
+            "--exclude",
+            "exclude",
+            outside[0],
+            f"a vehicle of class {cls}, not of {vehicle_class}: leaving it out changes nothing",
+        )
     candidates = [m for m in in_class if m.vehicle not in exclude]
     basis = [m for m in candidates if m.usable]
     not_used = {m.vehicle: m.why for m in candidates if not m.usable}
