@@ -76,9 +76,13 @@ def _study(args: argparse.Namespace, vehicles: Sequence[str]) -> Study:
     return study
 
 
-def _references(args: argparse.Namespace, study: Study) -> int:
+def _study_config(args: argparse.Namespace) -> dict:
+    """The study config ``validate`` checks (read by railtherm's own loader)."""
+    return read_yaml(os.path.join(args.directory, args.config), display=args.config) or {}
+
+
+def _references(args: argparse.Namespace, study: Study, config: dict) -> int:
     """Check the study's reference files (``study.references``) against its fits; how many."""
-    config = read_yaml(os.path.join(args.directory, args.config), display=args.config)
     paths = ((config or {}).get("study") or {}).get("references") or []
     if paths:
         from railtherm.study import fitsettings, reference
@@ -92,11 +96,10 @@ def _references(args: argparse.Namespace, study: Study) -> int:
     return len(paths)
 
 
-def _weather_years(args: argparse.Namespace) -> int:
+def _weather_years(args: argparse.Namespace, config: dict) -> int:
     """Read the study's typical years (``energy.weather``, when enabled) as the rule energy
     will, so that a year in degF or K, cut short or of another kind stops here, not after
     the fits; how many."""
-    config = read_yaml(os.path.join(args.directory, args.config), display=args.config)
     energy = (config or {}).get("energy") or {}
     if not energy.get("enabled", False):
         return 0
@@ -111,7 +114,8 @@ def _weather_years(args: argparse.Namespace) -> int:
 def _validate(args: argparse.Namespace) -> int:
     workdir = args.directory
     study = _study(args, args.vehicles)
-    references = 0 if args.vehicles else _references(args, study)
+    config = {} if args.vehicles else _study_config(args)
+    references = 0 if args.vehicles else _references(args, study, config)
     count = len(study.vehicles)
     summary = f"ok: {count} vehicle{'' if count == 1 else 's'}"
     if references:
@@ -119,7 +123,6 @@ def _validate(args: argparse.Namespace) -> int:
     if not args.vehicles:
         from railtherm.study.plan import figure_warnings
 
-        config = read_yaml(os.path.join(workdir, args.config), display=args.config) or {}
         for warning in figure_warnings(study, config):
             print(f"warning: {warning}", file=sys.stderr)
     if not args.headers_only:
@@ -137,7 +140,7 @@ def _validate(args: argparse.Namespace) -> int:
         for warning in shared_records(study):
             print(f"warning: {warning}", file=sys.stderr)
         summary += f", values of {windows} window{'' if windows == 1 else 's'} checked"
-        years = 0 if args.vehicles else _weather_years(args)
+        years = 0 if args.vehicles else _weather_years(args, config)
         if years:
             summary += f", {years} weather year{'' if years == 1 else 's'} read"
         if not_written:

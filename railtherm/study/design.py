@@ -479,43 +479,49 @@ def predict(
         if isinstance(tau_samples, Mapping)
         else dict.fromkeys(noise, float(tau_samples))
     )
+    free = tuple(p for p in structure.parameters if p != "kA") if free is None else tuple(free)
     windows = tuple((a, b) for _, a, b in fit_windows(programme))
     if not windows:  # phases scaled below the logger step: no compared sample
-        free = tuple(p for p in structure.parameters if p != "kA") if free is None else free
-        return _undetermined(structure, tuple(free))
-    u = programme_inputs(programme, structure, theta)
-    x0 = initial_state(programme, structure, theta, u[0]) if x0 is None else np.asarray(x0, float)
-    run = Run(u, x0, windows)
-    static_test = None
-    if "kA" in structure.parameters and (free is None or "kA" not in free):
-        x = models.simulate(structure, theta, u, programme.step_s, x0)
-        sensors = {s: programme.noise_K.get(s, v) for s, v in noise.items() if s in outputs}
-        default = tuple(p for p in structure.parameters if p != "kA")
-        static_test = kwindow.static_k(
+        return _undetermined(structure, free)
+    # a parameter set whose model the logger step cannot discretise (a heavy-tailed class
+    # draw: K_veh of 1e157 W/K, exp(A dt) overflows) determines nothing
+    try:
+        u = programme_inputs(programme, structure, theta)
+        if x0 is None:
+            x0 = initial_state(programme, structure, theta, u[0])
+        x0 = np.asarray(x0, float)
+        run = Run(u, x0, windows)
+        static_test = None
+        if "kA" in structure.parameters and "kA" not in free:
+            x = models.simulate(structure, theta, u, programme.step_s, x0)
+            sensors = {s: programme.noise_K.get(s, v) for s, v in noise.items() if s in outputs}
+            static_test = kwindow.static_k(
+                structure,
+                theta,
+                u,
+                x,
+                programme.step_s,
+                k_window_rows(programme),
+                sensors,
+                programme.input_noise,
+                storage_correction=programme.storage_correction,
+                free=free,
+            )
+        return predict_runs(
             structure,
             theta,
-            u,
-            x,
+            [run],
             programme.step_s,
-            k_window_rows(programme),
-            sensors,
-            programme.input_noise,
-            storage_correction=programme.storage_correction,
-            free=default if free is None else free,
+            noise,
+            tau_samples=tau,
+            free=free,
+            outputs=outputs,
+            systematic=programme.systematic,
+            static_test=static_test,
+            input_noise=programme.input_noise,
         )
-    return predict_runs(
-        structure,
-        theta,
-        [run],
-        programme.step_s,
-        noise,
-        tau_samples=tau,
-        free=free,
-        outputs=outputs,
-        systematic=programme.systematic,
-        static_test=static_test,
-        input_noise=programme.input_noise,
-    )
+    except FloatingPointError:
+        return _undetermined(structure, free)
 
 
 # ------------------------------------------------------------------------------------------
@@ -562,21 +568,15 @@ class Prior:
         free: Sequence[str] | None = None,
     ) -> Prediction:
         """:func:`predict` of ``programme`` at ``theta`` (default the prior's centre) for
-        ``free`` (default the prior's), with the prior's residual level. A parameter set
-        whose model the logger step cannot discretise (a heavy-tailed class draw: K_veh of
-        1e157 W/K) determines nothing."""
-        free = self.free if free is None else free
-        try:
-            return predict(
-                self.structure,
-                self.theta if theta is None else theta,
-                programme,
-                free=free,
-                tau_samples=self.tau_at(programme.step_s) or 1.0,
-                noise_K=self.noise_K,
-            )
-        except FloatingPointError:
-            return _undetermined(self.structure, tuple(free))
+        ``free`` (default the prior's), with the prior's residual level."""
+        return predict(
+            self.structure,
+            self.theta if theta is None else theta,
+            programme,
+            free=self.free if free is None else free,
+            tau_samples=self.tau_at(programme.step_s) or 1.0,
+            noise_K=self.noise_K,
+        )
 
     def predict_runs(
         self,
