@@ -144,8 +144,8 @@ def check_values(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> Dat
         if display not in raws:
             raws[display] = ingest.read_record_part(record, vehicle.data, workdir)
         table = ingest.tidy(raws[display], vehicle.data, window, display, window_key=key)
-        if name in identification and len(table):
-            stamps = _instants(table["timestamp"])
+        stamps = _instants(table["timestamp"]) if name in identification else []
+        if stamps:
             spans.setdefault(display, []).append((name, stamps[0], stamps[-1]))
         if name == "kvalue":
             k = kvalue.for_vehicle(table, vehicle.data, source=f"{display} ({key})")
@@ -158,9 +158,12 @@ def check_values(vehicle: Vehicle, workdir: str | os.PathLike[str] = ".") -> Dat
 
 def _instants(stamps: pd.Series) -> list:
     """A tidy table's ``timestamp`` column as comparable instants: seconds of an elapsed
-    time axis, or dates."""
+    time axis, or dates ([] where it holds neither: nothing to compare)."""
     numbers = pd.to_numeric(stamps, errors="coerce")
-    return list(numbers if numbers.notna().all() else pd.to_datetime(stamps))
+    if numbers.notna().all():
+        return list(numbers)
+    dates = pd.to_datetime(stamps, errors="coerce", utc=True)
+    return list(dates) if dates.notna().all() else []
 
 
 def _refuse_overlaps(vehicle: Vehicle, spans: Mapping[str, list[tuple[str, object, object]]]):
